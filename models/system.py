@@ -1,0 +1,170 @@
+"""Linear systems whose state matrix is affine in uncertain parameters."""
+
+from __future__ import annotations
+
+from dataclasses import KW_ONLY, dataclass
+
+import numpy as np
+
+from ._validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
+from .errors import DimensionError, InputError
+from .sets import Box
+
+__all__ = ["UncertainLinearSystem"]
+
+
+@dataclass(frozen=True, eq=False)
+class UncertainLinearSystem:
+    """The discrete-time plant ``x+ = A(theta) x + B u + D w``.
+
+    Parameters
+    ----------
+    A0
+        Nominal state matrix, shape (p, p).
+    phi
+        Structure matrices, shape (d, p, p): ``A(theta) = A0 + sum_i theta[i] phi[i]``
+        (eq. (2), Assumption 1).
+    B
+        Input matrix, shape (p, q).
+    D
+        Disturbance input matrix, shape (p, r); defaults to the identity (r = p).
+    w
+        Box of admissible disturbances, dimension r (Assumption 2).
+    theta
+        Prior parameter box, dimension d: the set D of Assumption 1.
+    """
+
+    A0: np.ndarray
+    phi: np.ndarray
+    B: np.ndarray
+    _: KW_ONLY
+    D: np.ndarray | None = None
+    w: Box
+    theta: Box
+
+    def __post_init__(self) -> None:
+        A0 = as_finite_array("A0", self.A0, ndim=2)
+        p = A0.shape[0]
+        check_shape("A0", A0, (p, p))
+        phi = as_finite_array("phi", self.phi, ndim=3)
+        check_shape("phi", phi, (None, p, p))
+        B = as_finite_array("B", self.B)
+        if B.ndim == 1:
+            B = B.reshape(p, 1) if B.shape == (p,) else B
+        check_shape("B", B, (p, None))
+        D = np.eye(p) if self.D is None else as_finite_array("D", self.D, ndim=2)
+        check_shape("D", D, (p, None))
+        if not isinstance(self.w, Box):
+            raise InputError(f"w must be a Box, got {type(self.w).__name__}")
+        if not isinstance(self.theta, Box):
+            raise InputError(f"theta must be a Box, got {type(self.theta).__name__}")
+        if self.w.dim != D.shape[1]:
+            raise DimensionError(f"w must have dimension {D.shape[1]} (columns of D, shape {D.shape}), got {self.w.dim}")
+        if self.theta.dim != phi.shape[0]:
+            raise DimensionError(f"theta must have dimension {phi.shape[0]} (phi has shape {phi.shape}), got {self.theta.dim}")
+        for name, value in (("A0", A0), ("phi", phi), ("B", B), ("D", D)):
+            object.__setattr__(self, name, frozen_copy(value))
+
+    # ----------------------------------------------------------------- sizes
+    @property
+    def nstates(self) -> int:
+        """p, the state dimension."""
+        return self.A0.shape[0]
+
+    @property
+    def ninputs(self) -> int:
+        """q, the control dimension."""
+        return self.B.shape[1]
+
+    @property
+    def nparams(self) -> int:
+        """d, the number of uncertain parameters."""
+        return self.phi.shape[0]
+
+    @property
+    def ndisturbances(self) -> int:
+        """r, the disturbance dimension (columns of D)."""
+        return self.D.shape[1]
+
+    # ------------------------------------------------------------- dynamics
+    def A(self, theta) -> np.ndarray:
+        """``A(theta) = A0 + sum_i theta[i] phi[i]``; theta (d,) -> (p, p), or (k, d) -> (k, p, p)."""
+        t = as_finite_array("theta", theta)
+        if t.shape[-1:] != (self.nparams,) or t.ndim > 2:
+            raise DimensionError(f"theta must have shape ({self.nparams},) or (k, {self.nparams}), got shape {t.shape}")
+        return self.A0 + np.tensordot(t, self.phi, axes=([-1], [0]))
+
+    def step(self, x, u, theta, w=None) -> np.ndarray:
+        """One transition ``A(theta) x + B u + D w`` (w defaults to 0), for x of shape (p,)."""
+        x = as_finite_array("x", x, (self.nstates,))
+        u = as_finite_array("u", u, (self.ninputs,))
+        w = np.zeros(self.ndisturbances) if w is None else as_finite_array("w", w, (self.ndisturbances,))
+        return self.A(theta) @ x + self.B @ u + self.D @ w
+
+    def regressor(self, x) -> np.ndarray:
+        """The p x d matrix whose column i is ``phi[i] @ x``, so ``A(theta) x = A0 x + regressor(x) theta``.
+
+        ``x`` of shape (N, p) gives (N, p, d).
+        """
+        x = as_finite_array("x", x)
+        if x.shape[-1:] != (self.nstates,) or x.ndim > 2:
+            raise DimensionError(f"x must have shape ({self.nstates},) or (N, {self.nstates}), got shape {x.shape}")
+        return np.einsum("ipq,...q->...pi", self.phi, x)
+
+    # --------------------------------------------------------- constructors
+    @classmethod
+    def from_continuous(cls, A, phi, B, *, D=None, w: Box, theta: Box, dt: float) -> "UncertainLinearSystem":
+        """Discretise eq. (1), ``dx/dt = A(theta) x + B u + D w``, by forward Euler.
+
+        Notes
+        -----
+        ``x+ = (I + dt A0 + sum_i theta_i dt phi_i) x + dt B u + dt D w``. Forward Euler
+        keeps the model affine in theta (an exact discretisation would not), and the
+        simulated worlds step with the same scheme, so the discrete model is exact for them.
+        """
+        dt = as_positive_scalar("dt", dt)
+        A = as_finite_array("A", A, ndim=2)
+        p = A.shape[0]
+        check_shape("A", A, (p, p))
+        phi = as_finite_array("phi", phi, ndim=3)
+        B = as_finite_array("B", B)
+        Dm = np.eye(p) if D is None else as_finite_array("D", D, ndim=2)
+        return cls(np.eye(p) + dt * A, dt * phi, dt * B, D=dt * Dm, w=w, theta=theta)
+
+    @classmethod
+    def from_statespace(cls, sys, phi, *, D=None, w: Box, theta: Box, dt: float | None = None) -> "UncertainLinearSystem":
+        """Build from a python-control ``StateSpace``.
+
+        Its ``A`` is the nominal matrix and its ``B`` the input matrix. Its ``D`` (the
+        feedthrough) and ``C`` are ignored: our ``D`` is the disturbance input matrix. A
+        continuous-time ``sys`` needs ``dt`` (forward Euler, see `from_continuous`); a
+        discrete-time one uses its own sampling time and must not be given another.
+        """
+        for attr in ("A", "B", "dt"):
+            if not hasattr(sys, attr):
+                raise InputError(f"sys must be a python-control StateSpace, got {type(sys).__name__}")
+        sys_dt = sys.dt
+        is_continuous = sys_dt is not None and sys_dt is not True and float(sys_dt) == 0.0
+        if is_continuous:
+            if dt is None:
+                raise InputError("sys is continuous-time: give dt= to discretise it")
+            return cls.from_continuous(np.asarray(sys.A), phi, np.asarray(sys.B), D=D, w=w, theta=theta, dt=dt)
+        if dt is not None and sys_dt is not True and sys_dt is not None and not np.isclose(float(sys_dt), dt):
+            raise InputError(f"sys is discrete-time with dt={sys_dt}; dt={dt} contradicts it")
+        return cls(np.asarray(sys.A), phi, np.asarray(sys.B), D=D, w=w, theta=theta)
+
+    def to_dict(self) -> dict:
+        return {
+            "A0": self.A0.tolist(),
+            "phi": self.phi.tolist(),
+            "B": self.B.tolist(),
+            "D": self.D.tolist(),
+            "w": self.w.to_dict(),
+            "theta": self.theta.to_dict(),
+        }
+
+    def __repr__(self) -> str:
+        return (
+            f"UncertainLinearSystem(nstates={self.nstates}, ninputs={self.ninputs}, "
+            f"nparams={self.nparams}, ndisturbances={self.ndisturbances})"
+        )

@@ -1,0 +1,1 @@
+"""minimaxplan.verify."""
