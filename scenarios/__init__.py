@@ -1,1 +1,3 @@
 """minimaxplan.scenarios."""
+
+from .geometry import CircularObstacles, MovingObstacles, fcl_disc_collisions
