@@ -1,1 +1,4 @@
 """minimaxplan.planners."""
+
+from .decision import Decision
+from .search import OptimisticPlanner, RobustTreePlanner

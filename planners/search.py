@@ -1,0 +1,367 @@
+"""Robust optimistic tree search over a finite set of models, and its M = 1 case (OPD).
+
+The planners see models only through a small transition protocol:
+
+- ``model.step(state, action) -> (next_state, reward)`` or
+  ``(next_state, reward, terminal)``, with ``reward`` in [0, 1] (maximised);
+- optionally ``model.expand(state, actions) -> (next_states, rewards, terminals)``:
+  all actions from one state in one batched call, ``next_states`` a sequence of
+  ``len(actions)`` states, ``rewards`` a float array of shape ``(len(actions),)``,
+  ``terminals`` a bool array of the same shape. When present it is used instead of
+  ``step`` (the two must agree; the tree does not depend on which is used).
+
+After a terminal transition a model is never stepped again on that branch: its
+later rewards are 0 and its state stays the terminal state.
+"""
+
+from __future__ import annotations
+
+import heapq
+import numbers
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..models.errors import DimensionError, InputError, NonFiniteError, RewardRangeError
+from .decision import Decision
+from .tree import SearchTree
+
+__all__ = ["RobustTreePlanner", "OptimisticPlanner"]
+
+
+class _Transitions:
+    """Steps one model from one state by every action; checks the protocol's types."""
+
+    __slots__ = ("index", "model", "actions", "n_actions", "_expand", "_step")
+
+    def __init__(self, index: int, model: Any, actions: tuple) -> None:
+        step = getattr(model, "step", None)
+        if not callable(step):
+            raise InputError(
+                f"models[{index}] has no callable step(state, action); got {type(model).__name__}"
+            )
+        expand = getattr(model, "expand", None)
+        self.index = index
+        self.model = model
+        self.actions = actions
+        self.n_actions = len(actions)
+        self._step = step
+        self._expand = expand if callable(expand) else None
+
+    def __call__(self, state) -> tuple[list, np.ndarray, np.ndarray]:
+        if self._expand is not None:
+            return self._batched(state)
+        return self._one_by_one(state)
+
+    def _batched(self, state) -> tuple[list, np.ndarray, np.ndarray]:
+        out = self._expand(state, self.actions)
+        if not isinstance(out, tuple) or len(out) != 3:
+            raise InputError(
+                f"models[{self.index}].expand(state, actions) must return a tuple "
+                f"(next_states, rewards, terminals), got {_describe(out)}"
+            )
+        next_states, rewards, terminals = out
+        n = self.n_actions
+        if len(next_states) != n:
+            raise DimensionError(
+                f"models[{self.index}].expand returned {len(next_states)} next states "
+                f"for {n} actions"
+            )
+        try:
+            rewards = np.asarray(rewards, dtype=float)
+        except (TypeError, ValueError):
+            raise RewardRangeError(
+                f"models[{self.index}].expand returned non-numeric rewards {rewards!r}"
+            ) from None
+        if rewards.shape != (n,):
+            raise DimensionError(
+                f"models[{self.index}].expand rewards must have shape ({n},), got shape {rewards.shape}"
+            )
+        terminals = np.asarray(terminals)
+        if terminals.shape != (n,):
+            raise DimensionError(
+                f"models[{self.index}].expand terminals must have shape ({n},), got shape {terminals.shape}"
+            )
+        if terminals.dtype != bool:
+            raise InputError(
+                f"models[{self.index}].expand terminals must be a bool array, got dtype {terminals.dtype}"
+            )
+        return list(next_states), rewards, terminals
+
+    def _one_by_one(self, state) -> tuple[list, np.ndarray, np.ndarray]:
+        n = self.n_actions
+        next_states = [None] * n
+        rewards = np.empty(n)
+        terminals = np.zeros(n, dtype=bool)
+        for a, action in enumerate(self.actions):
+            out = self._step(state, action)
+            if not isinstance(out, tuple) or len(out) not in (2, 3):
+                raise InputError(
+                    f"models[{self.index}].step(state, action) must return (next_state, reward) "
+                    f"or (next_state, reward, terminal), got {_describe(out)} for action "
+                    f"{action!r} (index {a})"
+                )
+            next_states[a] = out[0]
+            try:
+                rewards[a] = float(out[1])
+            except (TypeError, ValueError):
+                raise RewardRangeError(
+                    f"models[{self.index}] returned a non-numeric reward {out[1]!r} for action "
+                    f"{action!r} (index {a})"
+                ) from None
+            if len(out) == 3:
+                terminals[a] = _as_flag(out[2], self.index, action, a)
+        return next_states, rewards, terminals
+
+
+def _describe(out) -> str:
+    if isinstance(out, tuple):
+        return f"a tuple of length {len(out)}"
+    return f"an object of type {type(out).__name__}"
+
+
+def _as_flag(value, index: int, action, a: int) -> bool:
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, numbers.Integral) and value in (0, 1):
+        return bool(value)
+    raise InputError(
+        f"models[{index}].step returned terminal={value!r} for action {action!r} (index {a}); "
+        "expected a bool"
+    )
+
+
+def _check_gamma(gamma) -> float:
+    try:
+        value = float(gamma)
+    except (TypeError, ValueError):
+        raise InputError(f"gamma must be a real number in (0, 1), got {gamma!r}") from None
+    if not np.isfinite(value):
+        raise NonFiniteError(f"gamma must be finite and in (0, 1), got {value}")
+    if not 0.0 < value < 1.0:
+        raise InputError(f"gamma must be in the open interval (0, 1), got {value}")
+    return value
+
+
+def _check_count(name: str, value, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    if value < minimum:
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value}")
+    return int(value)
+
+
+class RobustTreePlanner:
+    """Optimistic tree search for ``sup_a min_m sum_n gamma^n r_n^m`` (eqs. (15)-(18)).
+
+    Parameters
+    ----------
+    models
+        Non-empty sequence of M models following the transition protocol of this
+        module (``step``, optionally ``expand``). Rewards must lie in [0, 1].
+    actions
+        Non-empty sequence of actions, passed unchanged to the models. Ties between
+        actions are broken by their index in this sequence.
+    gamma
+        Discount factor, 0 < gamma < 1.
+    budget
+        Number of expansions K >= 1. Each expansion creates ``len(actions)``
+        children and steps every not-yet-terminated model once per action, i.e. at
+        most ``K * |A| * M`` model transitions per `plan` call.
+    seed
+        Accepted for interface stability and validated (an integer); it currently
+        has no effect: every tie (equal b-values, equal lower bounds) is broken
+        deterministically by action path, so the search is a deterministic function
+        of the models and the state.
+
+    Notes
+    -----
+    Budget accounting differs from the public reference (rl-agents'
+    ``OptimisticDeterministicPlanner`` and ``DiscreteRobustPlanner``): there
+    ``budget`` counts created tree nodes, i.e. simulator calls of the joint
+    environment, and the search runs ``budget // |A|`` expansions, each node stepping
+    all M model environments. A reference budget B corresponds to
+    ``budget = B // |A|`` here.
+
+    Each leaf ``a`` of depth ``l`` holds the discounted return of each model,
+    ``R_m(a) = sum_{n<l} gamma^n r_n^m``. Its robust lower bound (18) is
+    ``L_a = min_m R_m(a)`` and its robust b-value (16), with the discount that the
+    paper's eq. (12) omits (see DESIGN.md errata), is
+    ``U_a = min_m (R_m(a) + gamma^l / (1 - gamma) [m not terminated])``.
+    Internal nodes take the max over children of both (17)-(18). Each iteration
+    expands the leaf with the largest b-value; ties go to the lexicographically
+    smallest action path. The returned action maximises the lower bound at the root.
+
+    Guarantees (Theorem 3, eq. (19)): ``L_root <= sup_a min_m sum_n gamma^n r_n^m <=
+    U_root``; ``L_root`` never decreases and ``U_root`` never increases with K (the
+    tree after K expansions is a prefix of the tree after K + 1); and the robust
+    regret of the chosen first action is at most ``U_root - L_root``.
+    """
+
+    def __init__(self, models: Sequence, actions: Sequence, *, gamma: float, budget: int, seed: int = 0) -> None:
+        try:
+            models = list(models)
+        except TypeError:
+            raise InputError(f"models must be a sequence of models, got {type(models).__name__}") from None
+        if not models:
+            raise InputError("models must be a non-empty sequence of models")
+        try:
+            actions = tuple(actions)
+        except TypeError:
+            raise InputError(f"actions must be a sequence, got {type(actions).__name__}") from None
+        if not actions:
+            raise InputError("actions must be a non-empty sequence")
+        self.gamma = _check_gamma(gamma)
+        self.budget = _check_count("budget", budget, 1)
+        self.seed = _check_count("seed", seed, 0)
+        self.models = tuple(models)
+        self.actions = actions
+        self._transitions = [_Transitions(m, model, actions) for m, model in enumerate(models)]
+        self.tree: SearchTree | None = None
+
+    @property
+    def n_models(self) -> int:
+        """Number of models M."""
+        return len(self.models)
+
+    def plan(self, state, *, per_model: bool = False) -> Decision:
+        """Search from ``state`` with the full budget and return the `Decision`.
+
+        Parameters
+        ----------
+        state
+            The initial state, shared by every model (the usual case: one measured
+            state). With ``per_model=True``, a sequence of M states, one per model
+            in the order of ``models``.
+        per_model
+            Whether ``state`` holds one initial state per model.
+
+        Returns
+        -------
+        Decision
+            The chosen action and the root bounds. The tree itself stays available
+            as ``self.tree`` until the next call.
+        """
+        n_models = self.n_models
+        if per_model:
+            try:
+                states = list(state)
+            except TypeError:
+                raise InputError(
+                    "with per_model=True, state must be a sequence of one state per model"
+                ) from None
+            if len(states) != n_models:
+                raise DimensionError(
+                    f"with per_model=True, state must hold {n_models} states (one per model), "
+                    f"got {len(states)}"
+                )
+        else:
+            states = [state] * n_models
+        tree = SearchTree(n_models, len(self.actions), self.gamma, 1 + self.budget * len(self.actions))
+        tree.add_root(states)
+        self.tree = tree
+        solved = self._search(tree)
+        return self._decision(tree, solved)
+
+    # ------------------------------------------------------------------ internals
+    def _search(self, tree: SearchTree) -> bool:
+        """Run the expansions; True if stopped early because the bounds met exactly.
+
+        The heap holds every leaf keyed by ``(-b-value, action path)``. A leaf's
+        b-value is fixed at its creation, and an internal node's ``upper`` is the max
+        of its leaves' b-values, so popping the heap picks the same leaf as descending
+        from the root through the child of largest ``upper`` (smallest action index on
+        ties): both give the max-b-value leaf with the smallest path, since a
+        smaller-index subtree holds lexicographically smaller paths.
+        """
+        heap = [(-tree.leaf_upper[0], (), 0)]
+        for _ in range(self.budget):
+            _, _, leaf = heapq.heappop(heap)
+            if tree.terminal[leaf].all():
+                # The best b-value is this leaf's, and here b-value == lower bound
+                # <= L_root <= U_root == b-value: the value is known, nothing to gain.
+                return True
+            first = self._expand(tree, leaf)
+            tree.backup(leaf)
+            leaf_upper, paths = tree.leaf_upper, tree.paths
+            for child in range(first, first + len(self.actions)):
+                heapq.heappush(heap, (-leaf_upper[child], paths[child], child))
+        return False
+
+    def _expand(self, tree: SearchTree, leaf: int) -> int:
+        n_actions = len(self.actions)
+        rewards = np.zeros((n_actions, self.n_models))
+        new_terminal = np.ones((n_actions, self.n_models), dtype=bool)
+        terminal = tree.terminal[leaf]
+        for m, transitions in enumerate(self._transitions):
+            state = tree.states[m][leaf]
+            if terminal[m]:
+                tree.states[m].extend([state] * n_actions)
+                continue
+            next_states, model_rewards, model_terminals = transitions(state)
+            rewards[:, m] = model_rewards
+            new_terminal[:, m] = model_terminals
+            tree.states[m].extend(next_states)
+        if not (rewards.min() >= 0.0 and rewards.max() <= 1.0):
+            self._reward_error(rewards, terminal)
+        return tree.add_children(leaf, rewards, new_terminal)
+
+    def _reward_error(self, rewards: np.ndarray, terminal: np.ndarray) -> None:
+        bad = ~((rewards >= 0.0) & (rewards <= 1.0))
+        a, m = (int(i) for i in np.argwhere(bad)[0])
+        raise RewardRangeError(
+            f"models[{m}] returned reward {rewards[a, m]!r} for action {self.actions[a]!r} "
+            f"(index {a}); rewards must be finite and in [0, 1]"
+        )
+
+    def _decision(self, tree: SearchTree, solved: bool) -> Decision:
+        n_actions = len(self.actions)
+        first = int(tree.first_child[0])
+        action_lower = tuple(float(v) for v in tree.lower[first:first + n_actions])
+        action_upper = tuple(float(v) for v in tree.upper[first:first + n_actions])
+        path = tree.best_path()
+        return Decision(
+            action=self.actions[path[0]],
+            action_index=path[0],
+            lower=float(tree.lower[0]),
+            upper=float(tree.upper[0]),
+            expansions=len(tree.expanded),
+            depth=int(tree.max_depth),
+            sequence=tuple(self.actions[a] for a in path),
+            sequence_indices=path,
+            action_lower=action_lower,
+            action_upper=action_upper,
+            nodes=int(tree.size),
+            solved=solved,
+        )
+
+
+class OptimisticPlanner(RobustTreePlanner):
+    """Optimistic planning for deterministic systems (OPD, Hren & Munos 2008).
+
+    The single-model case of `RobustTreePlanner` (same search engine, M = 1).
+
+    Parameters
+    ----------
+    model
+        One model following the transition protocol (``step``, optionally
+        ``expand``); rewards in [0, 1].
+    actions, gamma, budget
+        As for `RobustTreePlanner`.
+
+    Notes
+    -----
+    Expands the leaf maximising the discounted b-value
+    ``sum_{n<l} gamma^n r_n + gamma^l / (1 - gamma)`` (eq. (12) with the discount the
+    paper omits), or ``sum_{n<l} gamma^n r_n`` alone below a terminal transition.
+    Simple regret of the returned action: at most ``upper - lower``, which is
+    ``O(K^(-log(1/gamma) / log kappa))`` (Lemma 1, eq. (13)).
+    """
+
+    def __init__(self, model: Any, actions: Sequence, *, gamma: float, budget: int) -> None:
+        super().__init__([model], actions, gamma=gamma, budget=budget)
+
+    @property
+    def model(self) -> Any:
+        """The single model."""
+        return self.models[0]
