@@ -1,0 +1,518 @@
+"""Model files (TOML) and data files (CSV, NPZ) for the command-line tools.
+
+A model file describes one uncertain linear system, or several competing structural
+hypotheses about the same plant, in TOML; `load_model_file` turns it into
+`UncertainLinearSystem` values and `format_model_file` writes them back. A data file
+holds one observed trajectory (states and controls); `load_data_file` reads it.
+The format is documented in ``docs/model-format.md``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import pathlib
+import re
+import sys
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from minimaxplan.models import Box, InputError, UncertainLinearSystem
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - python 3.10 only
+    import tomli as tomllib
+
+__all__ = [
+    "ModelFileError",
+    "DataFileError",
+    "ModelHypothesis",
+    "ModelFile",
+    "TransitionData",
+    "load_model_file",
+    "parse_model_file",
+    "format_model_file",
+    "load_data_file",
+    "DISCRETE",
+    "CONTINUOUS",
+]
+
+DISCRETE = "discrete"
+CONTINUOUS = "continuous"
+
+# Keys a model (a hypothesis table, or the top level of a single-model file) may hold.
+_MODEL_KEYS = {"name", "time", "dt", "A0", "A", "phi", "B", "D", "w", "theta"}
+# Keys only the top level may hold.
+_FILE_KEYS = {"hypothesis", "measurement_noise"}
+_BOX_KEYS = {"low", "high"}
+
+
+class ModelFileError(InputError):
+    """A model file is missing, unreadable or malformed (the message names the file and the key)."""
+
+
+class DataFileError(InputError):
+    """A data file is missing, unreadable or malformed (the message names the file and the column)."""
+
+
+@dataclass(frozen=True, eq=False)
+class ModelHypothesis:
+    """One model of a model file.
+
+    Parameters
+    ----------
+    name
+        The model's name (defaults to ``"hypothesis <index>"``).
+    system
+        The discrete-time system that the library works with. For a continuous-time
+        model it is the forward-Euler discretisation of eq. (1) with step ``dt``.
+    time
+        ``"discrete"`` (the file gave ``A0``) or ``"continuous"`` (the file gave ``A``).
+    dt
+        The sampling time, or None (allowed only for discrete-time models).
+    continuous_system
+        For a continuous-time model, the continuous-time matrices as given in the file
+        (``A0`` holds the file's ``A``, ``D`` the file's ``D``), kept so that Assumption 4
+        can be checked in its continuous form; None for a discrete-time model.
+    """
+
+    name: str
+    system: UncertainLinearSystem
+    time: str
+    dt: float | None
+    continuous_system: UncertainLinearSystem | None = None
+
+    def state_matrices(self, form: str, *, vertices: bool) -> tuple[np.ndarray, np.ndarray]:
+        """The state matrices to certify and the disturbance matrix, for ``form``.
+
+        Returns ``(A, D)`` where ``A`` has shape (k, p, p): the nominal matrix
+        ``A(theta.center)`` (k = 1), or with ``vertices`` the matrices at the 2^d
+        vertices of the prior box ``theta``, whose convex hull contains every
+        ``A(theta)`` because ``A`` is affine in theta (eq. (2)).
+
+        Raises
+        ------
+        ModelFileError
+            If ``form`` is "continuous" and the model is discrete-time.
+        """
+        if form == CONTINUOUS:
+            if self.continuous_system is None:
+                raise ModelFileError(
+                    f"model {self.name!r} is discrete-time (it gives A0); the continuous form of "
+                    'Assumption 4 needs a continuous-time model (time = "continuous" with A and dt)'
+                )
+            system = self.continuous_system
+        elif form == DISCRETE:
+            system = self.system
+        else:
+            raise InputError(f"form must be 'discrete' or 'continuous', got {form!r}")
+        points = system.theta.vertices() if vertices else system.theta.center[None, :]
+        return system.A(points), np.array(system.D)
+
+    def to_dict(self) -> dict:
+        out = {"name": self.name, "time": self.time, "dt": self.dt, "system": self.system.to_dict()}
+        if self.continuous_system is not None:
+            out["continuous_system"] = self.continuous_system.to_dict()
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class ModelFile:
+    """The contents of a model file: its models and the data's measurement-noise bound.
+
+    ``measurement_noise`` is None, or the bound ``v_bar`` (shape (p,)) on the
+    measurement noise of every state coordinate (DESIGN errata).
+    """
+
+    hypotheses: tuple[ModelHypothesis, ...]
+    measurement_noise: np.ndarray | None = None
+    source: str = "<string>"
+
+    @property
+    def names(self) -> list[str]:
+        return [h.name for h in self.hypotheses]
+
+    @property
+    def systems(self) -> list[UncertainLinearSystem]:
+        return [h.system for h in self.hypotheses]
+
+    def select(self, name: str) -> "ModelFile":
+        """The same file restricted to the model called ``name``."""
+        chosen = tuple(h for h in self.hypotheses if h.name == name)
+        if not chosen:
+            raise ModelFileError(f"{self.source}: no model named {name!r}; the file holds {self.names}")
+        return ModelFile(chosen, self.measurement_noise, self.source)
+
+    def to_dict(self) -> dict:
+        return {
+            "source": self.source,
+            "hypotheses": [h.to_dict() for h in self.hypotheses],
+            "measurement_noise": None if self.measurement_noise is None else self.measurement_noise.tolist(),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class TransitionData:
+    """One observed trajectory: ``states`` (N+1, p) and ``controls`` (N, q)."""
+
+    states: np.ndarray
+    controls: np.ndarray
+    source: str = "<arrays>"
+
+    @property
+    def ntransitions(self) -> int:
+        return self.controls.shape[0]
+
+    def to_dict(self) -> dict:
+        return {"source": self.source, "states": self.states.tolist(), "controls": self.controls.tolist()}
+
+
+# ----------------------------------------------------------------- reading models
+def load_model_file(path) -> ModelFile:
+    """Read a TOML model file (format: ``docs/model-format.md``).
+
+    Raises
+    ------
+    ModelFileError
+        If the file is missing or unreadable, is not valid TOML, has an unknown or
+        missing key, a non-numeric, non-finite or wrongly shaped value, or describes an
+        invalid system (the message names the file, the model and the key).
+    """
+    path = pathlib.Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ModelFileError(f"model file {str(path)!r} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelFileError(f"cannot read model file {str(path)!r}: {exc}") from None
+    return parse_model_file(text, source=str(path))
+
+
+def parse_model_file(text: str, *, source: str = "<string>") -> ModelFile:
+    """Parse the text of a TOML model file; see `load_model_file`."""
+    try:
+        document = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ModelFileError(f"{source}: not valid TOML: {exc}") from None
+    unknown = sorted(set(document) - _MODEL_KEYS - _FILE_KEYS)
+    if unknown:
+        raise ModelFileError(
+            f"{source}: unknown key(s) {unknown} at the top level; allowed: {sorted(_MODEL_KEYS | _FILE_KEYS)}"
+        )
+    defaults = {k: v for k, v in document.items() if k in _MODEL_KEYS}
+    if "hypothesis" in document:
+        tables = document["hypothesis"]
+        if not isinstance(tables, list) or not tables or not all(isinstance(t, dict) for t in tables):
+            raise ModelFileError(f"{source}: 'hypothesis' must be one or more [[hypothesis]] tables")
+        hypotheses = []
+        for index, table in enumerate(tables):
+            where = f"{source}: hypothesis[{index}]"
+            if "measurement_noise" in table:
+                raise ModelFileError(
+                    f"{where}: measurement_noise describes the sensor, not a hypothesis; give it at the top level"
+                )
+            unknown = sorted(set(table) - _MODEL_KEYS)
+            if unknown:
+                raise ModelFileError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(_MODEL_KEYS)}")
+            merged = {**defaults, **table}
+            hypotheses.append(_parse_model(merged, where, default_name=f"hypothesis {index}"))
+    else:
+        hypotheses = [_parse_model(defaults, f"{source}: top level", default_name=pathlib.Path(source).stem)]
+    names = [h.name for h in hypotheses]
+    duplicates = sorted({n for n in names if names.count(n) > 1})
+    if duplicates:
+        raise ModelFileError(f"{source}: model names must be unique, repeated: {duplicates}")
+    sizes = {(h.system.nstates, h.system.ninputs) for h in hypotheses}
+    if len(sizes) > 1:
+        shapes = [(h.name, h.system.nstates, h.system.ninputs) for h in hypotheses]
+        raise ModelFileError(
+            f"{source}: every hypothesis must have the same numbers of states and inputs, got (name, p, q) = {shapes}"
+        )
+    noise = None
+    if "measurement_noise" in document:
+        p = hypotheses[0].system.nstates
+        noise = _numeric(document["measurement_noise"], f"{source}: measurement_noise")
+        if noise.ndim == 0:
+            noise = np.full(p, float(noise))
+        if noise.shape != (p,):
+            raise ModelFileError(
+                f"{source}: measurement_noise must be a number or have shape ({p},) (one bound per state), "
+                f"got shape {noise.shape}"
+            )
+        if np.any(noise < 0):
+            raise ModelFileError(f"{source}: measurement_noise must be >= 0, got {noise.tolist()}")
+    return ModelFile(tuple(hypotheses), noise, source)
+
+
+def _parse_model(table: Mapping[str, Any], where: str, *, default_name: str) -> ModelHypothesis:
+    name = table.get("name", default_name)
+    if not isinstance(name, str) or not name.strip():
+        raise ModelFileError(f"{where}: name must be a non-empty string, got {name!r}")
+    where = f"{where} ({name!r})" if "name" in table else where
+    time = table.get("time", DISCRETE)
+    if time not in (DISCRETE, CONTINUOUS):
+        raise ModelFileError(f'{where}: time must be "discrete" or "continuous", got {time!r}')
+    dt = None
+    if "dt" in table:
+        dt = table["dt"]
+        if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not math.isfinite(dt) or dt <= 0:
+            raise ModelFileError(f"{where}: dt must be a finite number > 0, got {dt!r}")
+        dt = float(dt)
+    state_key = "A" if time == CONTINUOUS else "A0"
+    other_key = "A0" if time == CONTINUOUS else "A"
+    if other_key in table:
+        raise ModelFileError(
+            f"{where}: time = {time!r} takes the state matrix as key '{state_key}', found '{other_key}' "
+            f'(A0 is a discrete-time matrix; A with time = "continuous" and dt is discretised by forward Euler)'
+        )
+    for key in (state_key, "phi", "B", "w", "theta"):
+        if key not in table:
+            raise ModelFileError(f"{where}: missing required key '{key}'")
+    if time == CONTINUOUS and dt is None:
+        raise ModelFileError(f"{where}: missing required key 'dt' (a continuous-time model is discretised with step dt)")
+    A = _matrix(table[state_key], f"{where}: {state_key}", ndim=2)
+    p = A.shape[0]
+    if A.shape != (p, p):
+        raise ModelFileError(f"{where}: {state_key} must be square, got shape {A.shape}")
+    phi = _matrix(table["phi"], f"{where}: phi", ndim=3, hint="a list of d matrices, each p x p")
+    if phi.shape[1:] != (p, p):
+        raise ModelFileError(f"{where}: phi must have shape (d, {p}, {p}) to match {state_key} {A.shape}, got shape {phi.shape}")
+    B = _matrix(table["B"], f"{where}: B", ndim=2)
+    if B.shape[0] != p:
+        raise ModelFileError(f"{where}: B must have shape ({p}, q) to match {state_key} {A.shape}, got shape {B.shape}")
+    D = None
+    if "D" in table:
+        D = _matrix(table["D"], f"{where}: D", ndim=2)
+        if D.shape[0] != p:
+            raise ModelFileError(f"{where}: D must have shape ({p}, r) to match {state_key} {A.shape}, got shape {D.shape}")
+    r = p if D is None else D.shape[1]
+    w = _box(table["w"], f"{where}: w", r, f"the columns of D {D.shape}" if D is not None else f"the {p} states (D is the identity)")
+    theta = _box(table["theta"], f"{where}: theta", phi.shape[0], f"the {phi.shape[0]} matrices of phi")
+    try:
+        if time == CONTINUOUS:
+            system = UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=w, theta=theta, dt=dt)
+            continuous = UncertainLinearSystem(A, phi, B, D=D, w=w, theta=theta)
+        else:
+            system = UncertainLinearSystem(A, phi, B, D=D, w=w, theta=theta)
+            continuous = None
+    except InputError as exc:
+        raise ModelFileError(f"{where}: {exc}") from None
+    return ModelHypothesis(name=name, system=system, time=time, dt=dt, continuous_system=continuous)
+
+
+def _numeric(value: Any, where: str, hint: str = "") -> np.ndarray:
+    """A TOML number or (nested) array of numbers as a finite float array."""
+
+    def check(item: Any) -> None:
+        if isinstance(item, list):
+            for element in item:
+                check(element)
+        elif isinstance(item, bool) or not isinstance(item, (int, float)):
+            raise ModelFileError(f"{where} must hold only numbers{hint}, found {item!r}")
+
+    check(value)
+    try:
+        array = np.array(value, dtype=float)
+    except ValueError:
+        raise ModelFileError(f"{where} is ragged: its rows must all have the same length{hint}") from None
+    if not np.all(np.isfinite(array)):
+        raise ModelFileError(f"{where} contains NaN or infinite entries (TOML nan/inf are not allowed)")
+    return array
+
+
+def _matrix(value: Any, where: str, *, ndim: int, hint: str = "") -> np.ndarray:
+    hint = f" ({hint})" if hint else ""
+    array = _numeric(value, where, hint)
+    if array.ndim != ndim or 0 in array.shape:
+        raise ModelFileError(f"{where} must be a non-empty {ndim}-dimensional array{hint}, got shape {array.shape}")
+    return array
+
+
+def _box(value: Any, where: str, dim: int, what: str) -> Box:
+    if not isinstance(value, dict):
+        raise ModelFileError(f"{where} must be a table {{low = [...], high = [...]}}, got {value!r}")
+    keys = set(value)
+    if keys != _BOX_KEYS:
+        missing, extra = sorted(_BOX_KEYS - keys), sorted(keys - _BOX_KEYS)
+        raise ModelFileError(f"{where} must have exactly the keys 'low' and 'high' (missing {missing}, unknown {extra})")
+    low = _numeric(value["low"], f"{where}.low")
+    high = _numeric(value["high"], f"{where}.high")
+    for side, array in (("low", low), ("high", high)):
+        if array.shape != (dim,):
+            raise ModelFileError(f"{where}.{side} must have shape ({dim},) to match {what}, got shape {array.shape}")
+    if np.any(low > high):
+        raise ModelFileError(f"{where} is empty: low > high at indices {np.flatnonzero(low > high).tolist()}")
+    return Box(low, high)
+
+
+# ----------------------------------------------------------------- writing models
+def format_model_file(
+    hypotheses: Sequence[ModelHypothesis], *, measurement_noise=None, header: str | None = None
+) -> str:
+    """The TOML text of a model file holding ``hypotheses``; `parse_model_file` inverts it.
+
+    Numbers are written with ``repr``, which round-trips float64 exactly. A
+    continuous-time hypothesis is written with its continuous-time matrices and ``dt``.
+    """
+    lines = [f"# {line}" for line in (header or "").splitlines()]
+    if measurement_noise is not None:
+        lines.append(f"measurement_noise = {_toml_value(np.asarray(measurement_noise, dtype=float))}")
+    for hypothesis in hypotheses:
+        lines += ["", "[[hypothesis]]"] + _model_lines(hypothesis)
+    return "\n".join(lines).lstrip("\n") + "\n"
+
+
+def _model_lines(h: ModelHypothesis) -> list[str]:
+    lines = [f"name = {_toml_string(h.name)}", f'time = "{h.time}"']
+    if h.dt is not None:
+        lines.append(f"dt = {_toml_value(np.float64(h.dt))}")
+    if h.time == CONTINUOUS:
+        system, state_key = h.continuous_system, "A"
+    else:
+        system, state_key = h.system, "A0"
+    lines += [
+        f"{state_key} = {_toml_value(system.A0)}",
+        f"phi = {_toml_value(system.phi)}",
+        f"B = {_toml_value(system.B)}",
+        f"D = {_toml_value(system.D)}",
+        f"w = {{ low = {_toml_value(system.w.low)}, high = {_toml_value(system.w.high)} }}",
+        f"theta = {{ low = {_toml_value(system.theta.low)}, high = {_toml_value(system.theta.high)} }}",
+    ]
+    return lines
+
+
+def _toml_value(array: np.ndarray) -> str:
+    if array.ndim == 0:
+        return repr(float(array))
+    return "[" + ", ".join(_toml_value(item) for item in array) + "]"
+
+
+def _toml_string(text: str) -> str:
+    escaped = text.replace("\\", "\\\\").replace('"', '\\"')
+    return f'"{escaped}"'
+
+
+# ------------------------------------------------------------------- reading data
+_COLUMN = re.compile(r"^([xu])(\d+)$")
+
+
+def load_data_file(path) -> TransitionData:
+    """Read one observed trajectory from a ``.csv`` or ``.npz`` file.
+
+    CSV: a header row naming the columns ``x0 .. x{p-1}`` and ``u0 .. u{q-1}`` (any
+    order), then one row per time step n = 0..N with the state x_n and the control u_n
+    applied after it. The last row's controls are not used (there is no next state):
+    leave them empty or give any finite number. NPZ: arrays ``states`` (N+1, p) and
+    ``controls`` (N, q); other arrays in the file are ignored.
+
+    Raises
+    ------
+    DataFileError
+        If the file is missing, has another extension, or is malformed (the message
+        names the column or array, the row and the shapes).
+    """
+    path = pathlib.Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".npz"):
+        raise DataFileError(f"data file {str(path)!r} must end in .csv or .npz, got {suffix or 'no extension'!r}")
+    if not path.is_file():
+        raise DataFileError(f"data file {str(path)!r} does not exist")
+    try:
+        states, controls = _read_csv(path) if suffix == ".csv" else _read_npz(path)
+    except DataFileError:
+        raise
+    except (OSError, ValueError, UnicodeDecodeError) as exc:
+        raise DataFileError(f"cannot read data file {str(path)!r}: {exc}") from None
+    return _checked_data(states, controls, str(path))
+
+
+def _read_csv(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
+    with path.open(newline="", encoding="utf-8") as handle:
+        reader = csv.reader(handle)
+        numbered = [(reader.line_num, row) for row in reader if any(cell.strip() for cell in row)]
+    where = str(path)
+    if not numbered:
+        raise DataFileError(f"{where}: empty file; expected a header row x0,..,u0,..")
+    header = [cell.strip() for cell in numbered[0][1]]
+    columns: dict[str, dict[int, int]] = {"x": {}, "u": {}}
+    for position, label in enumerate(header):
+        match = _COLUMN.match(label)
+        if match is None:
+            raise DataFileError(f"{where}: unknown column {label!r}; columns must be named x0, x1, .. and u0, u1, ..")
+        kind, index = match.group(1), int(match.group(2))
+        if index in columns[kind]:
+            raise DataFileError(f"{where}: column {label!r} appears twice")
+        columns[kind][index] = position
+    for kind in ("x", "u"):
+        indices = sorted(columns[kind])
+        if not indices:
+            raise DataFileError(f"{where}: no {kind} columns; expected {kind}0, {kind}1, ..")
+        if indices != list(range(len(indices))):
+            raise DataFileError(f"{where}: {kind} columns must be numbered 0..{len(indices) - 1}, got {indices}")
+    body = numbered[1:]
+    if len(body) < 2:
+        raise DataFileError(f"{where}: need at least 2 data rows (one transition), got {len(body)}")
+    p, q = len(columns["x"]), len(columns["u"])
+    states = np.empty((len(body), p))
+    controls = np.empty((len(body) - 1, q))
+    for n, (line, row) in enumerate(body):
+        last = n == len(body) - 1
+        if last and len(row) < len(header):
+            row = row + [""] * (len(header) - len(row))  # the unused last controls may be left out
+        if len(row) != len(header):
+            raise DataFileError(f"{where}: line {line} has {len(row)} cells, the header has {len(header)}")
+        for kind, target in (("x", states), ("u", controls)):
+            for index, position in columns[kind].items():
+                cell = row[position].strip()
+                if kind == "u" and last:
+                    if cell:
+                        _cell_value(cell, where, line, header[position])
+                    continue
+                target[n, index] = _cell_value(cell, where, line, header[position])
+    return states, controls
+
+
+def _cell_value(cell: str, where: str, line: int, column: str) -> float:
+    if not cell:
+        raise DataFileError(f"{where}: line {line}, column {column!r} is empty")
+    try:
+        value = float(cell)
+    except ValueError:
+        raise DataFileError(f"{where}: line {line}, column {column!r} is not a number: {cell!r}") from None
+    if not math.isfinite(value):
+        raise DataFileError(f"{where}: line {line}, column {column!r} is not finite: {cell!r}")
+    return value
+
+
+def _read_npz(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
+    with np.load(path, allow_pickle=False) as archive:
+        missing = [key for key in ("states", "controls") if key not in archive.files]
+        if missing:
+            raise DataFileError(f"{path}: missing array(s) {missing}; the file holds {sorted(archive.files)}")
+        return archive["states"], archive["controls"]
+
+
+def _checked_data(states, controls, where: str) -> TransitionData:
+    arrays = {}
+    for name, value in (("states", states), ("controls", controls)):
+        array = np.asarray(value)
+        if array.dtype.kind not in "iuf":
+            raise DataFileError(f"{where}: {name} must be a real numeric array, got dtype {array.dtype}")
+        array = array.astype(float)
+        if array.ndim != 2 or 0 in array.shape:
+            raise DataFileError(f"{where}: {name} must be a non-empty 2-dimensional array, got shape {array.shape}")
+        if not np.all(np.isfinite(array)):
+            bad = np.argwhere(~np.isfinite(array))[0].tolist()
+            raise DataFileError(f"{where}: {name} contains NaN or infinite entries (first at index {bad})")
+        array.setflags(write=False)
+        arrays[name] = array
+    states, controls = arrays["states"], arrays["controls"]
+    if states.shape[0] != controls.shape[0] + 1:
+        raise DataFileError(
+            f"{where}: states must have one row more than controls (N+1 states, N controls), "
+            f"got states shape {states.shape} and controls shape {controls.shape}"
+        )
+    return TransitionData(states, controls, where)

@@ -1,0 +1,349 @@
+"""Model files (TOML) and data files (CSV/NPZ): parsing, round trips and every malformed input."""
+
+from __future__ import annotations
+
+import pathlib
+import runpy
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from minimaxplan.analysis.model_file import (
+    DataFileError,
+    ModelFileError,
+    ModelHypothesis,
+    format_model_file,
+    load_data_file,
+    load_model_file,
+    parse_model_file,
+)
+from minimaxplan.models import Box, InputError, UncertainLinearSystem
+from minimaxplan.models.sets import hypercube_signs
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "examples"
+
+ROBOT_A = np.array([[0.0, 0, 1, 0], [0, 0, 0, 1], [0, 0, 0, 0], [0, 0, 0, 0]])
+ROBOT_B = np.vstack([np.zeros((2, 2)), np.eye(2)])
+
+MINIMAL = """
+name = "scalar"
+A0 = [[0.5]]
+phi = [[[1.0]]]
+B = [[1.0]]
+w = { low = [-0.1], high = [0.1] }
+theta = { low = [-0.2], high = [0.2] }
+"""
+
+
+def _replace(text: str, old: str, new: str) -> str:
+    assert old in text, old
+    return text.replace(old, new)
+
+
+# ------------------------------------------------------------------ examples
+def test_robot_hypotheses_example_matches_a_direct_construction():
+    model_file = load_model_file(EXAMPLES / "robot_hypotheses.toml")
+    assert model_file.names == ["isotropic friction", "anisotropic friction", "coupled friction", "wrong input gain"]
+    assert model_file.measurement_noise is None
+    phi = np.zeros((2, 4, 4))
+    phi[0, 2, 2] = phi[1, 3, 3] = -1.0
+    expected = UncertainLinearSystem.from_continuous(
+        ROBOT_A, phi, ROBOT_B, D=ROBOT_B, w=Box([-0.1, -0.1], [0.1, 0.1]), theta=Box([0.2, 0.2], [1.5, 1.5]), dt=0.1
+    )
+    anisotropic = model_file.select("anisotropic friction").hypotheses[0]
+    assert anisotropic.time == "continuous" and anisotropic.dt == 0.1
+    for key in ("A0", "phi", "B", "D"):
+        np.testing.assert_array_equal(getattr(anisotropic.system, key), getattr(expected, key))
+    assert anisotropic.system.w == expected.w and anisotropic.system.theta == expected.theta
+    np.testing.assert_array_equal(anisotropic.continuous_system.A0, ROBOT_A)
+    wrong_gain = model_file.select("wrong input gain").systems[0]
+    np.testing.assert_array_equal(wrong_gain.B, 0.5 * expected.B)
+    assert [s.nparams for s in model_file.systems] == [1, 2, 3, 2]
+
+
+def test_robot_model_example_is_one_continuous_model():
+    model_file = load_model_file(EXAMPLES / "robot_model.toml")
+    assert model_file.names == ["robot under PD control"]
+    (model,) = model_file.hypotheses
+    np.testing.assert_array_equal(model.system.A0, np.eye(4) + 0.1 * model.continuous_system.A0)
+
+
+def test_select_names_an_unknown_model():
+    model_file = load_model_file(EXAMPLES / "robot_hypotheses.toml")
+    with pytest.raises(ModelFileError, match=r"no model named 'nope'.*isotropic friction"):
+        model_file.select("nope")
+
+
+def test_example_data_is_reproduced_by_its_generator():
+    generator = runpy.run_path(str(EXAMPLES / "make_robot_data.py"))
+    states, controls = generator["make_robot_data"]()
+    data = load_data_file(EXAMPLES / "robot_data.csv")
+    np.testing.assert_allclose(data.states, states, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(data.controls, controls, rtol=0, atol=1e-12)
+
+
+def test_generator_csv_round_trips(tmp_path):
+    generator = runpy.run_path(str(EXAMPLES / "make_robot_data.py"))
+    states, controls = generator["make_robot_data"](steps=7, seed=3)
+    generator["write_csv"](tmp_path / "d.csv", states, controls)
+    data = load_data_file(tmp_path / "d.csv")
+    np.testing.assert_array_equal(data.states, states)
+    np.testing.assert_array_equal(data.controls, controls)
+
+
+# ---------------------------------------------------------------- round trips
+finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
+
+
+@st.composite
+def hypotheses(draw):
+    p = draw(st.integers(1, 3))
+    q = draw(st.integers(1, 2))
+    r = draw(st.integers(1, 3))
+    d = draw(st.integers(1, 3))
+    count = draw(st.integers(1, 3))
+
+    def arr(*shape):
+        return np.array(draw(st.lists(finite, min_size=int(np.prod(shape)), max_size=int(np.prod(shape))))).reshape(shape)
+
+    out = []
+    for index in range(count):
+        low_w, low_t = arr(r), arr(d)
+        w = Box(low_w, low_w + np.abs(arr(r)))
+        theta = Box(low_t, low_t + np.abs(arr(d)))
+        A, phi, B, D = arr(p, p), arr(d, p, p), arr(p, q), arr(p, r)
+        if draw(st.booleans()):
+            dt = draw(st.floats(1e-4, 10.0))
+            system = UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=w, theta=theta, dt=dt)
+            cont = UncertainLinearSystem(A, phi, B, D=D, w=w, theta=theta)
+            out.append(ModelHypothesis(f'model "{index}" \\ x', system, "continuous", dt, cont))
+        else:
+            dt = draw(st.none() | st.floats(1e-4, 10.0))
+            out.append(ModelHypothesis(f"model {index}", UncertainLinearSystem(A, phi, B, D=D, w=w, theta=theta), "discrete", dt))
+    noise = draw(st.none() | st.lists(st.floats(0, 1e3), min_size=p, max_size=p))
+    return out, noise
+
+
+@settings(max_examples=40)
+@given(hypotheses())
+def test_format_then_parse_round_trips_exactly(case):
+    models, noise = case
+    parsed = parse_model_file(format_model_file(models, measurement_noise=noise, header="a\nheader"))
+    assert parsed.names == [m.name for m in models]
+    if noise is None:
+        assert parsed.measurement_noise is None
+    else:
+        np.testing.assert_array_equal(parsed.measurement_noise, noise)
+    for original, back in zip(models, parsed.hypotheses):
+        assert (back.time, back.dt) == (original.time, original.dt)
+        pairs = [(original.system, back.system)]
+        if original.time == "continuous":
+            pairs.append((original.continuous_system, back.continuous_system))
+        for a, b in pairs:
+            for key in ("A0", "phi", "B", "D"):
+                np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+            assert a.w == b.w and a.theta == b.theta
+
+
+@settings(max_examples=30)
+@given(hypotheses(), st.data())
+def test_vertex_matrices_hold_every_model_matrix_in_their_convex_hull(case, data):
+    """A(theta) is affine in theta, so it is the multilinear interpolation of the vertex matrices."""
+    model = case[0][0]
+    A_vertices, D = model.state_matrices("discrete", vertices=True)
+    system = model.system
+    assert A_vertices.shape == (2**system.nparams, system.nstates, system.nstates)
+    np.testing.assert_array_equal(D, system.D)
+    fractions = np.array(data.draw(st.lists(st.floats(0, 1), min_size=system.nparams, max_size=system.nparams)))
+    theta = system.theta.low + fractions * (system.theta.high - system.theta.low)
+    signs = hypercube_signs(system.nparams)
+    weights = np.prod(np.where(signs > 0, fractions, 1 - fractions), axis=1)
+    combination = np.tensordot(weights, A_vertices, axes=1)
+    scale = 1 + np.abs(A_vertices).max()
+    np.testing.assert_allclose(combination, system.A(theta), rtol=0, atol=1e-9 * scale)
+    nominal, _ = model.state_matrices("discrete", vertices=False)
+    np.testing.assert_allclose(nominal[0], system.A(system.theta.center), rtol=0, atol=1e-12 * scale)
+    if model.time == "continuous":
+        cont, D_cont = model.state_matrices("continuous", vertices=True)
+        np.testing.assert_allclose(cont, model.continuous_system.A(system.theta.vertices()), rtol=0, atol=0)
+        np.testing.assert_array_equal(D_cont, model.continuous_system.D)
+    else:
+        with pytest.raises(ModelFileError, match=r"is discrete-time.*continuous form"):
+            model.state_matrices("continuous", vertices=False)
+
+
+def test_measurement_noise_scalar_is_broadcast():
+    parsed = parse_model_file("measurement_noise = 0.05\n" + MINIMAL)
+    np.testing.assert_array_equal(parsed.measurement_noise, [0.05])
+
+
+def test_defaults_are_inherited_and_overridden():
+    text = MINIMAL.replace('name = "scalar"', "") + '[[hypothesis]]\nname = "a"\n[[hypothesis]]\nname = "b"\nA0 = [[0.25]]\n'
+    parsed = parse_model_file(text)
+    assert parsed.names == ["a", "b"]
+    assert parsed.systems[0].A0[0, 0] == 0.5 and parsed.systems[1].A0[0, 0] == 0.25
+
+
+def test_single_model_default_name_is_the_file_stem(tmp_path):
+    path = tmp_path / "my_plant.toml"
+    path.write_text(MINIMAL.replace('name = "scalar"', ""))
+    assert load_model_file(path).names == ["my_plant"]
+
+
+# ------------------------------------------------------------ malformed models
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("phi = [[[1.0]]]", "", r"top level \('scalar'\): missing required key 'phi'"),
+        ("A0 = [[0.5]]", "", r"missing required key 'A0'"),
+        ("theta = { low = [-0.2], high = [0.2] }", "", r"missing required key 'theta'"),
+        ("phi = [[[1.0]]]", "phy = [[[1.0]]]\nphi = [[[1.0]]]", r"unknown key\(s\) \['phy'\]"),
+        ("B = [[1.0]]", "B = [[1.0], [2.0]]", r"B must have shape \(1, q\) to match A0 \(1, 1\), got shape \(2, 1\)"),
+        ("B = [[1.0]]", "B = [1.0]", r"B must be a non-empty 2-dimensional array, got shape \(1,\)"),
+        ("A0 = [[0.5]]", "A0 = [[0.5, 1.0]]", r"A0 must be square, got shape \(1, 2\)"),
+        ("phi = [[[1.0]]]", "phi = [[1.0]]", r"phi must be a non-empty 3-dimensional array \(a list of d matrices"),
+        ("phi = [[[1.0]]]", "phi = [[[1.0, 0.0], [0.0, 1.0]]]", r"phi must have shape \(d, 1, 1\).*got shape \(1, 2, 2\)"),
+        ("A0 = [[0.5]]", "A0 = [[nan]]", r"A0 contains NaN or infinite entries"),
+        ("A0 = [[0.5]]", "A0 = [[-inf]]", r"A0 contains NaN or infinite entries"),
+        ("low = [-0.2]", "low = [-inf]", r"theta\.low contains NaN or infinite entries"),
+        ("high = [0.1]", "high = [nan]", r"w\.high contains NaN or infinite entries"),
+        ("A0 = [[0.5]]", 'A0 = [["0.5"]]', r"A0 must hold only numbers, found '0.5'"),
+        ("A0 = [[0.5]]", "A0 = [[true]]", r"A0 must hold only numbers, found True"),
+        ("A0 = [[0.5]]", "A0 = [[0.5], [0.5, 1.0]]", r"A0 is ragged"),
+        ("high = [0.1]", "high = [0.1, 0.2]", r"w\.high must have shape \(1,\) to match the 1 states \(D is the identity\), got shape \(2,\)"),
+        ("low = [-0.2], high = [0.2]", "low = [-0.2, 0.0], high = [0.2, 0.1]", r"theta\.low must have shape \(1,\) to match the 1 matrices of phi"),
+        ("high = [0.2]", "high = [-0.3]", r"theta is empty: low > high at indices \[0\]"),
+        ("w = { low = [-0.1], high = [0.1] }", "w = { low = [-0.1] }", r"w must have exactly the keys 'low' and 'high' \(missing \['high'\]"),
+        ("w = { low = [-0.1], high = [0.1] }", "w = [0.1]", r"w must be a table"),
+        ("B = [[1.0]]", "B = [[1.0]]\nD = [[1.0, 0.0]]", r"w\.low must have shape \(2,\) to match the columns of D \(1, 2\)"),
+        ("B = [[1.0]]", "B = [[1.0]]\nD = [[1.0], [0.0]]", r"D must have shape \(1, r\)"),
+        ('name = "scalar"', 'name = "scalar"\ntime = "continuous"\ndt = 0.1', r"time = 'continuous' takes the state matrix as key 'A', found 'A0'"),
+        ('name = "scalar"\nA0', 'name = "scalar"\ntime = "continuous"\nA', r"missing required key 'dt'"),
+        ('name = "scalar"\nA0', 'name = "scalar"\nA', r"time = 'discrete' takes the state matrix as key 'A0', found 'A'"),
+        ('name = "scalar"', 'name = "scalar"\ntime = "hybrid"', r'time must be "discrete" or "continuous", got \'hybrid\''),
+        ('name = "scalar"', 'name = "scalar"\ndt = -1.0', r"dt must be a finite number > 0, got -1.0"),
+        ('name = "scalar"', 'name = "scalar"\ndt = inf', r"dt must be a finite number > 0, got inf"),
+        ('name = "scalar"', "name = 3", r"name must be a non-empty string, got 3"),
+        ('name = "scalar"', 'name = "scalar"\nmeasurement_noise = [0.1, 0.2]', r"measurement_noise must be a number or have shape \(1,\)"),
+        ('name = "scalar"', 'name = "scalar"\nmeasurement_noise = -0.1', r"measurement_noise must be >= 0"),
+        ('name = "scalar"', 'name = "scalar"\nmeasurement_noise = nan', r"measurement_noise contains NaN"),
+        ("A0 = [[0.5]]", "A0 = [[0.5]", r"not valid TOML"),
+    ],
+)
+def test_malformed_model_is_rejected_naming_the_key(old, new, message):
+    with pytest.raises(ModelFileError, match=message):
+        parse_model_file(_replace(MINIMAL, old, new))
+
+
+def test_model_file_error_is_an_input_error():
+    assert issubclass(ModelFileError, InputError) and issubclass(ModelFileError, ValueError)
+    assert issubclass(DataFileError, InputError)
+
+
+def test_hypothesis_tables_are_checked_one_by_one():
+    base = MINIMAL.replace('name = "scalar"', "")
+    with pytest.raises(ModelFileError, match=r"hypothesis\[1\] \('b'\): B must have shape \(1, q\)"):
+        parse_model_file(base + '[[hypothesis]]\nname = "a"\n[[hypothesis]]\nname = "b"\nB = [[1.0], [1.0]]\n')
+    with pytest.raises(ModelFileError, match=r"hypothesis\[0\]: unknown key\(s\) \['Bee'\]"):
+        parse_model_file(base + "[[hypothesis]]\nBee = 1\n")
+    with pytest.raises(ModelFileError, match=r"hypothesis\[0\]: measurement_noise describes the sensor"):
+        parse_model_file(base + "[[hypothesis]]\nmeasurement_noise = 0.1\n")
+    with pytest.raises(ModelFileError, match=r"model names must be unique, repeated: \['a'\]"):
+        parse_model_file(base + '[[hypothesis]]\nname = "a"\n[[hypothesis]]\nname = "a"\n')
+    with pytest.raises(ModelFileError, match=r"same numbers of states and inputs.*\('a', 1, 1\), \('b', 2, 1\)"):
+        parse_model_file(
+            base
+            + '[[hypothesis]]\nname = "a"\n[[hypothesis]]\nname = "b"\nA0 = [[1.0, 0.0], [0.0, 1.0]]\n'
+            + "phi = [[[1.0, 0.0], [0.0, 1.0]]]\nB = [[1.0], [0.0]]\nw = { low = [0.0, 0.0], high = [0.0, 0.0] }\n"
+        )
+    with pytest.raises(ModelFileError, match=r"'hypothesis' must be one or more \[\[hypothesis\]\] tables"):
+        parse_model_file(base + "hypothesis = 3\n")
+
+
+def test_missing_and_unreadable_model_files(tmp_path):
+    with pytest.raises(ModelFileError, match=r"model file '.*absent\.toml' does not exist"):
+        load_model_file(tmp_path / "absent.toml")
+    (tmp_path / "binary.toml").write_bytes(b"\xff\xfe\x00")
+    with pytest.raises(ModelFileError, match=r"cannot read model file"):
+        load_model_file(tmp_path / "binary.toml")
+
+
+# ------------------------------------------------------------------ data files
+def _write(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_csv_columns_in_any_order_and_last_controls_optional(tmp_path):
+    path = _write(tmp_path, "d.csv", "u0,x1,x0\n1.5,2,1\n-1,4,3\n,6,5\n")
+    data = load_data_file(path)
+    np.testing.assert_array_equal(data.states, [[1, 2], [3, 4], [5, 6]])
+    np.testing.assert_array_equal(data.controls, [[1.5], [-1]])
+    # the last row's controls may be given (they are unused) or left out entirely
+    assert np.array_equal(load_data_file(_write(tmp_path, "e.csv", "x0,u0\n1,2\n3,9\n")).controls, [[2]])
+    assert np.array_equal(load_data_file(_write(tmp_path, "f.csv", "x0,x1,u0\n1,2,3\n4,5\n")).states, [[1, 2], [4, 5]])
+
+
+def test_npz_round_trip_and_extra_arrays_ignored(tmp_path):
+    rng = np.random.default_rng(0)
+    states, controls = rng.normal(size=(6, 3)), rng.normal(size=(5, 2))
+    np.savez(tmp_path / "d.npz", states=states, controls=controls, theta_true=np.ones(2))
+    data = load_data_file(tmp_path / "d.npz")
+    np.testing.assert_array_equal(data.states, states)
+    np.testing.assert_array_equal(data.controls, controls)
+    assert data.ntransitions == 5 and not data.states.flags.writeable
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("x0,v0\n1,2\n3,4\n", r"unknown column 'v0'"),
+        ("x0,x2,u0\n1,2,3\n4,5,6\n", r"x columns must be numbered 0\.\.1, got \[0, 2\]"),
+        ("x0,x0,u0\n1,2,3\n4,5,6\n", r"column 'x0' appears twice"),
+        ("x0,x1\n1,2\n3,4\n", r"no u columns"),
+        ("x0,u0\n1,2\n", r"need at least 2 data rows \(one transition\), got 1"),
+        ("x0,u0\n1,nan\n3,\n", r"line 2, column 'u0' is not finite: 'nan'"),
+        ("x0,u0\n1,2\ninf,\n", r"line 3, column 'x0' is not finite: 'inf'"),
+        ("x0,u0\n1,\n3,\n", r"line 2, column 'u0' is empty"),
+        ("x0,u0\n1,abc\n3,\n", r"line 2, column 'u0' is not a number: 'abc'"),
+        ("x0,u0\n1,2,3\n3,\n", r"line 2 has 3 cells, the header has 2"),
+        ("x0,u0\n1,2\n3,oops\n", r"line 3, column 'u0' is not a number"),
+        ("", r"empty file"),
+    ],
+)
+def test_malformed_csv_is_rejected_naming_the_cell(tmp_path, text, message):
+    with pytest.raises(DataFileError, match=message):
+        load_data_file(_write(tmp_path, "d.csv", text))
+
+
+@pytest.mark.parametrize(
+    ("arrays", "message"),
+    [
+        ({"states": np.zeros((3, 2))}, r"missing array\(s\) \['controls'\]"),
+        ({"states": np.zeros((3, 2)), "controls": np.zeros((3, 1))}, r"one row more than controls.*states shape \(3, 2\) and controls shape \(3, 1\)"),
+        ({"states": np.zeros(3), "controls": np.zeros((2, 1))}, r"states must be a non-empty 2-dimensional array, got shape \(3,\)"),
+        ({"states": np.array([[0.0], [np.nan]]), "controls": np.zeros((1, 1))}, r"states contains NaN or infinite entries \(first at index \[1, 0\]\)"),
+        ({"states": np.zeros((2, 1)), "controls": np.array([["a"]])}, r"controls must be a real numeric array, got dtype <U1"),
+        ({"states": np.zeros((2, 1)), "controls": np.array([[None]], dtype=object)}, r"cannot read data file .*pickle"),
+    ],
+)
+def test_malformed_npz_is_rejected_naming_the_array(tmp_path, arrays, message):
+    np.savez(tmp_path / "d.npz", **arrays)
+    with pytest.raises(DataFileError, match=message):
+        load_data_file(tmp_path / "d.npz")
+
+
+def test_data_file_extension_and_existence(tmp_path):
+    with pytest.raises(DataFileError, match=r"must end in \.csv or \.npz, got '\.txt'"):
+        load_data_file(_write(tmp_path, "d.txt", "x0,u0\n"))
+    with pytest.raises(DataFileError, match=r"must end in \.csv or \.npz, got 'no extension'"):
+        load_data_file(tmp_path / "data")
+    with pytest.raises(DataFileError, match=r"data file '.*absent\.npz' does not exist"):
+        load_data_file(tmp_path / "absent.npz")
+    (tmp_path / "bad.npz").write_bytes(b"not a zip file")
+    with pytest.raises(DataFileError, match=r"cannot read data file"):
+        load_data_file(tmp_path / "bad.npz")
