@@ -1,0 +1,471 @@
+"""Reward families in [0, 1] with their exact minimum over a box of states.
+
+The interval planner needs, for every predicted box of states, the pessimistic reward
+``min_{x in [lower, upper]} J(x, t)`` (Theorem 1: the surrogate objective (11) is a
+lower bound of the robust objective (10) exactly because each of its terms is a
+minimum of J over a box that contains the true state). Each family here gives
+
+* ``value(states, t)`` / ``evaluate(states, t)``: J at points (and the collision flag);
+* ``box_minimum(lower, upper, t) -> (reward, collided)``: the EXACT minimum over the
+  box, vectorised over leading dimensions, and ``box_argmin`` a point of the box that
+  attains it (for tests and diagnostics);
+* ``box_minimum_raw``: the same without argument checks, for a planner's hot path.
+
+``t`` is the absolute sub-step index (moving obstacles' predicted boxes depend on
+it); a scalar or an array broadcasting against the leading dimensions.
+
+Rewards read full states: each family holds the indices of the coordinates it uses
+(``position_indices`` for the robot's planar position, which the collision term always
+reads). A state array whose last axis is just the position works with the default
+``position_indices=(0, 1)``.
+
+Collision (the paper's beta(x), Section IV): a state collides at sub-step t when the
+robot's disc (radius ``robot_radius``) around its position meets a static obstacle
+disc or, for a moving obstacle, a disc of its radius centred anywhere in its predicted
+box at t (at points, given the true positions of the moving obstacles through
+``moving_positions``, the disc at that position). A box collides when one of its
+points does; then its minimum reward is 0 (the DESIGN errata: the reference code tests
+only four corners).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from minimaxplan.models._validation import as_finite_array, as_positive_scalar, frozen_copy
+from minimaxplan.models.errors import DimensionError, InputError
+
+from .geometry import CircularObstacles, MovingObstacles, box_point_sq_distance
+
+__all__ = ["GoalReward", "SpeedLaneReward"]
+
+#: Two weights "sum to one" when they do to this absolute tolerance.
+WEIGHT_SUM_TOL = 1e-12
+
+
+def _as_index_tuple(name: str, value, *, length: int | None = None) -> tuple[int, ...]:
+    try:
+        indices = tuple(int(i) for i in value)
+    except TypeError:
+        raise InputError(f"{name} must be a sequence of integers, got {value!r}") from None
+    if any(int(i) != i for i in value) or any(i < 0 for i in indices):
+        raise InputError(f"{name} must hold nonnegative integers, got {value!r}")
+    if length is not None and len(indices) != length:
+        raise DimensionError(f"{name} must have length {length}, got length {len(indices)}")
+    if len(set(indices)) != len(indices):
+        raise InputError(f"{name} must not repeat an index, got {indices}")
+    return indices
+
+
+def _selector(indices: tuple[int, ...]):
+    """A basic slice when the indices are contiguous (a view, no copy), else the index list."""
+    if indices == tuple(range(indices[0], indices[0] + len(indices))):
+        return slice(indices[0], indices[0] + len(indices))
+    return list(indices)
+
+
+class _CollisionTerm:
+    """beta(x) of the paper: robot disc against static discs and moving discs' predicted boxes."""
+
+    def __init__(self, obstacles, moving_obstacles, robot_radius, position_indices):
+        if obstacles is None:
+            obstacles = CircularObstacles.empty()
+        if moving_obstacles is None:
+            moving_obstacles = MovingObstacles.empty()
+        if not isinstance(obstacles, CircularObstacles):
+            raise InputError(f"obstacles must be CircularObstacles or None, got {type(obstacles).__name__}")
+        if not isinstance(moving_obstacles, MovingObstacles):
+            raise InputError(f"moving_obstacles must be MovingObstacles or None, got {type(moving_obstacles).__name__}")
+        self.obstacles = obstacles
+        self.moving = moving_obstacles
+        self.robot_radius = as_positive_scalar("robot_radius", robot_radius, allow_zero=True)
+        self.position_indices = _as_index_tuple("position_indices", position_indices, length=2)
+        self.pos = _selector(self.position_indices)
+        self._centers = obstacles.centers
+        self._reach_sq = (obstacles.radii + self.robot_radius) ** 2
+        self._moving_reach_sq = (moving_obstacles.radii + self.robot_radius) ** 2
+        self.has_static = len(obstacles) > 0
+        self.has_moving = len(moving_obstacles) > 0
+
+    def boxes(self, lower, upper, t):
+        """Whether each box of positions (..., 2) holds a colliding point at sub-step t."""
+        hit = np.zeros(np.broadcast_shapes(lower.shape, upper.shape)[:-1], dtype=bool)
+        if self.has_static:
+            hit |= np.any(box_point_sq_distance(lower, upper, self._centers) <= self._reach_sq, axis=-1)
+        if self.has_moving:
+            olo, ohi = self.moving.boxes(t)
+            gap = np.maximum(olo - upper[..., None, :], 0.0) + np.maximum(lower[..., None, :] - ohi, 0.0)
+            hit |= np.any(np.einsum("...i,...i->...", gap, gap) <= self._moving_reach_sq, axis=-1)
+        return hit
+
+    def points(self, positions, t, moving_positions=None):
+        """Whether each position (..., 2) collides at sub-step t."""
+        if moving_positions is None:
+            return self.boxes(positions, positions, t)
+        hit = np.zeros(positions.shape[:-1], dtype=bool)
+        if self.has_static:
+            hit |= np.any(box_point_sq_distance(positions, positions, self._centers) <= self._reach_sq, axis=-1)
+        mp = as_finite_array("moving_positions", moving_positions, (len(self.moving), 2))
+        if self.has_moving:
+            hit |= np.any(box_point_sq_distance(positions, positions, mp) <= self._moving_reach_sq, axis=-1)
+        return hit
+
+    def witness(self, lower, upper, t):
+        """For each box that collides, a colliding point of the box (positions (..., 2)); else ``lower``.
+
+        The point of the box closest to the first obstacle it meets: ``clip(c, lower,
+        upper)`` for a disc centred at c, ``clip(other_lower, lower, upper)`` for a
+        moving obstacle's box (closest to that box on every axis).
+        """
+        shape = np.broadcast_shapes(lower.shape, upper.shape)
+        out = np.broadcast_to(lower, shape).copy()
+        found = np.zeros(shape[:-1], dtype=bool)
+        candidates = []
+        if self.has_static:
+            d2 = box_point_sq_distance(lower, upper, self._centers)
+            candidates.append((d2 <= self._reach_sq, np.clip(self._centers, lower[..., None, :], upper[..., None, :])))
+        if self.has_moving:
+            olo, ohi = self.moving.boxes(t)
+            gap = np.maximum(olo - upper[..., None, :], 0.0) + np.maximum(lower[..., None, :] - ohi, 0.0)
+            meets = np.einsum("...i,...i->...", gap, gap) <= self._moving_reach_sq
+            candidates.append((meets, np.clip(olo, lower[..., None, :], upper[..., None, :])))
+        for meets, points in candidates:
+            meets = np.broadcast_to(meets, shape[:-1] + meets.shape[-1:])
+            points = np.broadcast_to(points, shape[:-1] + points.shape[-2:])
+            first = np.argmax(meets, axis=-1)
+            take = meets.any(axis=-1) & ~found
+            chosen = np.take_along_axis(points, first[..., None, None], axis=-2)[..., 0, :]
+            out[take] = chosen[take]
+            found |= take
+        return out
+
+    def to_dict(self):
+        return {
+            "obstacles": self.obstacles.to_dict(),
+            "moving_obstacles": self.moving.to_dict(),
+            "robot_radius": self.robot_radius,
+            "position_indices": list(self.position_indices),
+        }
+
+
+class _RewardBase:
+    """Checks and plumbing shared by the families (subclasses define the raw maths)."""
+
+    _collision: _CollisionTerm
+
+    @property
+    def min_state_dim(self) -> int:
+        """The smallest state dimension this reward can read."""
+        return max(self._used_indices()) + 1
+
+    def _check_states(self, name, states):
+        x = as_finite_array(name, states)
+        if x.ndim < 1 or x.shape[-1] < self.min_state_dim:
+            raise DimensionError(
+                f"{name} must have shape (..., p) with p >= {self.min_state_dim} (indices {sorted(self._used_indices())}), "
+                f"got shape {x.shape}"
+            )
+        return x
+
+    def _check_box(self, lower, upper):
+        lo = self._check_states("lower", lower)
+        hi = self._check_states("upper", upper)
+        if lo.shape != hi.shape:
+            raise DimensionError(f"lower and upper must have the same shape, got {lo.shape} and {hi.shape}")
+        if np.any(lo > hi):
+            raise InputError("lower must be <= upper in every coordinate")
+        return lo, hi
+
+    def value(self, states, t=0, *, moving_positions=None) -> np.ndarray:
+        """J at each state (..., p); see `evaluate`."""
+        return self.evaluate(states, t, moving_positions=moving_positions)[0]
+
+    def evaluate(self, states, t=0, *, moving_positions=None) -> tuple[np.ndarray, np.ndarray]:
+        """J and the collision flag at each state (..., p) at sub-step ``t``.
+
+        ``moving_positions`` (m, 2), when given, are the moving obstacles' true
+        positions (a simulated world's view); otherwise a state collides when it can
+        meet a moving obstacle anywhere in its predicted box at ``t``.
+        """
+        x = self._check_states("states", states)
+        collided = self._collision.points(x[..., self._collision.pos], t, moving_positions)
+        reward = np.where(collided, 0.0, self._free_value(x))
+        return reward, collided
+
+    def box_minimum(self, lower, upper, t=0) -> tuple[np.ndarray, np.ndarray]:
+        """The exact ``min_{x in [lower, upper]} J(x, t)`` and whether the box may collide.
+
+        Parameters
+        ----------
+        lower, upper
+            Boxes of states, shape (..., p).
+        t
+            Absolute sub-step index, scalar or broadcasting against the leading shape.
+
+        Returns
+        -------
+        reward, collided
+            Arrays of shape (...): the minimum (0 where ``collided``) and whether some
+            state of the box collides.
+        """
+        lo, hi = self._check_box(lower, upper)
+        return self.box_minimum_raw(lo, hi, t)
+
+    def box_minimum_raw(self, lower: np.ndarray, upper: np.ndarray, t=0) -> tuple[np.ndarray, np.ndarray]:
+        """`box_minimum` without argument checks (float arrays (..., p), lower <= upper)."""
+        pos = self._collision.pos
+        collided = self._collision.boxes(lower[..., pos], upper[..., pos], t)
+        return np.where(collided, 0.0, self._free_minimum(lower, upper)), collided
+
+    def box_argmin(self, lower, upper, t=0) -> np.ndarray:
+        """A state of each box where J attains `box_minimum` (shape (..., p))."""
+        lo, hi = self._check_box(lower, upper)
+        pos = self._collision.pos
+        point = self._free_argmin(lo, hi)
+        collided = self._collision.boxes(lo[..., pos], hi[..., pos], t)
+        if np.any(collided):
+            witness = self._collision.witness(lo[..., pos], hi[..., pos], t)
+            sub = point[..., pos]
+            sub[collided] = witness[collided]
+            point[..., pos] = sub
+        return point
+
+
+@dataclass(frozen=True, eq=False)
+class GoalReward(_RewardBase):
+    """Goal reaching, ``J(x) = beta(x) / (1 + ||pos(x) - goal||_2)`` (paper, Section IV).
+
+    Parameters
+    ----------
+    goal
+        The goal position, shape (2,).
+    obstacles
+        Static discs, or None.
+    moving_obstacles
+        Moving discs with predicted boxes, or None.
+    robot_radius
+        The robot's footprint radius, >= 0.
+    position_indices
+        Where the planar position sits in the state.
+
+    Notes
+    -----
+    Exact box minimum: if the box grown by the footprint meets an obstacle, some state
+    of the box has beta = 0 and the minimum is 0. Otherwise beta = 1 on the whole box
+    and ``1 / (1 + d)`` is decreasing in the distance d to the goal, so the minimum is
+    at the point of the box farthest from the goal. The distance to the goal is a
+    separable sum of squares, each term maximised at the end of its interval farther
+    from the goal: the farthest point is the corner ``where(|lo - g| >= |hi - g|, lo, hi)``,
+    at distance ``||max(|lo - g|, |hi - g|)||`` (the reference code uses the box centre,
+    which is not a lower bound).
+    """
+
+    goal: np.ndarray
+    obstacles: CircularObstacles | None = None
+    moving_obstacles: MovingObstacles | None = None
+    robot_radius: float = 0.0
+    position_indices: tuple = (0, 1)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "goal", frozen_copy(as_finite_array("goal", self.goal, (2,))))
+        collision = _CollisionTerm(self.obstacles, self.moving_obstacles, self.robot_radius, self.position_indices)
+        object.__setattr__(self, "_collision", collision)
+        object.__setattr__(self, "obstacles", collision.obstacles)
+        object.__setattr__(self, "moving_obstacles", collision.moving)
+        object.__setattr__(self, "robot_radius", collision.robot_radius)
+        object.__setattr__(self, "position_indices", collision.position_indices)
+
+    def _used_indices(self):
+        return self.position_indices
+
+    def _free_value(self, x):
+        return 1.0 / (1.0 + np.linalg.norm(x[..., self._collision.pos] - self.goal, axis=-1))
+
+    def _free_minimum(self, lower, upper):
+        pos = self._collision.pos
+        far = np.maximum(np.abs(lower[..., pos] - self.goal), np.abs(upper[..., pos] - self.goal))
+        return 1.0 / (1.0 + np.sqrt(np.einsum("...i,...i->...", far, far)))
+
+    def _free_argmin(self, lower, upper):
+        pos = self._collision.pos
+        point = lower.copy()
+        lo, hi = lower[..., pos], upper[..., pos]
+        point[..., pos] = np.where(np.abs(lo - self.goal) >= np.abs(hi - self.goal), lo, hi)
+        return point
+
+    def with_obstacles(self, obstacles=None, moving_obstacles=None) -> "GoalReward":
+        """The same reward with other obstacles (e.g. the pedestrians observed now)."""
+        return GoalReward(
+            self.goal,
+            obstacles=self.obstacles if obstacles is None else obstacles,
+            moving_obstacles=self.moving_obstacles if moving_obstacles is None else moving_obstacles,
+            robot_radius=self.robot_radius,
+            position_indices=self.position_indices,
+        )
+
+    def to_dict(self) -> dict:
+        return {"family": "goal", "goal": self.goal.tolist(), **self._collision.to_dict()}
+
+
+@dataclass(frozen=True, eq=False)
+class SpeedLaneReward(_RewardBase):
+    """Speed tracking with a lane term, the vehicle reward of the paper's Section IV.
+
+    ``J(x) = beta(x) * (speed_weight * (1 - min(|s(x) - target_speed| / speed_range, 1))
+    + lane_weight * lane(y) / (n_lanes - 1))`` with ``speed_weight + lane_weight = 1``,
+    so J lies in [0, 1] (the paper writes the vehicle "cost" with c2 v / v_max,
+    c3 l_c / (l_s - 1) and a collision penalty; this is its [0, 1] reward form, with
+    speed tracking instead of raw speed).
+
+    Parameters
+    ----------
+    target_speed, speed_range
+        The tracked speed and the deviation at which the speed term reaches 0 (> 0).
+    speed_indices
+        One index (the speed s is that signed coordinate, e.g. the longitudinal
+        velocity) or two (s is the Euclidean norm of those velocity coordinates).
+    lateral_index
+        The lateral position y; ``lane(y) = clip(floor(y / lane_width + 1/2), 0,
+        n_lanes - 1)`` (lane k is centred at ``y = k * lane_width``; a higher lane index
+        is the preferred, "right", lane as in the paper's l_c / (l_s - 1)). May be None
+        when ``lane_weight`` is 0.
+    lane_width, n_lanes
+        Lane geometry (> 0, >= 2).
+    speed_weight, lane_weight
+        Nonnegative, summing to 1.
+    obstacles, moving_obstacles, robot_radius, position_indices
+        The collision term, as in `GoalReward`.
+
+    Notes
+    -----
+    Exact box minimum (no collision): the speed coordinates and y are different state
+    coordinates, so the minimum of the weighted sum is the weighted sum of the minima.
+    Over a box the speed s takes exactly the values of an interval [s_lo, s_hi] (the box
+    is connected and s continuous): ``[lo, hi]`` of the coordinate for one index; for
+    two, ``s_lo = ||clip(0, lo, hi)||`` (the box point nearest the origin) and ``s_hi =
+    ||max(|lo|, |hi|)||`` (the farthest corner). The deviation ``|s - target|`` is convex
+    in s, so its maximum over the interval is at an end, and the speed term's minimum
+    is ``1 - min(max(|s_lo - target|, |s_hi - target|) / speed_range, 1)``. lane(y) is
+    nondecreasing, so the lane term's minimum is at ``y = lo_y``. With a collision
+    possible anywhere in the box, the minimum is 0.
+    """
+
+    target_speed: float
+    speed_range: float
+    speed_indices: tuple = (2,)
+    lateral_index: int | None = 1
+    lane_width: float = 4.0
+    n_lanes: int = 2
+    speed_weight: float = 0.8
+    lane_weight: float = 0.2
+    obstacles: CircularObstacles | None = None
+    moving_obstacles: MovingObstacles | None = None
+    robot_radius: float = 0.0
+    position_indices: tuple = (0, 1)
+
+    def __post_init__(self) -> None:
+        try:
+            target = float(self.target_speed)
+        except (TypeError, ValueError):
+            raise InputError(f"target_speed must be a real scalar, got {self.target_speed!r}") from None
+        if not np.isfinite(target):
+            raise InputError(f"target_speed must be finite, got {target}")
+        object.__setattr__(self, "target_speed", target)
+        object.__setattr__(self, "speed_range", as_positive_scalar("speed_range", self.speed_range))
+        speed = _as_index_tuple("speed_indices", self.speed_indices)
+        if len(speed) not in (1, 2):
+            raise DimensionError(f"speed_indices must have length 1 or 2, got length {len(speed)}")
+        object.__setattr__(self, "speed_indices", speed)
+        c1 = as_positive_scalar("speed_weight", self.speed_weight, allow_zero=True)
+        c2 = as_positive_scalar("lane_weight", self.lane_weight, allow_zero=True)
+        if abs(c1 + c2 - 1.0) > WEIGHT_SUM_TOL:
+            raise InputError(f"speed_weight + lane_weight must be 1, got {c1} + {c2} = {c1 + c2}")
+        object.__setattr__(self, "speed_weight", c1)
+        object.__setattr__(self, "lane_weight", c2)
+        if self.lateral_index is None:
+            if c2 != 0:
+                raise InputError("lateral_index is None, so lane_weight must be 0")
+        else:
+            (lateral,) = _as_index_tuple("lateral_index", (self.lateral_index,))
+            if lateral in speed:
+                raise InputError(f"lateral_index {lateral} must differ from speed_indices {speed}")
+            object.__setattr__(self, "lateral_index", lateral)
+        object.__setattr__(self, "lane_width", as_positive_scalar("lane_width", self.lane_width))
+        if int(self.n_lanes) != self.n_lanes or self.n_lanes < 2:
+            raise InputError(f"n_lanes must be an integer >= 2, got {self.n_lanes!r}")
+        object.__setattr__(self, "n_lanes", int(self.n_lanes))
+        collision = _CollisionTerm(self.obstacles, self.moving_obstacles, self.robot_radius, self.position_indices)
+        if set(speed) & set(collision.position_indices):
+            raise InputError(f"speed_indices {speed} must differ from position_indices {collision.position_indices}")
+        object.__setattr__(self, "_collision", collision)
+        object.__setattr__(self, "obstacles", collision.obstacles)
+        object.__setattr__(self, "moving_obstacles", collision.moving)
+        object.__setattr__(self, "robot_radius", collision.robot_radius)
+        object.__setattr__(self, "position_indices", collision.position_indices)
+        object.__setattr__(self, "_speed_sel", _selector(speed))
+
+    def _used_indices(self):
+        extra = () if self.lateral_index is None else (self.lateral_index,)
+        return self.position_indices + self.speed_indices + extra
+
+    def _lane_term(self, y):
+        lane = np.clip(np.floor(y / self.lane_width + 0.5), 0, self.n_lanes - 1)
+        return lane / (self.n_lanes - 1)
+
+    def _speed_term(self, deviation):
+        return 1.0 - np.minimum(deviation / self.speed_range, 1.0)
+
+    def _speed(self, x):
+        v = x[..., self._speed_sel]
+        return v[..., 0] if len(self.speed_indices) == 1 else np.sqrt(np.einsum("...i,...i->...", v, v))
+
+    def _speed_interval(self, lower, upper):
+        lo, hi = lower[..., self._speed_sel], upper[..., self._speed_sel]
+        if len(self.speed_indices) == 1:
+            return lo[..., 0], hi[..., 0]
+        near = np.clip(0.0, lo, hi)
+        far = np.maximum(np.abs(lo), np.abs(hi))
+        return np.sqrt(np.einsum("...i,...i->...", near, near)), np.sqrt(np.einsum("...i,...i->...", far, far))
+
+    def _free_value(self, x):
+        reward = self.speed_weight * self._speed_term(np.abs(self._speed(x) - self.target_speed))
+        if self.lane_weight:
+            reward = reward + self.lane_weight * self._lane_term(x[..., self.lateral_index])
+        return reward
+
+    def _free_minimum(self, lower, upper):
+        s_lo, s_hi = self._speed_interval(lower, upper)
+        worst = np.maximum(np.abs(s_lo - self.target_speed), np.abs(s_hi - self.target_speed))
+        reward = self.speed_weight * self._speed_term(worst)
+        if self.lane_weight:
+            reward = reward + self.lane_weight * self._lane_term(lower[..., self.lateral_index])
+        return reward
+
+    def _free_argmin(self, lower, upper):
+        point = lower.copy()
+        lo, hi = lower[..., self._speed_sel], upper[..., self._speed_sel]
+        s_lo, s_hi = self._speed_interval(lower, upper)
+        low_is_worse = (np.abs(s_lo - self.target_speed) >= np.abs(s_hi - self.target_speed))[..., None]
+        if len(self.speed_indices) == 1:
+            point[..., self._speed_sel] = np.where(low_is_worse, lo, hi)
+        else:
+            nearest = np.clip(0.0, lo, hi)
+            farthest = np.where(np.abs(lo) >= np.abs(hi), lo, hi)
+            point[..., self._speed_sel] = np.where(low_is_worse, nearest, farthest)
+        return point
+
+    def to_dict(self) -> dict:
+        return {
+            "family": "speed_lane",
+            "target_speed": self.target_speed,
+            "speed_range": self.speed_range,
+            "speed_indices": list(self.speed_indices),
+            "lateral_index": self.lateral_index,
+            "lane_width": self.lane_width,
+            "n_lanes": self.n_lanes,
+            "speed_weight": self.speed_weight,
+            "lane_weight": self.lane_weight,
+            **self._collision.to_dict(),
+        }
