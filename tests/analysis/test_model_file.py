@@ -347,3 +347,20 @@ def test_data_file_extension_and_existence(tmp_path):
     (tmp_path / "bad.npz").write_bytes(b"not a zip file")
     with pytest.raises(DataFileError, match=r"cannot read data file"):
         load_data_file(tmp_path / "bad.npz")
+
+
+def test_every_toml_example_in_the_documentation_parses():
+    import re
+
+    text = (ROOT / "docs" / "model-format.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```toml\n(.*?)```", text, flags=re.DOTALL)
+    assert len(blocks) >= 2
+    parsed = [parse_model_file(block, source="docs") for block in blocks]
+    assert parsed[0].names == ["isotropic friction", "wrong input gain"]
+    np.testing.assert_array_equal(parsed[0].measurement_noise, np.zeros(4))
+    full = load_model_file(EXAMPLES / "robot_hypotheses.toml")
+    for name in parsed[0].names:  # the abridged example agrees with the example file
+        for key in ("A0", "phi", "B", "D"):
+            np.testing.assert_array_equal(
+                getattr(parsed[0].select(name).systems[0], key), getattr(full.select(name).systems[0], key)
+            )
