@@ -15,11 +15,17 @@ from .errors import (
 )
 from .sets import Box, Ellipsoid
 from .system import UncertainLinearSystem
+from .polytope import parameter_vertices
+from .prediction import IntervalPredictor, Tube, predict_tube
 
 __all__ = [
     "Box",
     "Ellipsoid",
     "UncertainLinearSystem",
+    "parameter_vertices",
+    "IntervalPredictor",
+    "Tube",
+    "predict_tube",
     "MinimaxplanError",
     "InputError",
     "DimensionError",

@@ -1,0 +1,226 @@
+"""Parameter sets as polytopes: the vertices that the interval predictor works with.
+
+The interval predictor needs the uncertain parameters as the convex hull of finitely
+many vertices (eq. (8)). This module turns every parameter set that the library
+produces (a prior `Box`, a confidence `Ellipsoid`, an explicit vertex array) into such
+a vertex array, always for a polytope that CONTAINS the set, never one that merely
+approximates it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linprog
+from scipy.spatial import HalfspaceIntersection, QhullError
+
+from ._validation import as_finite_array
+from .errors import DimensionError, EmptySetError, InputError, SolverFailure
+from .sets import Box, Ellipsoid
+
+__all__ = ["parameter_vertices", "box_halfspaces", "parallelotope_halfspaces", "polytope_vertices"]
+
+#: Absolute error budget of qhull's vertices, relative to the coordinates' magnitude.
+#: The returned vertices are dilated about an interior point so that their hull
+#: exceeds the exact polytope by at least this margin in every direction.
+VERTEX_ERROR = 1e-11
+
+#: A Chebyshev radius below this (relative to the set's size) means the polytope is
+#: flat (lower-dimensional), where qhull cannot enumerate vertices.
+FLAT_RADIUS = 1e-9
+
+
+def box_halfspaces(box: Box) -> tuple[np.ndarray, np.ndarray]:
+    """The box as ``{t : a t <= b}``: ``a`` of shape (2d, d), ``b`` of shape (2d,)."""
+    eye = np.eye(box.dim)
+    return np.vstack([eye, -eye]), np.concatenate([box.high, -box.low])
+
+
+def parallelotope_halfspaces(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
+    """The enclosing parallelotope of `Ellipsoid.vertices` as ``{t : a t <= b}``.
+
+    Notes
+    -----
+    With ``G = P diag(l) P^T`` the parallelotope is ``|P^T (t - c)|_i <= radius / sqrt(l_i)``
+    (DESIGN errata: the box of the ellipsoid's principal axes). Rows of ``a`` are unit vectors.
+    """
+    lengths, axes = ellipsoid.semi_axes()
+    offset = axes.T @ ellipsoid.center
+    return np.vstack([axes.T, -axes.T]), np.concatenate([offset + lengths, -offset + lengths])
+
+
+def _chebyshev_center(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre and radius of the largest ball in ``{t : a t <= b}`` (an LP, HiGHS).
+
+    Raises `EmptySetError` when the LP is infeasible (the polytope is empty) and
+    `SolverFailure` for any other status that is not a success.
+    """
+    norms = np.linalg.norm(a, axis=1)
+    d = a.shape[1]
+    cost = np.zeros(d + 1)
+    cost[-1] = -1.0  # maximise the radius
+    result = linprog(
+        cost,
+        A_ub=np.hstack([a, norms[:, None]]),
+        b_ub=b,
+        bounds=[(None, None)] * d + [(0, None)],
+        method="highs",
+    )
+    if result.status == 2:
+        raise EmptySetError("the intersection of the parameter set with the prior box is empty")
+    if result.status != 0:
+        raise SolverFailure(f"Chebyshev-centre LP failed with status {result.status}: {result.message}")
+    return result.x[:d], float(result.x[-1])
+
+
+def polytope_vertices(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """Vertices of the bounded polytope ``{t : a t <= b}``, slightly dilated outward.
+
+    Returns None when the polytope is flat (its Chebyshev radius is below
+    `FLAT_RADIUS` times its size), where exact enumeration by qhull is impossible;
+    raises `EmptySetError` when it is empty.
+
+    Notes
+    -----
+    The vertices are computed by `scipy.spatial.HalfspaceIntersection` from the
+    Chebyshev centre ``c`` (radius ``r``) and then moved to ``c + (1 + s) (v - c)``.
+    Since the polytope contains the ball of radius r about c, the dilated hull
+    contains the exact polytope grown by ``s r``; with ``s r >= VERTEX_ERROR * scale``
+    (scale = the largest coordinate magnitude) the rounding of qhull is absorbed.
+    """
+    d = a.shape[1]
+    if d == 1:
+        upper = np.min(b[a[:, 0] > 0] / a[a[:, 0] > 0, 0])
+        lower = np.max(b[a[:, 0] < 0] / a[a[:, 0] < 0, 0])
+        if lower > upper:
+            raise EmptySetError("the intersection of the parameter set with the prior box is empty")
+        return np.array([[lower], [upper]])
+    center, radius = _chebyshev_center(a, b)
+    size = max(1.0, float(np.max(np.abs(b))))
+    if radius <= FLAT_RADIUS * size:
+        return None
+    try:
+        vertices = HalfspaceIntersection(np.hstack([a, -b[:, None]]), center).intersections
+    except QhullError as exc:  # not expected with a strictly interior point; never hidden
+        raise SolverFailure(f"qhull failed to enumerate the polytope's vertices: {exc}") from None
+    scale = max(1.0, float(np.max(np.abs(vertices))))
+    vertices = _drop_near_duplicates(vertices, 1e-14 * scale)
+    dilation = max(VERTEX_ERROR, VERTEX_ERROR * scale / radius)
+    return center + (1.0 + dilation) * (vertices - center)
+
+
+def _drop_near_duplicates(points: np.ndarray, tol: float) -> np.ndarray:
+    """Keep one of each cluster of points closer than ``tol`` (qhull repeats degenerate vertices).
+
+    Dropping a point within ``tol`` of a kept one shrinks the hull by at most ``tol``;
+    callers pass a ``tol`` far below the dilation margin ``VERTEX_ERROR * scale``.
+    """
+    kept: list[np.ndarray] = []
+    for point in points:
+        if not any(np.max(np.abs(point - other)) <= tol for other in kept):
+            kept.append(point)
+    return np.array(kept)
+
+
+def _intersect_boxes(box: Box, prior: Box, what: str) -> Box:
+    try:
+        return box.intersect(prior)
+    except EmptySetError:
+        raise EmptySetError(f"{what} {box!r} does not meet the prior {prior!r}: the parameter set is empty") from None
+
+
+def _ellipsoid_in_box_vertices(ellipsoid: Ellipsoid, prior: Box) -> np.ndarray:
+    """Vertices of (parallelotope ∩ bounding box ∩ prior), a sound enclosure of ellipsoid ∩ prior."""
+    if prior.dim != ellipsoid.dim:
+        raise DimensionError(f"prior must have dimension {ellipsoid.dim} (the ellipsoid's), got {prior.dim}")
+    box = _intersect_boxes(ellipsoid.bounding_box(), prior, "the ellipsoid's bounding box")
+    a_par, b_par = parallelotope_halfspaces(ellipsoid)
+    a_box, b_box = box_halfspaces(box)
+    vertices = polytope_vertices(np.vstack([a_par, a_box]), np.concatenate([b_par, b_box]))
+    if vertices is None:
+        # Flat intersection (e.g. a prior side of zero width): the box, which contains it, is enumerable.
+        return box.vertices()
+    return vertices
+
+
+def _array_in_box_vertices(vertices: np.ndarray, prior: Box) -> np.ndarray:
+    """Vertices of a sound enclosure of co{vertices} ∩ prior."""
+    if np.all(vertices >= prior.low) and np.all(vertices <= prior.high):
+        return vertices  # the hull already lies in the prior box
+    hull_box = _intersect_boxes(Box(vertices.min(axis=0), vertices.max(axis=0)), prior, "the vertices' bounding box")
+    d = vertices.shape[1]
+    if vertices.shape[0] <= d or np.linalg.matrix_rank(vertices[1:] - vertices[0]) < d:
+        return hull_box.vertices()  # a flat hull: its bounding box (∩ prior) contains co{V} ∩ prior
+    from scipy.spatial import ConvexHull
+
+    equations = ConvexHull(vertices).equations
+    a_box, b_box = box_halfspaces(hull_box)
+    clipped = polytope_vertices(np.vstack([equations[:, :-1], a_box]), np.concatenate([-equations[:, -1], b_box]))
+    return hull_box.vertices() if clipped is None else clipped
+
+
+def parameter_vertices(parameters, prior: Box | None = None) -> np.ndarray:
+    """Vertices of a polytope that contains a parameter set (eq. (8)).
+
+    Parameters
+    ----------
+    parameters
+        A `Box`, an `Ellipsoid`, or an array of shape (k, d) whose rows are the
+        vertices of a polytope (any k >= 1; taken as is).
+    prior
+        Optional prior `Box` (the set D of Assumption 1); the result then contains
+        ``parameters ∩ prior``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (k', d): the convex hull of the rows contains the (intersected) set.
+
+    Raises
+    ------
+    EmptySetError
+        If the enclosing polytope does not meet ``prior``.
+    DimensionError, NonFiniteError, InputError
+        For a malformed argument.
+
+    Notes
+    -----
+    - Box: its 2^d corners (intersected with ``prior`` first; box ∩ box is exact).
+    - Ellipsoid, no prior: the 2^d vertices of the enclosing parallelotope of the
+      errata, ``c + radius P diag(l)^(-1/2) h``.
+    - Ellipsoid with prior: clipping the parallelotope's vertices to the prior is NOT
+      sound (the clipped hull can miss parts of the ellipsoid). The result here is the
+      exact vertex set of parallelotope ∩ bounding box ∩ prior, three sound
+      enclosures of the ellipsoid intersected, so it is contained in each of the
+      obvious candidates (the clipped box, the parallelotope) and never larger. The
+      vertices come from `scipy.spatial.HalfspaceIntersection`, dilated outward (see
+      `polytope_vertices`) to absorb rounding. When that intersection is flat
+      (some prior side has zero width) qhull cannot enumerate it, and the enclosing
+      box (bounding box ∩ prior) is returned instead: equally sound, possibly larger.
+    - Array with prior: unchanged if every vertex lies in the prior; otherwise the
+      exact vertices of co{V} ∩ bounding box ∩ prior (the box when co{V} is flat).
+
+    Emptiness is decided on the enclosing polytope, so an ellipsoid that misses the
+    prior only between the parallelotope's corners is not reported as empty.
+    """
+    if isinstance(prior, (Box, type(None))) is False:
+        raise InputError(f"prior must be a Box or None, got {type(prior).__name__}")
+    if isinstance(parameters, Box):
+        if prior is not None:
+            if prior.dim != parameters.dim:
+                raise DimensionError(f"prior must have dimension {parameters.dim} (the parameter box's), got {prior.dim}")
+            return _intersect_boxes(parameters, prior, "the parameter box").vertices()
+        return parameters.vertices()
+    if isinstance(parameters, Ellipsoid):
+        if prior is not None:
+            return _ellipsoid_in_box_vertices(parameters, prior)
+        return parameters.vertices()
+    vertices = as_finite_array("parameters", parameters, ndim=2)
+    if vertices.shape[0] == 0 or vertices.shape[1] == 0:
+        raise DimensionError(f"parameters must have shape (k, d) with k, d >= 1, got shape {vertices.shape}")
+    if prior is not None:
+        if prior.dim != vertices.shape[1]:
+            raise DimensionError(
+                f"prior must have dimension {vertices.shape[1]} (parameters has shape {vertices.shape}), got {prior.dim}"
+            )
+        return _array_in_box_vertices(vertices, prior)
+    return vertices
