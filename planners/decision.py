@@ -41,7 +41,7 @@ class Decision:
         of the true robust value (10); it is not an upper bound of that true value.
     expansions
         Number of leaves expanded (at most the budget; fewer only when the search
-        stopped because ``lower == upper`` was established exactly, see `solved`).
+        stopped because ``lower == upper``, see `solved`).
     depth
         Maximal depth of the search tree (the root has depth 0).
     sequence
@@ -55,8 +55,9 @@ class Decision:
     nodes
         Number of nodes in the tree (``1 + expansions * len(actions)``).
     solved
-        True when the leaf chosen for expansion had every model terminated, which
-        proves ``lower == upper`` (the exact robust value is known).
+        True when the search stopped before spending its budget because
+        ``lower == upper``: the robust value is known exactly and no expansion could
+        change the bounds (e.g. the best leaf has every model terminated).
 
     Notes
     -----

@@ -165,7 +165,8 @@ class RobustTreePlanner:
     gamma
         Discount factor, 0 < gamma < 1.
     budget
-        Number of expansions K >= 1. Each expansion creates ``len(actions)``
+        Number of expansions K >= 1 (fewer are made only once ``lower == upper`` at
+        the root). Each expansion creates ``len(actions)``
         children and steps every not-yet-terminated model once per action, i.e. at
         most ``K * |A| * M`` model transitions per `plan` call.
     seed
@@ -265,7 +266,7 @@ class RobustTreePlanner:
 
     # ------------------------------------------------------------------ internals
     def _search(self, tree: SearchTree) -> bool:
-        """Run the expansions; True if stopped early because the bounds met exactly.
+        """Run the expansions; True if stopped early because ``lower == upper`` at the root.
 
         The heap holds every leaf keyed by ``(-b-value, action path)``. A leaf's
         b-value is fixed at its creation, and an internal node's ``upper`` is the max
@@ -275,12 +276,14 @@ class RobustTreePlanner:
         smaller-index subtree holds lexicographically smaller paths.
         """
         heap = [(-tree.leaf_upper[0], (), 0)]
+        lower, upper = tree.lower, tree.upper
         for _ in range(self.budget):
-            _, _, leaf = heapq.heappop(heap)
-            if tree.terminal[leaf].all():
-                # The best b-value is this leaf's, and here b-value == lower bound
-                # <= L_root <= U_root == b-value: the value is known, nothing to gain.
+            if upper[0] <= lower[0]:
+                # The value is known exactly and the bounds are monotone: no expansion
+                # can change them. This is also what happens when the best leaf has
+                # every model terminated (its b-value equals its lower bound).
                 return True
+            _, _, leaf = heapq.heappop(heap)
             first = self._expand(tree, leaf)
             tree.backup(leaf)
             leaf_upper, paths = tree.leaf_upper, tree.paths
@@ -310,7 +313,7 @@ class RobustTreePlanner:
         bad = ~((rewards >= 0.0) & (rewards <= 1.0))
         a, m = (int(i) for i in np.argwhere(bad)[0])
         raise RewardRangeError(
-            f"models[{m}] returned reward {rewards[a, m]!r} for action {self.actions[a]!r} "
+            f"models[{m}] returned reward {float(rewards[a, m])!r} for action {self.actions[a]!r} "
             f"(index {a}); rewards must be finite and in [0, 1]"
         )
 
