@@ -1,0 +1,412 @@
+"""Simulated navigation worlds for the mobile robot: static obstacles or pedestrians.
+
+A world is one seeded episode: a start, a goal 14-18 m away, circular obstacles, maybe
+pedestrians, the true friction, and the true state. The closed loop asks it for noisy
+measurements (`RobotWorld.measure`) and applies one control per sub-step
+(`RobotWorld.apply`); the world steps the robot with ``system.step`` (the exact model,
+unknown theta and disturbance) and checks collisions with python-fcl
+(`minimaxplan.scenarios.geometry.fcl_disc_collisions`).
+
+Everything random is drawn from separate streams spawned from the seed (layout,
+friction, disturbance, measurement noise, pedestrians), so the same seed and the same
+controls give the same episode, and e.g. measuring more often does not change the
+disturbances.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+from minimaxplan.models._validation import as_finite_array
+from minimaxplan.models.errors import InputError, MinimaxplanError
+from minimaxplan.models.system import UncertainLinearSystem
+
+from .geometry import CircularObstacles, MovingObstacles, fcl_disc_collisions
+from .rewards import GoalReward
+from .robot import DEFAULT_ROBOT, RobotParameters, robot_system
+
+__all__ = [
+    "WORLD_KINDS",
+    "OUTCOMES",
+    "EpisodeOver",
+    "WorldLayout",
+    "PedestrianCrowd",
+    "RobotWorld",
+    "make_world",
+    "generate_layout",
+    "layout_has_path",
+]
+
+WORLD_KINDS = ("static", "pedestrian")
+OUTCOMES = ("running", "goal", "collision", "timeout")
+
+#: Static obstacles in the static world (inclusive range) and their radii, m.
+STATIC_OBSTACLE_COUNT = (10, 15)
+#: Static obstacles in the pedestrian world (inclusive range).
+PEDESTRIAN_WORLD_OBSTACLE_COUNT = (3, 5)
+OBSTACLE_RADIUS = (0.4, 1.2)
+#: Fraction of obstacles placed near the start-goal segment (the rest anywhere).
+ON_ROUTE_FRACTION = 0.5
+#: Lateral spread of on-route obstacles around the start-goal segment, m.
+ON_ROUTE_SPREAD = 3.0
+#: Free space kept around start and goal beyond the robot's footprint, m.
+START_GOAL_CLEARANCE = 1.0
+#: Resolution of the feasibility grid, m, and free margin its path keeps beyond the footprint.
+GRID_RESOLUTION = 0.2
+CORRIDOR_MARGIN = 0.15
+#: Pedestrians: count (inclusive), speed range (m/s), radius (m), velocity uncertainty per axis (m/s).
+PEDESTRIAN_COUNT = (1, 3)
+PEDESTRIAN_SPEED = (0.5, 1.5)
+PEDESTRIAN_RADIUS = 0.3
+PEDESTRIAN_VELOCITY_UNCERTAINTY = 0.3
+#: Bound on the heading deviation from the announced heading (rad) and its random-walk step (rad per sub-step).
+#: With speed <= 1.5 m/s the per-axis velocity error is <= 1.5 * 0.18 = 0.27 < 0.3 m/s.
+PEDESTRIAN_HEADING_DEVIATION = 0.18
+PEDESTRIAN_HEADING_STEP = 0.03
+#: Spread of crossing directions around the perpendicular to the route, rad.
+PEDESTRIAN_CROSSING_SPREAD = np.pi / 6
+#: Robot speed assumed to time the pedestrians' crossings, m/s.
+CROSSING_TIMING_SPEED = 1.2
+
+_MAX_LAYOUT_ATTEMPTS = 200
+# Robot centres closer than this to an obstacle's candidate-collision radius are sent to fcl.
+_BROAD_PHASE_SLACK = 0.05
+
+
+class EpisodeOver(MinimaxplanError, RuntimeError):
+    """A control was applied to a world whose episode has already ended."""
+
+
+@dataclass(frozen=True, eq=False)
+class WorldLayout:
+    """The static part of an episode: start, goal and circular obstacles."""
+
+    start: np.ndarray
+    goal: np.ndarray
+    obstacles: CircularObstacles
+
+    def to_dict(self) -> dict:
+        return {"start": self.start.tolist(), "goal": self.goal.tolist(), "obstacles": self.obstacles.to_dict()}
+
+
+def layout_has_path(
+    start, goal, obstacles: CircularObstacles, *, robot_radius: float, arena_size: float,
+    resolution: float = GRID_RESOLUTION, margin: float = CORRIDOR_MARGIN,
+) -> bool:
+    """Whether a grid path joins start to goal with clearance ``robot_radius + margin``.
+
+    Connected components (`scipy.ndimage.label`) of the cells of a ``resolution`` grid of the arena
+    (8-connected) whose centres keep that clearance from every obstacle. Start and goal
+    are snapped to their nearest cells. Every point of a move between two neighbouring
+    cells lies within ``resolution / sqrt(2)`` of one of them, so with the default
+    ``margin >= resolution / sqrt(2)`` the polyline through the found cells keeps the
+    robot's whole footprint off the obstacles.
+    """
+    n = int(np.ceil(arena_size / resolution)) + 1
+    axis = np.linspace(0.0, arena_size, n)
+    gx, gy = np.meshgrid(axis, axis, indexing="ij")
+    cells = np.stack([gx, gy], axis=-1)
+    free = obstacles.clearance(cells) >= robot_radius + margin
+    spacing = axis[1] - axis[0]
+    source = tuple(np.clip(np.rint(np.asarray(start) / spacing).astype(int), 0, n - 1))
+    target = tuple(np.clip(np.rint(np.asarray(goal) / spacing).astype(int), 0, n - 1))
+    if not (free[source] and free[target]):
+        return False
+    labels, _ = ndimage.label(free, structure=np.ones((3, 3), dtype=int))
+    return bool(labels[source] == labels[target])
+
+
+def _start_and_goal(rng: np.random.Generator, params: RobotParameters) -> tuple[np.ndarray, np.ndarray]:
+    border = START_GOAL_CLEARANCE + params.robot_radius
+    low, high = border, params.arena_size - border
+    while True:
+        start = rng.uniform(low, high, size=2)
+        heading = rng.uniform(-np.pi, np.pi)
+        distance = rng.uniform(params.goal_distance_low, params.goal_distance_high)
+        goal = start + distance * np.array([np.cos(heading), np.sin(heading)])
+        if np.all(goal >= low) and np.all(goal <= high):
+            return start, goal
+
+
+def _obstacles(rng, count, start, goal, params: RobotParameters) -> CircularObstacles:
+    """``count`` obstacles, about half near the route, none within reach of start or goal."""
+    route = goal - start
+    normal = np.array([-route[1], route[0]]) / np.linalg.norm(route)
+    centers, radii = [], []
+    while len(centers) < count:
+        radius = rng.uniform(*OBSTACLE_RADIUS)
+        if rng.uniform() < ON_ROUTE_FRACTION:
+            center = start + rng.uniform(0.15, 0.85) * route + rng.uniform(-ON_ROUTE_SPREAD, ON_ROUTE_SPREAD) * normal
+        else:
+            center = rng.uniform(0.0, params.arena_size, size=2)
+        keep_out = radius + params.robot_radius + START_GOAL_CLEARANCE
+        if np.linalg.norm(center - start) < keep_out or np.linalg.norm(center - goal) < keep_out:
+            continue
+        if np.any(center < 0.0) or np.any(center > params.arena_size):
+            continue
+        centers.append(center)
+        radii.append(radius)
+    return CircularObstacles(np.array(centers), np.array(radii))
+
+
+def generate_layout(kind: str, rng: np.random.Generator, params: RobotParameters = DEFAULT_ROBOT) -> WorldLayout:
+    """Draw a start, a goal and obstacles that leave a path (checked by `layout_has_path`).
+
+    ``kind="static"``: 10-15 obstacles; ``"pedestrian"``: 3-5. Radii 0.4-1.2 m. Layouts
+    without a path are redrawn from the same stream.
+    """
+    if kind not in WORLD_KINDS:
+        raise InputError(f"kind must be one of {WORLD_KINDS}, got {kind!r}")
+    low, high = STATIC_OBSTACLE_COUNT if kind == "static" else PEDESTRIAN_WORLD_OBSTACLE_COUNT
+    for _ in range(_MAX_LAYOUT_ATTEMPTS):
+        start, goal = _start_and_goal(rng, params)
+        obstacles = _obstacles(rng, int(rng.integers(low, high + 1)), start, goal, params)
+        if layout_has_path(start, goal, obstacles, robot_radius=params.robot_radius, arena_size=params.arena_size):
+            return WorldLayout(start, goal, obstacles)
+    raise RuntimeError(f"no feasible {kind} layout in {_MAX_LAYOUT_ATTEMPTS} attempts")  # pragma: no cover
+
+
+@dataclass(eq=False)
+class PedestrianCrowd:
+    """Pedestrians walking straight across the robot's route, with bounded heading noise.
+
+    Each pedestrian has an announced constant velocity ``announced[j]`` (what planners
+    are told) and a true heading that random-walks within
+    ``+-PEDESTRIAN_HEADING_DEVIATION`` of the announced one at constant speed. Since
+    ``|s cos(h + e) - s cos h| <= s |e|`` (and likewise for sin), the true velocity
+    stays within ``announced +- PEDESTRIAN_VELOCITY_UNCERTAINTY`` per axis at all
+    times, so the growing boxes of `MovingObstacles` built from any current position
+    are sound. Pedestrians ignore the robot and the obstacles.
+    """
+
+    positions: np.ndarray
+    announced: np.ndarray
+    speeds: np.ndarray
+    headings: np.ndarray
+    deviations: np.ndarray
+    radii: np.ndarray
+    rng: np.random.Generator = field(repr=False)
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """True current velocities, shape (m, 2)."""
+        h = self.headings + self.deviations
+        return self.speeds[:, None] * np.stack([np.cos(h), np.sin(h)], axis=-1)
+
+    def advance(self, dt: float) -> None:
+        """Move every pedestrian for ``dt`` at its current velocity, then perturb its heading."""
+        self.positions = self.positions + self.velocities * dt
+        step = self.rng.uniform(-PEDESTRIAN_HEADING_STEP, PEDESTRIAN_HEADING_STEP, size=self.deviations.shape)
+        self.deviations = np.clip(self.deviations + step, -PEDESTRIAN_HEADING_DEVIATION, PEDESTRIAN_HEADING_DEVIATION)
+
+    def __len__(self) -> int:
+        return self.positions.shape[0]
+
+
+def _crowd(rng: np.random.Generator, count: int, start, goal) -> PedestrianCrowd:
+    """Pedestrians timed to cross the route near the robot's expected passage."""
+    route = goal - start
+    length = np.linalg.norm(route)
+    route_heading = np.arctan2(route[1], route[0])
+    positions, headings, speeds = [], [], []
+    while len(positions) < count:
+        fraction = rng.uniform(0.3, 0.8)
+        crossing = start + fraction * route
+        side = rng.choice([-1.0, 1.0])
+        heading = route_heading + side * np.pi / 2 + rng.uniform(-PEDESTRIAN_CROSSING_SPREAD, PEDESTRIAN_CROSSING_SPREAD)
+        speed = rng.uniform(*PEDESTRIAN_SPEED)
+        arrival = fraction * length / CROSSING_TIMING_SPEED * rng.uniform(0.7, 1.3)
+        position = crossing - speed * arrival * np.array([np.cos(heading), np.sin(heading)])
+        if np.linalg.norm(position - start) < 2.0 + PEDESTRIAN_RADIUS:
+            continue
+        positions.append(position)
+        headings.append(heading)
+        speeds.append(speed)
+    headings = np.array(headings, dtype=float)
+    speeds = np.array(speeds, dtype=float)
+    positions = np.array(positions, dtype=float).reshape(count, 2)
+    announced = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
+    return PedestrianCrowd(
+        positions=positions, announced=announced, speeds=speeds, headings=headings,
+        deviations=np.zeros(count), radii=np.full(count, PEDESTRIAN_RADIUS), rng=rng,
+    )
+
+
+class RobotWorld:
+    """One seeded episode of robot navigation; see `make_world`.
+
+    Attributes
+    ----------
+    kind, seed, params
+        What was asked for.
+    system
+        The truth's structure (anisotropic friction), an `UncertainLinearSystem`
+        whose prior box holds ``true_theta``.
+    true_theta
+        The friction ``(xi_x, xi_y)`` of this episode.
+    start, goal
+        Shape (2,).
+    obstacles
+        `CircularObstacles` (``.centers`` (n, 2), ``.radii`` (n,)).
+    goal_reward
+        The episode's `GoalReward` over the static obstacles (planners add the
+        pedestrians with ``goal_reward.with_obstacles(moving_obstacles=world.pedestrians)``).
+    state
+        The true state (px, py, vx, vy); starts at rest at ``start``.
+    step_index
+        Sub-steps applied so far; ``time = step_index * dt``.
+    outcome
+        "running", "goal", "collision" or "timeout"; ``done`` once it is not "running".
+    """
+
+    def __init__(self, kind: str, seed: int, *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT):
+        if kind not in WORLD_KINDS:
+            raise InputError(f"kind must be one of {WORLD_KINDS}, got {kind!r}")
+        if measurement not in ("uniform", "gaussian"):
+            raise InputError(f"measurement must be 'uniform' or 'gaussian', got {measurement!r}")
+        if not isinstance(params, RobotParameters):
+            raise InputError(f"params must be a RobotParameters, got {type(params).__name__}")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise InputError(f"seed must be a non-negative integer, got {seed!r}")
+        self.kind = kind
+        self.seed = int(seed)
+        self.measurement = measurement
+        self.params = params
+        layout_seq, theta_seq, disturbance_seq, noise_seq, pedestrian_seq = np.random.SeedSequence(self.seed).spawn(5)
+        layout = generate_layout(kind, np.random.default_rng(layout_seq), params)
+        self.start = layout.start
+        self.goal = layout.goal
+        self.obstacles = layout.obstacles
+        self.system: UncertainLinearSystem = robot_system(params)
+        self.true_theta = np.random.default_rng(theta_seq).uniform(self.system.theta.low, self.system.theta.high)
+        self._disturbance_rng = np.random.default_rng(disturbance_seq)
+        self._noise_rng = np.random.default_rng(noise_seq)
+        pedestrian_rng = np.random.default_rng(pedestrian_seq)
+        if kind == "pedestrian":
+            count = int(pedestrian_rng.integers(PEDESTRIAN_COUNT[0], PEDESTRIAN_COUNT[1] + 1))
+            self.crowd = _crowd(pedestrian_rng, count, self.start, self.goal)
+        else:
+            self.crowd = _crowd(pedestrian_rng, 0, self.start, self.goal)
+        self.goal_reward = GoalReward(self.goal, obstacles=self.obstacles, robot_radius=params.robot_radius)
+        self.state = np.concatenate([self.start, np.zeros(2)])
+        self.step_index = 0
+        # Only the pedestrians' radii matter here: their true positions are passed at evaluation.
+        self._true_reward = self.goal_reward.with_obstacles(moving_obstacles=self.pedestrians) if len(self.crowd) else self.goal_reward
+        self.outcome = "running"
+        self.last_disturbance = np.zeros(2)
+
+    # ------------------------------------------------------------ observation
+    @property
+    def time(self) -> float:
+        """Simulated time, s."""
+        return self.step_index * self.params.dt
+
+    @property
+    def done(self) -> bool:
+        return self.outcome != "running"
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.state[:2].copy()
+
+    @property
+    def pedestrians(self) -> MovingObstacles:
+        """What planners may know of the pedestrians now: current positions, announced
+        velocities, per-axis velocity uncertainty, radii, as `MovingObstacles` whose
+        ``time0`` is the current sub-step index (the boxes are sound from here on)."""
+        return MovingObstacles(
+            self.crowd.positions.copy(), self.crowd.announced.copy(), self.crowd.radii.copy(),
+            velocity_uncertainty=PEDESTRIAN_VELOCITY_UNCERTAINTY, dt=self.params.dt, time0=self.step_index,
+        )
+
+    def measure(self) -> np.ndarray:
+        """The state with measurement noise: uniform ``|v_i| <= measurement_noise``
+        (inside the guarantees) or Gaussian with ``gaussian_measurement_std`` (outside)."""
+        if self.measurement == "uniform":
+            bound = self.params.measurement_noise
+            noise = self._noise_rng.uniform(-bound, bound, size=4)
+        else:
+            noise = self._noise_rng.normal(0.0, self.params.gaussian_measurement_std, size=4)
+        return self.state + noise
+
+    def reward(self) -> float:
+        """The true goal reward ``J = beta(x) / (1 + ||pos - goal||)`` of the current state.
+
+        Evaluated by `goal_reward` with the pedestrians' true positions; beta is the
+        world's own (fcl) collision verdict once the episode has ended in a collision.
+        """
+        if self.outcome == "collision":
+            return 0.0
+        return float(self._true_reward.value(self.state, self.step_index, moving_positions=self.crowd.positions))
+
+    def collisions(self) -> np.ndarray:
+        """Which obstacles then pedestrians the robot's disc touches now, bool (n + m,), by fcl."""
+        centers = np.concatenate([self.obstacles.centers, self.crowd.positions])
+        radii = np.concatenate([self.obstacles.radii, self.crowd.radii])
+        hits = np.zeros(centers.shape[0], dtype=bool)
+        if centers.shape[0] == 0:
+            return hits
+        # Broad phase in numpy; fcl decides every pair that may touch.
+        gap = np.linalg.norm(centers - self.state[:2], axis=-1) - radii - self.params.robot_radius
+        near = np.flatnonzero(gap <= _BROAD_PHASE_SLACK)
+        if near.size:
+            hits[near] = fcl_disc_collisions(self.state[:2], self.params.robot_radius, centers[near], radii[near])
+        return hits
+
+    # ---------------------------------------------------------------- dynamics
+    def apply(self, u) -> str:
+        """Hold the control ``u`` in ``[-1, 1]^2`` for one sub-step and return the outcome.
+
+        The robot steps by ``system.step(state, u, true_theta, w)`` with a fresh
+        ``w ~ U[-0.1, 0.1]^2``; the pedestrians move; then collision (fcl), goal and
+        time limit are checked in that order.
+        """
+        if self.done:
+            raise EpisodeOver(f"the episode has ended (outcome={self.outcome!r}); make a new world")
+        u = as_finite_array("u", u, (2,))
+        bound = self.params.control_bound
+        if np.any(np.abs(u) > bound):
+            raise InputError(f"u must lie in [-{bound}, {bound}]^2, got {u.tolist()}")
+        bound_w = self.params.disturbance_bound
+        w = self._disturbance_rng.uniform(-bound_w, bound_w, size=2)
+        self.state = self.system.step(self.state, u, self.true_theta, w)
+        self.last_disturbance = w
+        self.crowd.advance(self.params.dt)
+        self.step_index += 1
+        if np.any(self.collisions()):
+            self.outcome = "collision"
+        elif np.linalg.norm(self.state[:2] - self.goal) <= self.params.goal_tolerance:
+            self.outcome = "goal"
+        elif self.step_index >= self.params.max_steps:
+            self.outcome = "timeout"
+        return self.outcome
+
+    def apply_held(self, u) -> str:
+        """Hold ``u`` for one decision period (``substeps`` sub-steps, fewer if the episode ends)."""
+        for _ in range(self.params.substeps):
+            if self.apply(u) != "running":
+                break
+        return self.outcome
+
+    def to_dict(self) -> dict:
+        """The episode's setup (not its state)."""
+        return {
+            "kind": self.kind,
+            "seed": self.seed,
+            "measurement": self.measurement,
+            "true_theta": self.true_theta.tolist(),
+            "start": self.start.tolist(),
+            "goal": self.goal.tolist(),
+            "obstacles": self.obstacles.to_dict(),
+            "pedestrians": {"positions": self.crowd.positions.tolist(), "announced": self.crowd.announced.tolist()},
+            "params": self.params.to_dict(),
+        }
+
+
+def make_world(kind: str, seed: int, *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT) -> RobotWorld:
+    """A new seeded episode: ``kind`` is "static" (10-15 obstacles) or "pedestrian"
+    (3-5 obstacles and 1-3 crossing pedestrians); see `RobotWorld`."""
+    return RobotWorld(kind, seed, measurement=measurement, params=params)
