@@ -15,6 +15,8 @@ from .errors import (
 )
 from .sets import Box, Ellipsoid
 from .system import UncertainLinearSystem
+from .estimation import ConfidenceEllipsoidEstimator, confidence_ellipsoid
+from .set_membership import SetMembershipEstimator
 from .polytope import parameter_vertices
 from .prediction import IntervalPredictor, Tube, predict_tube
 
@@ -22,6 +24,9 @@ __all__ = [
     "Box",
     "Ellipsoid",
     "UncertainLinearSystem",
+    "confidence_ellipsoid",
+    "ConfidenceEllipsoidEstimator",
+    "SetMembershipEstimator",
     "parameter_vertices",
     "IntervalPredictor",
     "Tube",

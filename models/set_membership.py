@@ -1,0 +1,233 @@
+"""Recursive set-membership estimation of the uncertain parameters under bounded noise."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._validation import as_finite_array, as_positive_scalar, check_shape
+from .errors import DimensionError, EmptySetError, InputError
+from .sets import Box, Ellipsoid
+
+__all__ = ["SetMembershipEstimator"]
+
+#: Relative outward rounding of every reported bound (radius, box), covering the
+#: rounding errors of the update so that the reported sets stay sound in floating point.
+OUTWARD_ROUNDING = 1e-9
+
+#: An update whose new shape factor ``s`` falls below this is skipped (skipping is
+#: always sound): the ellipsoid would be thinner than rounding can resolve.
+MIN_SHRINK = 1e-12
+
+#: ``s`` below ``-INCONSISTENCY_TOLERANCE`` proves the data empty the feasible set.
+INCONSISTENCY_TOLERANCE = 1e-9
+
+
+class SetMembershipEstimator:
+    """Recursive least-squares set-membership estimator with a dead zone (eqs. (3)-(6)).
+
+    It keeps an ellipsoid ``E_k = {t : (t - c_k)^T P_k^-1 (t - c_k) <= 1}`` that holds
+    every parameter consistent with the prior box and with all measurements
+    ``|target_i - regressor_i @ theta| <= noise_bound_i`` seen so far.
+
+    Parameters
+    ----------
+    nparams
+        d, the number of parameters.
+    noise_bound
+        The bound on the lumped disturbance of each measured row: for every sample,
+        ``|target_i - regressor_i @ theta*| <= noise_bound_i`` for each row i (an
+        infinity-norm bound when a scalar, else one bound per row, shape (p,)). For an
+        `UncertainLinearSystem` with ``target = x_{n+1} - A0 x_n - B u_n`` the lumped
+        disturbance is ``D w_n``, bounded per row by ``max |D w|`` over the box ``w``.
+        Must be > 0.
+    prior
+        The prior parameter box (the set D of Assumption 1), which must contain theta*.
+
+    Attributes
+    ----------
+    estimate
+        The current centre ``c_k``, shape (d,).
+    radius
+        A bound on ``||theta* - estimate||_2``; it never grows.
+    nsamples
+        The number of samples absorbed.
+
+    Notes
+    -----
+    The paper prints eqs. (3)-(6) garbled. This is the set-membership recursion of
+    Dasgupta & Huang (1987) without forgetting factor (the form the paper's dead-zone
+    gain (4c) comes from, as in Tan, Wen & Soh 1997), in normalised form. For a scalar
+    measurement ``y = phi^T theta + v`` with ``|v| <= gamma``, prediction error
+    ``e = y - phi^T c`` and ``g = phi^T P phi``:
+
+    * dead zone: if ``|e| <= gamma`` (or ``g = 0``), nothing changes (eq. (4c), kappa = 0);
+    * otherwise, with the gain ``kappa = (|e| - gamma) / (gamma g)`` of eq. (4c) (it
+      minimises the new scale, eq. (6)) every t in ``E_k`` that satisfies the
+      measurement satisfies ``(t - c)^T (P^-1 + kappa phi phi^T) (t - c) <= s`` after
+      completing the square, where
+
+      ``c+ = c + (e - gamma sign(e)) P phi / g``                 (eq. (3))
+      ``P+ = s (P - (1 - gamma/|e|) P phi phi^T P / g)``        (eq. (4b))
+      ``s  = 1 - (|e| - gamma)^2 / g``                           (eq. (6))
+
+      so ``E_{k+1}`` contains ``E_k`` intersected with the measurement's strip.
+
+    Why the radius cannot grow: ``0 < s <= 1`` and ``P+ <= s P <= P`` in the Loewner
+    order, so ``lmax(P_{k+1}) <= lmax(P_k)``; since theta* lies in ``E_k``,
+    ``||theta* - c_k|| <= sqrt(lmax(P_k))``. The reported radius is
+    ``min(previous radius, sqrt(lmax(P_k)) (1 + OUTWARD_ROUNDING))``: the minimum only
+    absorbs rounding of the eigenvalue, as the exact sequence is already nonincreasing,
+    so it still bounds ``||theta* - c_k||``. (A Fogel-Huang minimum-volume ellipsoid, or
+    Dasgupta-Huang with a forgetting factor, can grow ``lmax`` and so does not qualify.)
+
+    ``P`` is carried as a square-root factor ``P = L L^T``, updated as
+    ``L+ = sqrt(s) (L - (1 - sqrt(gamma/|e|)) (L v) v^T / g)`` with ``v = L^T phi``; this
+    stays positive semidefinite in floating point and allows degenerate prior sides.
+    The prior box enters as its minimum-volume enclosing ellipsoid, ``P_0 = d diag(r^2)``.
+
+    `parameter_set` is eq. (5) with boxes: the intersection of the prior with the
+    bounding boxes of every ``E_k`` so far (each holds theta*). Measurements whose strip
+    misses ``E_k`` altogether (``s < 0``) prove that the prior, the noise bound and the
+    data are inconsistent: `update` then raises `EmptySetError` and keeps its state.
+    """
+
+    def __init__(self, nparams: int, *, noise_bound, prior: Box) -> None:
+        if isinstance(nparams, bool) or not isinstance(nparams, (int, np.integer)) or nparams < 1:
+            raise InputError(f"nparams must be a positive integer, got {nparams!r}")
+        d = int(nparams)
+        if not isinstance(prior, Box):
+            raise InputError(f"prior must be a Box, got {type(prior).__name__}")
+        if prior.dim != d:
+            raise DimensionError(f"prior must have dimension {d} (nparams), got {prior.dim}")
+        bound = as_finite_array("noise_bound", noise_bound)
+        if bound.ndim > 1:
+            raise DimensionError(f"noise_bound must be a scalar or have shape (p,), got shape {bound.shape}")
+        if bound.size == 0 or np.any(bound <= 0):
+            raise InputError(f"noise_bound must be > 0 in every row, got {bound.tolist()}")
+        bound.setflags(write=False)
+        self._d = d
+        self._noise_bound = bound
+        self._prior = prior
+        self._center = prior.center.copy()
+        self._factor = np.diag(np.sqrt(d) * prior.radius)
+        self._radius = float(np.sqrt(d) * np.max(prior.radius)) * (1 + OUTWARD_ROUNDING)
+        self._box = prior
+        self._nsamples = 0
+
+    # ------------------------------------------------------------------ state
+    @property
+    def nparams(self) -> int:
+        """d, the number of parameters."""
+        return self._d
+
+    @property
+    def nsamples(self) -> int:
+        """The number of samples absorbed so far."""
+        return self._nsamples
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The current estimate (centre of the ellipsoid), shape (d,); a copy."""
+        return self._center.copy()
+
+    @property
+    def radius(self) -> float:
+        """A bound on ``||theta* - estimate||_2`` that never grows."""
+        return self._radius
+
+    @property
+    def shape_matrix(self) -> np.ndarray:
+        """``P_k``: the ellipsoid is ``{t : (t - c)^T P^-1 (t - c) <= 1}``; a copy."""
+        return self._factor @ self._factor.T
+
+    def parameter_set(self) -> Box:
+        """The prior box intersected with the bounding boxes of all ellipsoids so far (eq. (5))."""
+        return self._box
+
+    def ellipsoid(self) -> Ellipsoid:
+        """The current ellipsoid ``E_k`` as an `Ellipsoid` (radius 1, gramian ``P^-1``).
+
+        Raises `InputError` when ``P`` is singular (a degenerate prior side); use
+        `parameter_set` then.
+        """
+        singular_values = np.linalg.svd(self._factor, compute_uv=False)
+        if not singular_values[-1] > singular_values[0] * 1e-7:
+            raise InputError("the set-membership ellipsoid is degenerate (a flat prior side?): use parameter_set()")
+        inverse_factor = np.linalg.inv(self._factor)
+        return Ellipsoid(self._center, inverse_factor.T @ inverse_factor, 1.0)
+
+    # ----------------------------------------------------------------- update
+    def update(self, regressor, target) -> None:
+        """Absorb one sample ``target = regressor @ theta* + v`` with ``|v_i| <= noise_bound_i``.
+
+        Parameters
+        ----------
+        regressor
+            Shape (p, d), or (d,) for one row with a scalar target.
+        target
+            Shape (p,); for a system, ``x_{n+1} - A0 x_n - B u_n``.
+
+        Raises
+        ------
+        EmptySetError
+            If the sample contradicts the prior and the noise bound (the state is kept).
+        """
+        E = as_finite_array("regressor", regressor)
+        if E.ndim == 1:
+            E = E.reshape(1, -1)
+        if E.ndim != 2 or E.shape[1] != self._d:
+            raise DimensionError(f"regressor must have shape (p, {self._d}), got shape {np.shape(regressor)}")
+        y = as_finite_array("target", target)
+        if y.ndim == 0:
+            y = y.reshape(1)
+        check_shape("target", y, (E.shape[0],))
+        if self._noise_bound.ndim == 0:
+            gammas = np.full(E.shape[0], float(self._noise_bound))
+        elif self._noise_bound.shape != y.shape:
+            raise DimensionError(
+                f"noise_bound has shape {self._noise_bound.shape} but the sample has {E.shape[0]} rows (regressor shape {E.shape})"
+            )
+        else:
+            gammas = self._noise_bound
+        center, factor = self._center, self._factor
+        for phi, target_i, gamma in zip(E, y, gammas):
+            center, factor = _absorb_row(center, factor, phi, float(target_i), float(gamma))
+        half_widths = np.linalg.norm(factor, axis=1)
+        slack = OUTWARD_ROUNDING * (half_widths + np.abs(center)) + np.finfo(float).tiny
+        low = np.maximum(self._box.low, center - half_widths - slack)
+        high = np.minimum(self._box.high, center + half_widths + slack)
+        if np.any(low > high):
+            raise EmptySetError("the data are inconsistent with the prior box and noise_bound: the feasible parameter set is empty")
+        self._box = Box(low, high)
+        self._center, self._factor = center, factor
+        largest = float(np.linalg.norm(factor, 2)) * (1 + OUTWARD_ROUNDING)
+        self._radius = min(self._radius, largest)
+        self._nsamples += 1
+
+    def __repr__(self) -> str:
+        return f"SetMembershipEstimator(nparams={self._d}, nsamples={self._nsamples}, radius={self._radius:.6g})"
+
+
+def _absorb_row(center: np.ndarray, factor: np.ndarray, phi: np.ndarray, y: float, gamma: float):
+    """One scalar measurement: the dead-zone step of eqs. (3)-(6) in square-root form."""
+    v = factor.T @ phi
+    g = float(v @ v)
+    error = y - float(phi @ center)
+    if abs(error) <= gamma or g == 0.0:
+        if abs(error) > gamma * (1 + INCONSISTENCY_TOLERANCE) + INCONSISTENCY_TOLERANCE * abs(y):
+            # g == 0: the measurement does not depend on the free directions and misses the strip.
+            raise EmptySetError("the data are inconsistent with the prior box and noise_bound: the feasible parameter set is empty")
+        return center, factor
+    excess = abs(error) - gamma
+    shrink = 1.0 - excess**2 / g
+    if shrink < -INCONSISTENCY_TOLERANCE:
+        raise EmptySetError(
+            "the data are inconsistent with the prior box and noise_bound: the feasible parameter set is empty "
+            f"(prediction error {error:.6g} exceeds the noise bound {gamma:.6g} by more than the ellipsoid allows)"
+        )
+    if shrink < MIN_SHRINK:
+        return center, factor
+    Lv = factor @ v
+    new_center = center + (np.sign(error) * excess / g) * Lv
+    new_factor = np.sqrt(shrink) * (factor - ((1.0 - np.sqrt(gamma / abs(error))) / g) * np.outer(Lv, v))
+    return new_center, new_factor
