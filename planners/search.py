@@ -67,17 +67,14 @@ class _Transitions:
                 f"models[{self.index}].expand returned {len(next_states)} next states "
                 f"for {n} actions"
             )
-        try:
-            rewards = np.asarray(rewards, dtype=float)
-        except (TypeError, ValueError):
-            raise RewardRangeError(
-                f"models[{self.index}].expand returned non-numeric rewards {rewards!r}"
-            ) from None
+        if type(rewards) is not np.ndarray or rewards.dtype != np.float64:
+            rewards = self._as_float_array(rewards)
         if rewards.shape != (n,):
             raise DimensionError(
                 f"models[{self.index}].expand rewards must have shape ({n},), got shape {rewards.shape}"
             )
-        terminals = np.asarray(terminals)
+        if type(terminals) is not np.ndarray:
+            terminals = np.asarray(terminals)
         if terminals.shape != (n,):
             raise DimensionError(
                 f"models[{self.index}].expand terminals must have shape ({n},), got shape {terminals.shape}"
@@ -86,7 +83,15 @@ class _Transitions:
             raise InputError(
                 f"models[{self.index}].expand terminals must be a bool array, got dtype {terminals.dtype}"
             )
-        return list(next_states), rewards, terminals
+        return next_states, rewards, terminals
+
+    def _as_float_array(self, rewards) -> np.ndarray:
+        try:
+            return np.asarray(rewards, dtype=float)
+        except (TypeError, ValueError):
+            raise RewardRangeError(
+                f"models[{self.index}].expand returned non-numeric rewards {rewards!r}"
+            ) from None
 
     def _one_by_one(self, state) -> tuple[list, np.ndarray, np.ndarray]:
         n = self.n_actions
@@ -218,6 +223,8 @@ class RobustTreePlanner:
         self.models = tuple(models)
         self.actions = actions
         self._transitions = [_Transitions(m, model, actions) for m, model in enumerate(models)]
+        self._rewards = np.zeros((len(actions), len(models)))
+        self._new_terminal = np.zeros((len(actions), len(models)), dtype=bool)
         self.tree: SearchTree | None = None
 
     @property
@@ -293,13 +300,15 @@ class RobustTreePlanner:
 
     def _expand(self, tree: SearchTree, leaf: int) -> int:
         n_actions = len(self.actions)
-        rewards = np.zeros((n_actions, self.n_models))
-        new_terminal = np.ones((n_actions, self.n_models), dtype=bool)
+        # Scratch buffers, reused: add_children copies what it keeps.
+        rewards, new_terminal = self._rewards, self._new_terminal
         terminal = tree.terminal[leaf]
         for m, transitions in enumerate(self._transitions):
             state = tree.states[m][leaf]
             if terminal[m]:
                 tree.states[m].extend([state] * n_actions)
+                rewards[:, m] = 0.0
+                new_terminal[:, m] = True
                 continue
             next_states, model_rewards, model_terminals = transitions(state)
             rewards[:, m] = model_rewards

@@ -1,10 +1,17 @@
-"""The look-ahead tree of the robust optimistic planner, stored in flat arrays.
+"""The look-ahead tree of the robust optimistic planner, stored in flat containers.
 
 Nodes are numbered in creation order; node 0 is the root. The ``n_actions`` children
 of a node are created together, so they are contiguous: ``first_child[i] + a`` is
-the child reached by action index ``a``. Arrays are preallocated and grown by
-doubling; the per-model states live in one Python list per model (states are opaque
-objects, never copied).
+the child reached by action index ``a``.
+
+Storage: the per-model data (returns and terminal flags, ``(nodes, M)``) live in
+numpy arrays preallocated and grown by doubling, so that one expansion updates all
+(action, model) pairs in a few vectorised operations. The per-node scalars (parent,
+action, depth, first child, bounds) live in Python lists, which also grow by
+amortised doubling: the backup walks the tree one scalar at a time, and reading a
+list item or taking ``max`` of a 4-item list slice is several times faster than the
+same on a numpy array (measured: 0.2 us vs 1.2 us per slice max). States are opaque
+objects kept in one list per model, never copied.
 """
 
 from __future__ import annotations
@@ -13,7 +20,7 @@ import numpy as np
 
 __all__ = ["SearchTree"]
 
-_INITIAL_CAPACITY = 4096
+_INITIAL_CAPACITY = 1024
 
 
 class SearchTree:
@@ -27,31 +34,34 @@ class SearchTree:
         Discount factor in (0, 1) (validated by the planner).
     max_nodes
         Number of nodes the search may create (``1 + budget * n_actions``); the
-        arrays start at ``min(max_nodes, 4096)`` rows and double when full.
+        numpy arrays start at ``min(max_nodes, 1024)`` rows and double when full.
 
     Attributes
     ----------
     size
         Number of nodes.
     parent, action, depth, first_child
-        Integer arrays; ``parent[0] = -1``; ``first_child[i] = -1`` for a leaf.
+        Lists of ints; ``parent[0] = -1``; ``first_child[i] = -1`` for a leaf.
     returns
-        ``(size, M)``: ``R_m(i) = sum_{n < depth(i)} gamma^n r_n^m`` along the path.
+        Array ``(capacity, M)``, valid up to ``size``:
+        ``R_m(i) = sum_{n < depth(i)} gamma^n r_n^m`` along the path to node i.
     terminal
-        ``(size, M)`` bool: model m has made a terminal transition on the path.
+        Bool array ``(capacity, M)``: model m made a terminal transition on the path.
     leaf_lower, leaf_upper
-        The leaf bounds of each node as computed when it was created, which never
-        change: ``min_m R_m`` and the robust b-value
+        Lists: the leaf bounds of each node as computed when it was created, which
+        never change: ``min_m R_m`` and the robust b-value
         ``min_m (R_m + gamma^l / (1 - gamma) [m not terminated])`` (eqs. (16), (18)).
     lower, upper
-        Backed-up bounds: equal to the leaf bounds at a leaf, and the max over
-        the children at an internal node (eqs. (17), (18)).
+        Lists: backed-up bounds, equal to the leaf bounds at a leaf and to the max
+        over the children at an internal node (eqs. (17), (18)).
     paths
         The action-index path from the root of every node (a tuple).
     states
         ``states[m][i]`` is model m's state at node i.
     expanded
         Node ids in the order they were expanded.
+    max_depth
+        Largest node depth.
     """
 
     def __init__(self, n_models: int, n_actions: int, gamma: float, max_nodes: int) -> None:
@@ -62,45 +72,46 @@ class SearchTree:
         self.size = 0
         self.max_depth = 0
         capacity = min(max_nodes, _INITIAL_CAPACITY)
-        self.parent = np.empty(capacity, dtype=np.int64)
-        self.action = np.empty(capacity, dtype=np.int64)
-        self.depth = np.empty(capacity, dtype=np.int64)
-        self.first_child = np.empty(capacity, dtype=np.int64)
         self.returns = np.empty((capacity, n_models))
         self.terminal = np.empty((capacity, n_models), dtype=bool)
-        self.leaf_lower = np.empty(capacity)
-        self.leaf_upper = np.empty(capacity)
-        self.lower = np.empty(capacity)
-        self.upper = np.empty(capacity)
+        self.parent: list[int] = []
+        self.action: list[int] = []
+        self.depth: list[int] = []
+        self.first_child: list[int] = []
+        self.leaf_lower: list[float] = []
+        self.leaf_upper: list[float] = []
+        self.lower: list[float] = []
+        self.upper: list[float] = []
         self.paths: list[tuple[int, ...]] = []
         self.states: list[list] = [[] for _ in range(n_models)]
         self.expanded: list[int] = []
+        self._child_actions = list(range(n_actions))
 
     # ------------------------------------------------------------------ building
     def add_root(self, states) -> None:
         """Create the root (depth 0, zero returns, nothing terminated)."""
-        self.parent[0] = -1
-        self.action[0] = -1
-        self.depth[0] = 0
-        self.first_child[0] = -1
+        root_upper = 1.0 / (1.0 - self.gamma)
         self.returns[0] = 0.0
         self.terminal[0] = False
-        self.leaf_lower[0] = 0.0
-        self.leaf_upper[0] = 1.0 / (1.0 - self.gamma)
-        self.lower[0] = self.leaf_lower[0]
-        self.upper[0] = self.leaf_upper[0]
+        self.parent.append(-1)
+        self.action.append(-1)
+        self.depth.append(0)
+        self.first_child.append(-1)
+        self.leaf_lower.append(0.0)
+        self.leaf_upper.append(root_upper)
+        self.lower.append(0.0)
+        self.upper.append(root_upper)
         self.paths.append(())
         for m, state in enumerate(states):
             self.states[m].append(state)
         self.size = 1
 
     def _grow(self, needed: int) -> None:
-        capacity = self.parent.shape[0]
+        capacity = self.returns.shape[0]
         if needed <= capacity:
             return
-        new_capacity = min(max(2 * capacity, needed), max(self.max_nodes, needed))
-        for name in ("parent", "action", "depth", "first_child", "returns", "terminal",
-                     "leaf_lower", "leaf_upper", "lower", "upper"):
+        new_capacity = max(min(2 * capacity, self.max_nodes), needed)
+        for name in ("returns", "terminal"):
             old = getattr(self, name)
             new = np.empty((new_capacity,) + old.shape[1:], dtype=old.dtype)
             new[:capacity] = old
@@ -126,27 +137,27 @@ class SearchTree:
         first = self.size
         end = first + n_actions
         self._grow(end)
-        depth = int(self.depth[node])
+        depth = self.depth[node]
         child_returns = self.returns[node] + (self.gamma ** depth) * rewards
         child_terminal = self.terminal[node] | new_terminal
         tail = self.gamma ** (depth + 1) / (1.0 - self.gamma)
-        optimistic = np.where(child_terminal, child_returns, child_returns + tail)
-        child_upper = np.minimum(optimistic.min(axis=1), self.leaf_upper[node])
-        child_lower = child_returns.min(axis=1)
+        optimistic = child_returns + tail * ~child_terminal
+        child_upper = np.minimum(optimistic.min(axis=1), self.leaf_upper[node]).tolist()
+        child_lower = child_returns.min(axis=1).tolist()
 
-        self.parent[first:end] = node
-        self.action[first:end] = np.arange(n_actions)
-        self.depth[first:end] = depth + 1
-        self.first_child[first:end] = -1
         self.returns[first:end] = child_returns
         self.terminal[first:end] = child_terminal
-        self.leaf_lower[first:end] = child_lower
-        self.leaf_upper[first:end] = child_upper
-        self.lower[first:end] = child_lower
-        self.upper[first:end] = child_upper
+        self.parent.extend([node] * n_actions)
+        self.action.extend(self._child_actions)
+        self.depth.extend([depth + 1] * n_actions)
+        self.first_child.extend([-1] * n_actions)
+        self.leaf_lower.extend(child_lower)
+        self.leaf_upper.extend(child_upper)
+        self.lower.extend(child_lower)
+        self.upper.extend(child_upper)
         self.first_child[node] = first
         path = self.paths[node]
-        self.paths.extend(path + (a,) for a in range(n_actions))
+        self.paths.extend([path + (a,) for a in self._child_actions])
         self.size = end
         self.expanded.append(node)
         if depth + 1 > self.max_depth:
@@ -163,8 +174,8 @@ class SearchTree:
         lower, upper, first_child, parent = self.lower, self.upper, self.first_child, self.parent
         while node >= 0:
             first = first_child[node]
-            new_lower = lower[first:first + n_actions].max()
-            new_upper = upper[first:first + n_actions].max()
+            new_lower = max(lower[first:first + n_actions])
+            new_upper = max(upper[first:first + n_actions])
             if new_lower == lower[node] and new_upper == upper[node]:
                 return
             lower[node] = new_lower
@@ -178,7 +189,7 @@ class SearchTree:
 
     def children(self, node: int) -> range:
         """The ids of the children of ``node`` (empty for a leaf)."""
-        first = int(self.first_child[node])
+        first = self.first_child[node]
         return range(0) if first < 0 else range(first, first + self.n_actions)
 
     def all_terminated(self, node: int) -> bool:
@@ -189,8 +200,9 @@ class SearchTree:
         """From the root, the child with the largest ``lower`` (first on ties), to a leaf."""
         node, path = 0, []
         while self.first_child[node] >= 0:
-            first = int(self.first_child[node])
-            a = int(np.argmax(self.lower[first:first + self.n_actions]))
+            first = self.first_child[node]
+            children_lower = self.lower[first:first + self.n_actions]
+            a = children_lower.index(max(children_lower))
             path.append(a)
             node = first + a
         return tuple(path)

@@ -150,8 +150,8 @@ def test_tree_grows_by_prefix_and_bounds_are_monotone_in_the_budget(game, max_bu
         assert decision.lower >= previous.lower
         assert decision.upper <= previous.upper
         # eq. (19) for every node of the smaller tree: L_a(k) <= L_a(K), T_a(K) <= T_a(k).
-        assert np.all(tree.lower[:n] >= previous_tree.lower[:n])
-        assert np.all(tree.upper[:n] <= previous_tree.upper[:n])
+        assert np.all(np.asarray(tree.lower[:n]) >= np.asarray(previous_tree.lower[:n]))
+        assert np.all(np.asarray(tree.upper[:n]) <= np.asarray(previous_tree.upper[:n]))
         previous_tree, previous = tree, decision
 
 

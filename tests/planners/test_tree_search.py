@@ -191,7 +191,7 @@ def test_terminated_model_is_never_stepped_and_adds_no_tail():
     tree = planner.tree
     assert crash.calls == [0, 0]  # only the root's two children
     # The crashed model adds no tail: every leaf's b-value is min(1, ...) = 1.
-    assert np.all(tree.leaf_upper[1:tree.size] == 1.0)
+    assert tree.leaf_upper[1:] == [1.0] * (tree.size - 1)
     # Halves collects 0.5 (1 + 0.9 + 0.81) = 1.355 >= 1 after three steps, so the
     # robust value 1 is known after three expansions (down the "left" branch).
     assert decision.lower == decision.upper == 1.0
