@@ -80,8 +80,11 @@ class Box:
         return bool(np.all(pts >= self.low - tol) and np.all(pts <= self.high + tol))
 
     def vertices(self) -> np.ndarray:
-        """The 2^n corners, shape (2^n, n), ordered like `hypercube_signs`."""
-        return self.center + hypercube_signs(self.dim) * self.radius
+        """The 2^n corners, shape (2^n, n), ordered like `hypercube_signs`.
+
+        Taken from ``low`` and ``high`` exactly (``center +- radius`` can round outside the box).
+        """
+        return np.where(hypercube_signs(self.dim) > 0, self.high, self.low)
 
     def intersect(self, other: "Box") -> "Box":
         """The intersection with another box; raises `EmptySetError` if empty."""
