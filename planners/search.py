@@ -5,13 +5,18 @@ The planners see models only through a small transition protocol:
 - ``model.step(state, action) -> (next_state, reward)`` or
   ``(next_state, reward, terminal)``, with ``reward`` in [0, 1] (maximised);
 - optionally ``model.expand(state, actions) -> (next_states, rewards, terminals)``:
-  all actions from one state in one batched call, ``next_states`` a sequence of
-  ``len(actions)`` states, ``rewards`` a float array of shape ``(len(actions),)``,
-  ``terminals`` a bool array of the same shape. When present it is used instead of
+  all actions (the planner's tuple) from one state in one batched call,
+  ``next_states`` a sequence of ``len(actions)`` states, ``rewards`` a float array
+  of shape ``(len(actions),)``, ``terminals`` a bool array of the same shape. When present it is used instead of
   ``step`` (the two must agree; the tree does not depend on which is used).
 
 After a terminal transition a model is never stepped again on that branch: its
 later rewards are 0 and its state stays the terminal state.
+
+States are opaque to the planner and never copied: one state object may be shared
+by several tree nodes (below a terminal transition) and, when `plan` gets one
+initial state, by every model. Models must return new states, never modify a
+given state in place.
 """
 
 from __future__ import annotations
@@ -171,9 +176,9 @@ class RobustTreePlanner:
         Discount factor, 0 < gamma < 1.
     budget
         Number of expansions K >= 1 (fewer are made only once ``lower == upper`` at
-        the root). Each expansion creates ``len(actions)``
-        children and steps every not-yet-terminated model once per action, i.e. at
-        most ``K * |A| * M`` model transitions per `plan` call.
+        the root). Each expansion creates ``len(actions)`` children and steps every
+        not-yet-terminated model once per action, i.e. at most ``K * |A| * M``
+        model transitions per `plan` call.
     seed
         Accepted for interface stability and validated (an integer); it currently
         has no effect: every tie (equal b-values, equal lower bounds) is broken
@@ -315,10 +320,10 @@ class RobustTreePlanner:
             new_terminal[:, m] = model_terminals
             tree.states[m].extend(next_states)
         if not (rewards.min() >= 0.0 and rewards.max() <= 1.0):
-            self._reward_error(rewards, terminal)
+            self._reward_error(rewards)
         return tree.add_children(leaf, rewards, new_terminal)
 
-    def _reward_error(self, rewards: np.ndarray, terminal: np.ndarray) -> None:
+    def _reward_error(self, rewards: np.ndarray) -> None:
         bad = ~((rewards >= 0.0) & (rewards <= 1.0))
         a, m = (int(i) for i in np.argwhere(bad)[0])
         raise RewardRangeError(
