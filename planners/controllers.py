@@ -1,0 +1,201 @@
+"""Low-level controllers: what a discrete planner action does between two decisions.
+
+The paper (Section III-B) discretises the control space by letting each high-level
+action ``a`` select a low-level controller. Two kinds are provided:
+
+* `OpenLoop(u)`: the constant control u;
+* `LinearFeedback(K, x_ref, u_ff, u_low, u_high)`: ``u = sat(K (x_ref - x) + u_ff)``,
+  saturated elementwise to ``[u_low, u_high]`` (no saturation by default).
+
+Without saturation, feedback on the plant ``x+ = A(theta) x + B u + D w`` gives the
+closed loop ``x+ = (A(theta) - B K) x + B (K x_ref + u_ff) + D w``: an
+`UncertainLinearSystem` with ``A0 - B K`` and the same ``phi``, driven by the constant
+input ``K x_ref + u_ff`` (`LinearFeedback.closed_loop`). Saturation is handled by the
+interval model (see `minimaxplan.planners.interval_model`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..models._validation import as_finite_array, check_shape, frozen_copy
+from ..models.errors import DimensionError, InputError
+from ..models.system import UncertainLinearSystem
+
+__all__ = ["OpenLoop", "LinearFeedback", "ControllerBank"]
+
+
+@dataclass(frozen=True, eq=False)
+class OpenLoop:
+    """The constant control ``u`` (shape (q,)), whatever the state."""
+
+    u: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "u", frozen_copy(as_finite_array("u", self.u, ndim=1)))
+
+    @property
+    def ninputs(self) -> int:
+        return self.u.shape[0]
+
+    def control(self, x) -> np.ndarray:
+        """The control at state(s) x (..., p): ``u`` broadcast to (..., q)."""
+        x = np.asarray(x, dtype=float)
+        return np.broadcast_to(self.u, x.shape[:-1] + self.u.shape).copy()
+
+    def to_dict(self) -> dict:
+        return {"kind": "open_loop", "u": self.u.tolist()}
+
+
+@dataclass(frozen=True, eq=False)
+class LinearFeedback:
+    """State feedback ``u = clip(K (x_ref - x) + u_ff, u_low, u_high)``.
+
+    Parameters
+    ----------
+    K
+        Gain, shape (q, p).
+    x_ref
+        Reference state, shape (p,).
+    u_ff
+        Feedforward control, shape (q,); default 0.
+    u_low, u_high
+        Saturation limits, shape (q,) (scalars broadcast); None means no limit on
+        that side. ``u_low <= u_high``.
+    """
+
+    K: np.ndarray
+    x_ref: np.ndarray
+    u_ff: np.ndarray | None = None
+    u_low: np.ndarray | float | None = None
+    u_high: np.ndarray | float | None = None
+
+    def __post_init__(self) -> None:
+        K = as_finite_array("K", self.K, ndim=2)
+        q, p = K.shape
+        x_ref = as_finite_array("x_ref", self.x_ref, (p,))
+        u_ff = np.zeros(q) if self.u_ff is None else as_finite_array("u_ff", self.u_ff, (q,))
+        limits = {}
+        for name, default in (("u_low", -np.inf), ("u_high", np.inf)):
+            value = getattr(self, name)
+            if value is None:
+                limits[name] = np.full(q, default)
+                continue
+            arr = as_finite_array(name, value)
+            if arr.ndim == 0:
+                arr = np.full(q, float(arr))
+            check_shape(name, arr, (q,))
+            limits[name] = arr
+        if np.any(limits["u_low"] > limits["u_high"]):
+            raise InputError(f"u_low must be <= u_high, got {limits['u_low'].tolist()} and {limits['u_high'].tolist()}")
+        for name, value in (("K", K), ("x_ref", x_ref), ("u_ff", u_ff), *limits.items()):
+            object.__setattr__(self, name, frozen_copy(value))
+
+    @property
+    def ninputs(self) -> int:
+        return self.K.shape[0]
+
+    @property
+    def nstates(self) -> int:
+        return self.K.shape[1]
+
+    @property
+    def saturates(self) -> bool:
+        """Whether any saturation limit is finite."""
+        return bool(np.any(np.isfinite(self.u_low)) or np.any(np.isfinite(self.u_high)))
+
+    @property
+    def feedforward(self) -> np.ndarray:
+        """``K x_ref + u_ff``, the constant input of the closed loop."""
+        return self.K @ self.x_ref + self.u_ff
+
+    def control(self, x) -> np.ndarray:
+        """The saturated control at state(s) x (..., p) -> (..., q)."""
+        x = np.asarray(x, dtype=float)
+        return np.clip((self.x_ref - x) @ self.K.T + self.u_ff, self.u_low, self.u_high)
+
+    def closed_loop(self, system: UncertainLinearSystem) -> UncertainLinearSystem:
+        """The unsaturated closed loop ``x+ = (A(theta) - B K) x + B v + D w`` with ``v = feedforward``.
+
+        Exact for every state at which saturation is inactive.
+        """
+        if not isinstance(system, UncertainLinearSystem):
+            raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+        if self.K.shape != (system.ninputs, system.nstates):
+            raise DimensionError(
+                f"K must have shape ({system.ninputs}, {system.nstates}) for this system, got shape {self.K.shape}"
+            )
+        return UncertainLinearSystem(
+            system.A0 - system.B @ self.K, system.phi, system.B, D=system.D, w=system.w, theta=system.theta
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "kind": "linear_feedback",
+            "K": self.K.tolist(),
+            "x_ref": self.x_ref.tolist(),
+            "u_ff": self.u_ff.tolist(),
+            "u_low": self.u_low.tolist(),
+            "u_high": self.u_high.tolist(),
+        }
+
+
+class ControllerBank:
+    """A sequence of controllers as stacked arrays, for batched stepping of all actions.
+
+    Every controller is written as ``u = clip(c_a - K_a x, low_a, high_a)``:
+    `OpenLoop` has ``K_a = 0``, ``c_a = u`` and no limits; `LinearFeedback` has
+    ``c_a = K x_ref + u_ff``.
+
+    Attributes
+    ----------
+    gains : ndarray (a, q, p)
+    offsets : ndarray (a, q)
+    low, high : ndarray (a, q), with -inf / inf where unlimited
+    saturating : bool
+        Whether any controller has a finite limit.
+    """
+
+    def __init__(self, controllers, nstates: int, ninputs: int) -> None:
+        try:
+            controllers = tuple(controllers)
+        except TypeError:
+            raise InputError(f"controllers must be a sequence, got {type(controllers).__name__}") from None
+        if not controllers:
+            raise InputError("controllers must be a non-empty sequence (one controller per action)")
+        n = len(controllers)
+        self.controllers = controllers
+        self.gains = np.zeros((n, ninputs, nstates))
+        self.offsets = np.zeros((n, ninputs))
+        self.low = np.full((n, ninputs), -np.inf)
+        self.high = np.full((n, ninputs), np.inf)
+        for a, controller in enumerate(controllers):
+            if isinstance(controller, OpenLoop):
+                if controller.u.shape != (ninputs,):
+                    raise DimensionError(f"controllers[{a}].u must have shape ({ninputs},), got shape {controller.u.shape}")
+                self.offsets[a] = controller.u
+            elif isinstance(controller, LinearFeedback):
+                if controller.K.shape != (ninputs, nstates):
+                    raise DimensionError(
+                        f"controllers[{a}].K must have shape ({ninputs}, {nstates}), got shape {controller.K.shape}"
+                    )
+                self.gains[a] = controller.K
+                self.offsets[a] = controller.feedforward
+                self.low[a] = controller.u_low
+                self.high[a] = controller.u_high
+            else:
+                raise InputError(f"controllers[{a}] must be OpenLoop or LinearFeedback, got {type(controller).__name__}")
+        self.saturating = bool(np.any(np.isfinite(self.low)) or np.any(np.isfinite(self.high)))
+        self.has_feedback = bool(np.any(self.gains != 0))
+        for arr in (self.gains, self.offsets, self.low, self.high):
+            arr.setflags(write=False)
+
+    def __len__(self) -> int:
+        return len(self.controllers)
+
+    def controls(self, x: np.ndarray, index=slice(None)) -> np.ndarray:
+        """The controls of the selected controllers at states x (a, p) -> (a, q) (raw arrays)."""
+        v = self.offsets[index] - np.einsum("aqp,ap->aq", self.gains[index], x)
+        return np.clip(v, self.low[index], self.high[index])

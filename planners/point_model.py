@@ -1,0 +1,115 @@
+"""The certainty-equivalent planner model: one parameter value, no disturbance.
+
+`PointModel` steps the plant with a single parameter vector: the estimate theta-hat
+(the paper's "nominal" comparison, certainty equivalence) or the true theta (the
+"oracle"). Disturbances are taken as w = 0. Its rewards use the same aggregation as
+`IntervalModel` (the minimum over the sub-steps between two decisions), so the
+returns of both are directly comparable.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..models._validation import as_finite_array
+from ..models.errors import DimensionError, InputError
+from ..models.system import UncertainLinearSystem
+from .controllers import ControllerBank
+from .interval_model import _ActionIndex, _check_reward, _check_substeps, _check_time
+
+__all__ = ["PointState", "PointModel"]
+
+
+class PointState(NamedTuple):
+    """A planner state of `PointModel`: the plant state ``x`` at sub-step ``time``."""
+
+    x: np.ndarray
+    time: int
+
+
+class PointModel:
+    """A planner model for one known parameter value, w = 0.
+
+    Parameters
+    ----------
+    system
+        The `UncertainLinearSystem` (one sub-step).
+    theta
+        The parameter vector used, shape (d,): an estimate (nominal planner) or the
+        truth (oracle planner).
+    reward
+        A reward family with ``box_minimum(lower, upper, t)`` (evaluated on the
+        degenerate box ``[x, x]``, i.e. at the point).
+    controllers
+        One `OpenLoop` or `LinearFeedback` per action (saturation applied exactly).
+    substeps
+        Sub-steps per decision.
+
+    Notes
+    -----
+    ``x+ = A(theta) x + B u(x)`` at every sub-step; the reward of a transition is
+    ``min_s J(x_s, t + s)`` over its sub-steps, terminal on a collision.
+    """
+
+    def __init__(self, system: UncertainLinearSystem, theta, reward, controllers, *, substeps: int = 1) -> None:
+        if not isinstance(system, UncertainLinearSystem):
+            raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+        self.system = system
+        self.theta = as_finite_array("theta", theta, (system.nparams,))
+        self.theta.setflags(write=False)
+        self.reward = reward
+        self._reward_min = _check_reward(reward, system.nstates)
+        self.substeps = _check_substeps(substeps)
+        self.bank = ControllerBank(controllers, system.nstates, system.ninputs)
+        self.controllers = self.bank.controllers
+        self._A_T = np.ascontiguousarray(system.A(self.theta).T)
+        self._B_T = np.ascontiguousarray(system.B.T)
+        self._actions = _ActionIndex(len(self.bank))
+        self._p = system.nstates
+
+    @property
+    def n_actions(self) -> int:
+        return len(self.bank)
+
+    @property
+    def actions(self) -> tuple[int, ...]:
+        return tuple(range(self.n_actions))
+
+    def _propagate(self, x, time, index, n):
+        x = np.broadcast_to(x, (n, self._p))
+        sel = slice(None) if index is None else index
+        worst = collided = None
+        for s in range(1, self.substeps + 1):
+            u = self.bank.controls(x, sel)
+            x = x @ self._A_T + u @ self._B_T
+            reward, hit = self._reward_min(x, x, time + s)
+            if worst is None:
+                worst, collided = reward, hit
+            else:
+                worst, collided = np.minimum(worst, reward), collided | hit
+        return x, np.asarray(worst, dtype=float), np.asarray(collided, dtype=bool)
+
+    def expand(self, state: PointState, actions) -> tuple[list, np.ndarray, np.ndarray]:
+        """Step every action from ``state`` in one batched call."""
+        if type(state) is not PointState:
+            raise InputError(f"state must be a PointState (see PointModel.initial_state), got {type(state).__name__}")
+        index = self._actions(actions)
+        n = self.n_actions if index is None else len(index)
+        x, rewards, terminals = self._propagate(state.x, state.time, index, n)
+        time = state.time + self.substeps
+        return [PointState(x[i], time) for i in range(n)], rewards, terminals
+
+    def step(self, state: PointState, action) -> tuple[PointState, float, bool]:
+        next_states, rewards, terminals = self.expand(state, (action,))
+        return next_states[0], float(rewards[0]), bool(terminals[0])
+
+    def initial_state(self, x, *, time: int = 0) -> PointState:
+        """The planner's root state from a measured state x (p,) at sub-step ``time``."""
+        x = as_finite_array("x", x)
+        if x.shape != (self._p,):
+            raise DimensionError(f"x must have shape ({self._p},), got shape {x.shape}")
+        x = x.copy()
+        x.setflags(write=False)
+        return PointState(x, _check_time(time))

@@ -1,0 +1,93 @@
+"""Random uncertain systems, controllers and true-trajectory simulation for the planner tests."""
+
+import numpy as np
+
+from minimaxplan.models import Box, UncertainLinearSystem
+from minimaxplan.models.sets import hypercube_signs
+from minimaxplan.planners.controllers import LinearFeedback, OpenLoop
+
+
+def random_system(rng, p=None, q=None, d=None):
+    """A random plant, Metzler or not, discretised from continuous time with a random dt."""
+    p = int(rng.integers(2, 5)) if p is None else p
+    q = int(rng.integers(1, 3)) if q is None else q
+    d = int(rng.integers(1, 3)) if d is None else d
+    r = int(rng.integers(1, p + 1))
+    dt = float(rng.uniform(0.02, 0.4))
+    A = rng.normal(size=(p, p)) / np.sqrt(p)
+    phi = rng.normal(size=(d, p, p)) * (rng.random((d, p, p)) < 0.5) / p
+    B = rng.normal(size=(p, q))
+    D = rng.normal(size=(p, r))
+    w_half = rng.uniform(0.0, 0.3, r)
+    theta_lo = rng.uniform(-0.5, 0.3, d)
+    theta = Box(theta_lo, theta_lo + rng.uniform(0.0, 0.6, d))
+    system = UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=Box(-w_half, w_half), theta=theta, dt=dt)
+    return system
+
+
+def random_controllers(rng, system, n=None, saturate=None):
+    """OpenLoop and LinearFeedback controllers, some with saturation limits that will activate."""
+    p, q = system.nstates, system.ninputs
+    n = int(rng.integers(2, 4)) if n is None else n
+    controllers = []
+    for _ in range(n):
+        if rng.random() < 0.4:
+            controllers.append(OpenLoop(rng.uniform(-1, 1, q)))
+        else:
+            limited = rng.random() < 0.6 if saturate is None else saturate
+            limit = float(rng.uniform(0.05, 1.0))
+            controllers.append(
+                LinearFeedback(
+                    rng.normal(size=(q, p)),
+                    rng.uniform(-2, 2, p),
+                    rng.uniform(-0.5, 0.5, q),
+                    u_low=-limit if limited else None,
+                    u_high=limit if limited else None,
+                )
+            )
+    return controllers
+
+
+def parameter_samples(rng, box: Box, n_random=4):
+    """Every vertex of the parameter box plus random interior points, shape (k, d)."""
+    return np.vstack([box.vertices(), rng.uniform(box.low, box.high, (n_random, box.dim))])
+
+
+def initial_samples(rng, lower, upper, n):
+    """n states of the box: corners first (extremes), then random points."""
+    corners = lower + (hypercube_signs(len(lower)) + 1) / 2 * (upper - lower)
+    points = rng.uniform(lower, upper, (n, len(lower)))
+    k = min(n, len(corners))
+    points[:k] = corners[rng.permutation(len(corners))[:k]]
+    return points
+
+
+def disturbance(rng, w: Box, n):
+    """Disturbances of n realisations: mostly box vertices (extremes), some interior."""
+    signs = rng.choice([-1.0, 1.0], size=(n, w.dim))
+    w_values = w.center + signs * w.radius
+    interior = rng.random(n) < 0.25
+    w_values[interior] = rng.uniform(w.low, w.high, (int(interior.sum()), w.dim))
+    return w_values
+
+
+def simulate(rng, system, thetas, x0, controllers, substeps):
+    """True trajectories for each (theta, x0) pair along a controller sequence.
+
+    Returns states of shape (n, len(controllers) * substeps + 1, p).
+    """
+    A = system.A(thetas)  # (n, p, p)
+    x = np.array(x0, dtype=float)
+    states = [x]
+    for controller in controllers:
+        for _ in range(substeps):
+            u = controller.control(x)
+            w = disturbance(rng, system.w, x.shape[0])
+            x = np.einsum("nij,nj->ni", A, x) + u @ system.B.T + w @ system.D.T
+            states.append(x)
+    return np.stack(states, axis=1)
+
+
+def inside(states, lower, upper, tol=1e-9):
+    slack = tol * (1.0 + np.abs(states))
+    return bool(np.all(states >= lower - slack) and np.all(states <= upper + slack))

@@ -1,0 +1,318 @@
+"""IntervalModel, PointModel, controllers and the comparison factories."""
+
+import importlib.util
+import pathlib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from minimaxplan.models import Box, UncertainLinearSystem
+from minimaxplan.models.errors import DimensionError, EmptySetError, InputError
+from minimaxplan.models.prediction import IntervalPredictor
+from minimaxplan.planners import OptimisticPlanner, RobustTreePlanner
+from minimaxplan.planners.comparison import (
+    interval_robust_planner,
+    multi_model_robust_planner,
+    nominal_planner,
+    oracle_planner,
+    root_state,
+)
+from minimaxplan.planners.controllers import ControllerBank, LinearFeedback, OpenLoop
+from minimaxplan.planners.interval_model import BoxState, IntervalModel
+from minimaxplan.planners.point_model import PointModel, PointState
+from minimaxplan.scenarios.geometry import CircularObstacles
+from minimaxplan.scenarios.rewards import GoalReward
+
+_spec = importlib.util.spec_from_file_location("planner_test_systems", pathlib.Path(__file__).with_name("_systems.py"))
+systems = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(systems)
+
+seeds = st.integers(0, 2**31 - 1)
+
+
+class UnboundedReward:
+    """A reward without obstacles that reads the first two coordinates (box minimum of a goal reward)."""
+
+    def __init__(self):
+        self.inner = GoalReward([1.0, -1.0])
+
+    def box_minimum(self, lower, upper, t):
+        return self.inner.box_minimum(lower, upper, t)
+
+
+def robot_system(dt=0.1):
+    A = np.zeros((4, 4))
+    A[0, 2] = A[1, 3] = 1.0
+    phi = np.zeros((2, 4, 4))
+    phi[0, 2, 2] = phi[1, 3, 3] = -1.0
+    B = np.zeros((4, 2))
+    B[2, 0] = B[3, 1] = 1.0
+    return UncertainLinearSystem.from_continuous(
+        A, phi, B, D=B.copy(), w=Box([-0.1, -0.1], [0.1, 0.1]), theta=Box([0.2, 0.2], [0.8, 0.8]), dt=dt
+    )
+
+
+ROBOT_ACTIONS = [OpenLoop(u) for u in ([-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0])]
+
+
+# ------------------------------------------------------------------ inclusion
+@given(seeds, st.integers(1, 4))
+def test_boxes_contain_every_true_trajectory(seed, substeps):
+    """Every true sub-step state lies in its box: random plants (non-Metzler), random dt,
+    parameters at every vertex and inside, disturbances at their extremes, feedback with
+    active saturation."""
+    rng = np.random.default_rng(seed)
+    system = systems.random_system(rng)
+    controllers = systems.random_controllers(rng, system)
+    model = IntervalModel(system, system.theta, UnboundedReward(), controllers, substeps=substeps)
+    lo0 = rng.uniform(-1, 1, system.nstates)
+    hi0 = lo0 + rng.uniform(0, 0.5, system.nstates)
+    sequence = list(rng.integers(0, len(controllers), size=4))
+    lower, upper, _, _ = model.rollout(model.initial_state(lo0, hi0), sequence)
+    thetas = systems.parameter_samples(rng, system.theta)
+    x0 = systems.initial_samples(rng, lo0, hi0, len(thetas))
+    for _ in range(3):
+        states = systems.simulate(rng, system, thetas, x0, [controllers[a] for a in sequence], substeps)
+        assert systems.inside(states, lower, upper)
+
+
+def test_saturation_is_active_and_still_contained():
+    """A feedback law that saturates inside the box: the closed-loop formula alone would be wrong."""
+    system = robot_system()
+    feedback = LinearFeedback(np.array([[2.0, 0, 1.5, 0], [0, 2.0, 0, 1.5]]), [1.0, 1.0, 0, 0], u_low=-0.5, u_high=0.5)
+    model = IntervalModel(system, system.theta, UnboundedReward(), [feedback], substeps=1)
+    lo0, hi0 = np.array([0.9, 0.9, -0.1, -0.1]), np.array([4.0, 4.0, 0.1, 0.1])
+    # saturation is active for part of the box (far from x_ref), not all of it (at x_ref)
+    corners = systems.initial_samples(np.random.default_rng(0), lo0, hi0, 16)
+    raw = (feedback.x_ref - corners) @ feedback.K.T + feedback.u_ff
+    assert np.any(np.abs(raw) > 0.5)
+    assert np.all(np.abs(feedback.control(np.array([1.0, 1.0, 0.1, -0.1]))) < 0.5)
+    lower, upper, _, _ = model.rollout(model.initial_state(lo0, hi0), [0] * 30)
+    rng = np.random.default_rng(1)
+    thetas = systems.parameter_samples(rng, system.theta, n_random=60)
+    x0 = systems.initial_samples(rng, lo0, hi0, len(thetas))
+    states = systems.simulate(rng, system, thetas, x0, [feedback] * 30, 1)
+    assert systems.inside(states, lower, upper)
+    # from a point far from x_ref the unsaturated closed-loop predictor excludes the true
+    # (saturated) trajectories, and the model does not
+    start = np.array([4.0, 4.0, 0.0, 0.0])
+    lower, upper, _, _ = model.rollout(model.initial_state(start, start), [0] * 30)
+    states = systems.simulate(rng, system, thetas, np.tile(start, (len(thetas), 1)), [feedback] * 30, 1)
+    assert systems.inside(states, lower, upper)
+    closed = IntervalPredictor(feedback.closed_loop(system), system.theta)
+    zl, zh = start, start
+    escaped = False
+    for n in range(1, 31):
+        zl, zh = closed.step(zl, zh, feedback.feedforward)
+        escaped |= not systems.inside(states[:, n], zl, zh)
+    assert escaped
+
+
+def test_stacked_step_equals_the_interval_predictor_per_controller():
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        system = systems.random_system(rng)
+        controllers = systems.random_controllers(rng, system, n=4, saturate=False)
+        model = IntervalModel(system, system.theta, UnboundedReward(), controllers)
+        lo0 = rng.uniform(-1, 1, system.nstates)
+        hi0 = lo0 + rng.uniform(0, 1, system.nstates)
+        next_states, _, _ = model.expand(model.initial_state(lo0, hi0), model.actions)
+        for controller, state in zip(controllers, next_states):
+            if isinstance(controller, OpenLoop):
+                predictor, u = IntervalPredictor(system, system.theta), controller.u
+            else:
+                predictor, u = IntervalPredictor(controller.closed_loop(system), system.theta), controller.feedforward
+            lo, hi = predictor.step(lo0, hi0, u)
+            np.testing.assert_allclose(state.lower, lo, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(state.upper, hi, rtol=1e-12, atol=1e-12)
+
+
+@settings(max_examples=20)
+@given(seeds, st.integers(1, 3))
+def test_expand_equals_repeated_step_and_rollout(seed, substeps):
+    rng = np.random.default_rng(seed)
+    system = systems.random_system(rng, p=4, q=2)
+    controllers = systems.random_controllers(rng, system, n=3)
+    obstacles = CircularObstacles(rng.uniform(-3, 3, (4, 2)), rng.uniform(0.1, 0.5, 4))
+    reward = GoalReward(rng.uniform(-3, 3, 2), obstacles=obstacles, robot_radius=0.2)
+    model = IntervalModel(system, system.theta, reward, controllers, substeps=substeps)
+    state = model.initial_state(rng.uniform(-1, 0, 4), rng.uniform(0, 1, 4), time=3)
+    next_states, rewards, terminals = model.expand(state, model.actions)
+    # BLAS may round a batched product differently from a single one: equal to rounding
+    same = dict(rtol=1e-13, atol=1e-13)
+    for a in model.actions:
+        one, reward_a, terminal_a = model.step(state, a)
+        np.testing.assert_allclose(one.lower, next_states[a].lower, **same)
+        np.testing.assert_allclose(one.upper, next_states[a].upper, **same)
+        assert one.time == next_states[a].time == 3 + substeps
+        assert reward_a == pytest.approx(rewards[a], abs=1e-13) and terminal_a == terminals[a]
+    # a subset of actions, in another order
+    sub_states, sub_rewards, _ = model.expand(state, [2, 0])
+    np.testing.assert_allclose(sub_states[0].upper, next_states[2].upper, **same)
+    assert sub_rewards[1] == pytest.approx(rewards[0], abs=1e-13)
+    # rollout over a sequence == chained steps; its per-decision rewards are minima over sub-steps
+    sequence = [1, 2, 0]
+    lower, upper, roll_rewards, roll_terminals = model.rollout(state, sequence)
+    current = state
+    for n, a in enumerate(sequence):
+        current, r, term = model.step(current, a)
+        np.testing.assert_allclose(current.lower, lower[(n + 1) * substeps], **same)
+        assert r == pytest.approx(roll_rewards[n], abs=1e-13) and term == roll_terminals[n]
+        sub_minima = [reward.box_minimum(lower[n * substeps + s], upper[n * substeps + s], 3 + n * substeps + s)[0]
+                      for s in range(1, substeps + 1)]
+        assert r == pytest.approx(min(sub_minima), abs=0)
+
+
+def test_pessimistic_reward_is_the_worst_sub_step_and_collision_is_terminal():
+    system = robot_system()
+    reward = GoalReward([5.0, 0.0], obstacles=CircularObstacles([[1.2, 0.0]], [0.2]), robot_radius=0.3)
+    model = IntervalModel(system, system.theta, reward, ROBOT_ACTIONS, substeps=5)
+    state = model.initial_state([0.0, -0.05, 1.0, 0.0], [0.05, 0.05, 1.2, 0.1])
+    next_states, rewards, terminals = model.expand(state, model.actions)
+    # right-hand actions drive into the obstacle within the 5 sub-steps
+    assert terminals[3] and rewards[3] == 0.0
+    assert not terminals[0] and 0.0 < rewards[0] < 1.0
+    lower, upper, per_decision, _ = model.rollout(state, [0])
+    minima = [reward.box_minimum(lower[s], upper[s], s)[0] for s in range(1, 6)]
+    assert per_decision[0] == min(minima)
+
+
+# --------------------------------------------------------------- point model
+def test_point_model_matches_system_step():
+    system = robot_system()
+    theta = np.array([0.3, 0.6])
+    feedback = LinearFeedback(np.array([[1.0, 0, 1, 0], [0, 1.0, 0, 1]]), [2.0, 1.0, 0, 0], u_low=-1.0, u_high=1.0)
+    controllers = ROBOT_ACTIONS + [feedback]
+    reward = GoalReward([3.0, 3.0], obstacles=CircularObstacles([[1.0, 1.0]], [0.3]), robot_radius=0.3)
+    model = PointModel(system, theta, reward, controllers, substeps=3)
+    x0 = np.array([0.0, 0.0, 0.2, -0.1])
+    state = model.initial_state(x0, time=2)
+    next_states, rewards, terminals = model.expand(state, model.actions)
+    for a, controller in enumerate(controllers):
+        x = x0
+        values = []
+        for s in range(1, 4):
+            x = system.step(x, controller.control(x), theta)
+            values.append(reward.value(x, 2 + s))
+        np.testing.assert_allclose(next_states[a].x, x, rtol=1e-13, atol=1e-13)
+        assert rewards[a] == pytest.approx(min(values), abs=1e-12)
+        one = model.step(state, a)
+        np.testing.assert_array_equal(one[0].x, next_states[a].x)
+        assert one[1] == rewards[a] and one[2] == terminals[a]
+        assert next_states[a].time == 5
+
+
+# ------------------------------------------------------------------ factories
+def test_comparison_factories_plan():
+    system = robot_system()
+    reward = GoalReward([3.0, 3.0], obstacles=CircularObstacles([[1.5, 1.5]], [0.4]), robot_radius=0.3)
+    robust = interval_robust_planner(system, Box([0.3, 0.3], [0.6, 0.6]), reward, ROBOT_ACTIONS, budget=20, substeps=5)
+    assert isinstance(robust, RobustTreePlanner) and robust.n_models == 1
+    decision = robust.plan(root_state(robust, [0, 0, 0, 0], [0.02, 0.02, 0, 0]))
+    assert 0.0 <= decision.lower <= decision.upper and decision.action in range(4)
+    hypotheses = [(system, Box([0.3, 0.3], [0.6, 0.6])), (robot_system(0.1), Box([0.2, 0.2], [0.4, 0.4]))]
+    multi = multi_model_robust_planner(hypotheses, reward, ROBOT_ACTIONS, budget=20, substeps=5)
+    assert multi.n_models == 2
+    multi_decision = multi.plan(root_state(multi, Box([0, 0, 0, 0], [0.02, 0.02, 0, 0])))
+    assert 0.0 <= multi_decision.lower <= multi_decision.upper <= 1 / (1 - 0.9)
+    nominal = nominal_planner(system, [0.45, 0.45], reward, ROBOT_ACTIONS, budget=20, substeps=5)
+    oracle = oracle_planner(system, [0.5, 0.7], reward, ROBOT_ACTIONS, budget=20, substeps=5)
+    for planner in (nominal, oracle):
+        assert isinstance(planner, OptimisticPlanner)
+        point_decision = planner.plan(root_state(planner, [0.0, 0.0, 0.0, 0.0]))
+        # the certainty-equivalent value is at least the robust surrogate (w = 0, one theta in the box)
+        assert point_decision.upper >= decision.lower - 1e-12
+    with pytest.raises(InputError, match="point-model planner starts from one state"):
+        root_state(nominal, [0.0] * 4, [0.0] * 4)
+
+
+def test_multi_model_lower_bound_is_the_worst_model():
+    system = robot_system()
+    reward = GoalReward([3.0, 3.0])
+    boxes = [Box([0.3, 0.3], [0.4, 0.4]), Box([0.6, 0.6], [0.8, 0.8])]
+    single = [interval_robust_planner(system, b, reward, ROBOT_ACTIONS, budget=15, substeps=2) for b in boxes]
+    multi = multi_model_robust_planner([(system, b) for b in boxes], reward, ROBOT_ACTIONS, budget=15, substeps=2)
+    root = multi.models[0].initial_state([0, 0, 0, 0], [0.1, 0.1, 0, 0])
+    decision = multi.plan(root)
+    # a sequence good under both models is good under each: below each model's own upper bound
+    assert decision.lower <= min(p.plan(root).upper for p in single) + 1e-12
+    # and its sequence really achieves decision.lower under the worse model
+    returns = []
+    for model in multi.models:
+        _, _, rewards, terminals = model.rollout(root, decision.sequence)
+        alive = np.concatenate([[True], ~np.cumsum(terminals)[:-1].astype(bool)])
+        returns.append(float(np.sum(0.9 ** np.arange(len(rewards)) * rewards * alive)))
+    assert min(returns) == pytest.approx(decision.lower, abs=1e-12)
+
+
+# ----------------------------------------------------------------- validation
+def test_interval_model_validation():
+    system = robot_system()
+    reward = GoalReward([1.0, 1.0])
+    with pytest.raises(InputError, match="system must be an UncertainLinearSystem, got str"):
+        IntervalModel("plant", None, reward, ROBOT_ACTIONS)
+    with pytest.raises(InputError, match="reward must have a callable box_minimum"):
+        IntervalModel(system, None, object(), ROBOT_ACTIONS)
+    with pytest.raises(DimensionError, match="reward reads state coordinates up to index 5, but the system has 4 states"):
+        IntervalModel(system, None, GoalReward([1.0, 1.0], position_indices=(5, 0)), ROBOT_ACTIONS)
+    with pytest.raises(InputError, match="substeps must be an integer >= 1, got 0"):
+        IntervalModel(system, None, reward, ROBOT_ACTIONS, substeps=0)
+    with pytest.raises(InputError, match="controllers must be a non-empty sequence"):
+        IntervalModel(system, None, reward, [])
+    with pytest.raises(DimensionError, match=r"controllers\[1\]\.u must have shape \(2,\), got shape \(3,\)"):
+        IntervalModel(system, None, reward, [OpenLoop([0.0, 0.0]), OpenLoop([0.0, 0.0, 0.0])])
+    with pytest.raises(DimensionError, match=r"controllers\[0\]\.K must have shape \(2, 4\), got shape \(2, 3\)"):
+        IntervalModel(system, None, reward, [LinearFeedback(np.zeros((2, 3)), np.zeros(3))])
+    with pytest.raises(InputError, match=r"controllers\[0\] must be OpenLoop or LinearFeedback, got function"):
+        IntervalModel(system, None, reward, [lambda x: x])
+    with pytest.raises(DimensionError, match="parameters must have dimension 2"):
+        IntervalModel(system, Box([0.0], [1.0]), reward, ROBOT_ACTIONS)
+    model = IntervalModel(system, None, reward, ROBOT_ACTIONS)
+    with pytest.raises(DimensionError, match=r"lower and upper must have shape \(4,\), got shapes \(3,\) and \(3,\)"):
+        model.initial_state([0.0, 0.0, 0.0], [1.0, 1.0, 1.0])
+    with pytest.raises(EmptySetError, match=r"lower > upper at indices \[1\]"):
+        model.initial_state([0.0, 2.0, 0.0, 0.0], [1.0, 1.0, 1.0, 1.0])
+    with pytest.raises(InputError, match="time must be a nonnegative integer"):
+        model.initial_state([0.0] * 4, time=-1)
+    state = model.initial_state(Box([0.0] * 4, [1.0] * 4))
+    with pytest.raises(InputError, match="state must be a BoxState"):
+        model.expand((state.lower, state.upper), model.actions)
+    with pytest.raises(InputError, match=r"actions must be controller indices in \[0, 4\), got \[0, 4\]"):
+        model.expand(state, (0, 4))
+    with pytest.raises(InputError, match=r"actions must be controller indices"):
+        model.step(state, "left")
+
+
+def test_controller_validation():
+    with pytest.raises(DimensionError, match=r"x_ref must have shape \(3,\), got shape \(2,\)"):
+        LinearFeedback(np.zeros((1, 3)), [0.0, 0.0])
+    with pytest.raises(InputError, match="u_low must be <= u_high"):
+        LinearFeedback(np.zeros((1, 3)), np.zeros(3), u_low=1.0, u_high=0.0)
+    with pytest.raises(DimensionError, match=r"u_high must have shape \(1,\), got shape \(2,\)"):
+        LinearFeedback(np.zeros((1, 3)), np.zeros(3), u_high=[1.0, 2.0])
+    with pytest.raises(DimensionError, match=r"K must have shape \(2, 4\) for this system, got shape \(1, 4\)"):
+        LinearFeedback(np.zeros((1, 4)), np.zeros(4)).closed_loop(robot_system())
+    with pytest.raises(InputError, match="controllers must be a non-empty sequence"):
+        ControllerBank([], 4, 2)
+    feedback = LinearFeedback(np.eye(2), [1.0, -1.0], u_low=-0.5, u_high=0.5)
+    np.testing.assert_allclose(feedback.control([[0.0, 0.0], [1.2, -0.9]]), [[0.5, -0.5], [-0.2, -0.1]])
+    assert feedback.saturates and not LinearFeedback(np.eye(2), [0.0, 0.0]).saturates
+    np.testing.assert_array_equal(OpenLoop([1.0, 2.0]).control(np.zeros((3, 4))), np.tile([1.0, 2.0], (3, 1)))
+
+
+def test_point_model_validation():
+    system = robot_system()
+    with pytest.raises(DimensionError, match=r"theta must have shape \(2,\), got shape \(3,\)"):
+        PointModel(system, [0.1, 0.2, 0.3], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
+    model = PointModel(system, [0.1, 0.2], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
+    with pytest.raises(DimensionError, match=r"x must have shape \(4,\), got shape \(2,\)"):
+        model.initial_state([0.0, 0.0])
+    with pytest.raises(InputError, match="state must be a PointState"):
+        model.expand(np.zeros(4), model.actions)
+    with pytest.raises(InputError, match="systems_with_parameters must hold at least one"):
+        multi_model_robust_planner([], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
+    small = systems.random_system(np.random.default_rng(0), p=3, q=2, d=2)
+    with pytest.raises(InputError, match=r"systems_with_parameters\[1\] has 3 states and 2 inputs"):
+        multi_model_robust_planner([(system, None), (small, None)], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
