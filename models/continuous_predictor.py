@@ -12,7 +12,7 @@ import numpy as np
 from ._validation import as_finite_array, as_positive_scalar, check_shape
 from .errors import DimensionError, InputError
 from .polytope import parameter_vertices
-from .prediction import Tube, interval_matvec
+from .prediction import Tube, _check_no_overflow, interval_matvec
 from .sets import Box
 
 __all__ = ["predict_tube_continuous", "euler_keeps_inclusion"]
@@ -104,13 +104,15 @@ def predict_tube_continuous(A, phi, B, *, D=None, w: Box, x0: Box, controls, dt:
     lower = np.empty((u.shape[0] + 1, p))
     upper = np.empty_like(lower)
     lower[0], upper[0] = x0.low, x0.high
-    for n in range(u.shape[0]):
-        x_lo, x_hi = lower[n], upper[n]
-        lo_neg, hi_pos = np.maximum(-x_lo, 0.0), np.maximum(x_hi, 0.0)
-        drift = B @ u[n]
-        dx_lo = nominal @ x_lo - X_pos @ lo_neg - X_neg @ hi_pos + drift + w_lo
-        dx_hi = nominal @ x_hi + X_pos @ hi_pos + X_neg @ lo_neg + drift + w_hi
-        lower[n + 1], upper[n + 1] = x_lo + dt * dx_lo, x_hi + dt * dx_hi
+    with np.errstate(over="ignore", invalid="ignore"):
+        for n in range(u.shape[0]):
+            x_lo, x_hi = lower[n], upper[n]
+            lo_neg, hi_pos = np.maximum(-x_lo, 0.0), np.maximum(x_hi, 0.0)
+            drift = B @ u[n]
+            dx_lo = nominal @ x_lo - X_pos @ lo_neg - X_neg @ hi_pos + drift + w_lo
+            dx_hi = nominal @ x_hi + X_pos @ hi_pos + X_neg @ lo_neg + drift + w_hi
+            lower[n + 1], upper[n + 1] = x_lo + dt * dx_lo, x_hi + dt * dx_hi
+    _check_no_overflow(lower, upper)
     guaranteed = euler_keeps_inclusion(nominal, dt)
     condition = "holds" if guaranteed else "fails: inclusion not guaranteed"
     return Tube(lower, upper, guaranteed=guaranteed, note=f"continuous-time predictor (eq. (9) corrected), Euler dt={dt:g}; I + dt A_N >= 0 {condition}")

@@ -14,7 +14,7 @@ import numpy as np
 import scipy.linalg
 
 from ._validation import as_finite_array, check_shape, frozen_copy
-from .errors import DimensionError, InputError
+from .errors import DimensionError, InputError, NonFiniteError
 from .polytope import parameter_vertices
 from .sets import Box
 from .system import UncertainLinearSystem
@@ -317,6 +317,17 @@ class IntervalPredictor:
         return new_lower + drift + self._w_lo, new_upper + drift + self._w_hi
 
 
+def _check_no_overflow(lower: np.ndarray, upper: np.ndarray) -> None:
+    """Raise `NonFiniteError` naming the first step whose bounds left the float range."""
+    finite = np.all(np.isfinite(lower) & np.isfinite(upper), axis=1)
+    if not np.all(finite):
+        step = int(np.argmin(finite))
+        raise NonFiniteError(
+            f"the tube's bounds overflowed at step {step} of {lower.shape[0] - 1}: the predicted widths "
+            "grew beyond the float range (an unstable system over a long horizon)"
+        )
+
+
 def predict_tube(system: UncertainLinearSystem, x0: Box, controls, parameters=None, *, basis=None) -> Tube:
     """Predict a tube that contains every trajectory of an uncertain system.
 
@@ -344,6 +355,9 @@ def predict_tube(system: UncertainLinearSystem, x0: Box, controls, parameters=No
     or not: for all theta in ``parameters``, all x0 in the box and all ``w_n`` in
     ``system.w``, ``lower[n] <= x_n <= upper[n]``, up to floating-point rounding
     (`ROUNDING_TOL`). See `IntervalPredictor` for the one-step bound used.
+    ``parameters`` is used as given, not intersected with ``system.theta``.
+
+    Raises `NonFiniteError` if the bounds overflow the float range.
     """
     if not isinstance(system, UncertainLinearSystem):
         raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
@@ -358,7 +372,9 @@ def predict_tube(system: UncertainLinearSystem, x0: Box, controls, parameters=No
     upper = np.empty_like(lower)
     lower[0], upper[0] = x0.low, x0.high
     z_lo, z_hi = predictor.enter(x0.low, x0.high)
-    for n in range(u.shape[0]):
-        z_lo, z_hi = predictor.step(z_lo, z_hi, u[n])
-        lower[n + 1], upper[n + 1] = predictor.leave(z_lo, z_hi)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for n in range(u.shape[0]):
+            z_lo, z_hi = predictor.step(z_lo, z_hi, u[n])
+            lower[n + 1], upper[n + 1] = predictor.leave(z_lo, z_hi)
+    _check_no_overflow(lower, upper)
     return Tube(lower, upper, guaranteed=True, note=predictor.basis_note)

@@ -124,6 +124,51 @@ def test_every_trajectory_stays_in_the_tube(seed, p, d, q, dt, metzler, kind, ba
     assert tube.contains(states)
 
 
+@given(seed=st.integers(0, 2**32 - 1), p=st.integers(1, 5), d=st.integers(1, 3), dt=st.floats(0.01, 1.0), auto=st.booleans())
+def test_inclusion_holds_even_when_theta_varies_in_time(seed, p, d, dt, auto):
+    rng = np.random.default_rng(seed)
+    system = random_system(rng, p, d, 1, p, dt, metzler=bool(rng.integers(2)))
+    x0 = Box.from_center(rng.normal(size=p), rng.uniform(0, 0.5, size=p))
+    controls = rng.normal(size=(HORIZON, 1))
+    tube = predict_tube(system, x0, controls, basis="auto" if auto else None)
+    n = 40
+    x = sample_initial_states(rng, x0, n)
+    disturbances = sample_disturbances(rng, system.w, n, HORIZON)
+    states = [x]
+    for step in range(HORIZON):
+        thetas = system.theta.vertices()[rng.integers(2**d, size=n)]  # a new vertex at every step
+        x = np.einsum("nij,nj->ni", system.A(thetas), x) + controls[step] @ system.B.T + disturbances[:, step] @ system.D.T
+        states.append(x)
+    assert tube.contains(np.stack(states, axis=1))
+
+
+@given(seed=st.integers(0, 2**32 - 1), p=st.integers(2, 6), d=st.integers(1, 3), kind=st.sampled_from(["box", "ellipsoid", "vertices"]))
+def test_auto_basis_is_sound_where_it_changes_the_basis(seed, p, d, kind):
+    # A_N = S diag(eigenvalues) S^-1 with real eigenvalues and a random S: far from
+    # nonnegative, so "auto" often adopts a non-identity basis; inclusion must hold either way.
+    rng = np.random.default_rng(seed)
+    S = random_basis(rng, p)
+    nominal = S @ np.diag(rng.uniform(-0.3, 1.0, size=p)) @ np.linalg.inv(S)
+    phi = rng.normal(size=(d, p, p)) * 0.02
+    w = Box.from_center(rng.normal(size=p) * 0.05, rng.uniform(0, 0.1, size=p))
+    system = UncertainLinearSystem(nominal, phi, rng.normal(size=(p, 1)), D=rng.normal(size=(p, p)), w=w, theta=Box.from_center(np.zeros(d), 1.0))
+    parameters, thetas = sample_parameters(rng, kind, system, 40)
+    x0 = Box.from_center(rng.normal(size=p), rng.uniform(0, 0.5, size=p))
+    controls = rng.normal(size=(HORIZON, 1))
+    tube = predict_tube(system, x0, controls, parameters, basis="auto")
+    assert tube.note.startswith("basis auto: ")
+    states = simulate(system, sample_initial_states(rng, x0, 40), thetas, controls, sample_disturbances(rng, w, 40, HORIZON))
+    assert tube.contains(states)
+
+
+def test_overflow_is_reported():
+    system = UncertainLinearSystem(
+        1e3 * np.eye(2), np.zeros((1, 2, 2)), np.ones((2, 1)), w=Box.from_center(np.zeros(2), 1.0), theta=Box(np.zeros(1), np.ones(1))
+    )
+    with pytest.raises(NonFiniteError, match=r"the tube's bounds overflowed at step 10\d of 200"):
+        predict_tube(system, Box.from_center(np.zeros(2), 1.0), np.zeros((200, 1)))
+
+
 @given(seed=st.integers(0, 2**32 - 1), p=st.integers(1, 3), d=st.integers(1, 2), dt=st.floats(0.01, 1.0))
 def test_one_step_is_the_tightest_box(seed, p, d, dt):
     # The one-step bound equals the extremes over parameter vertices x initial corners x
