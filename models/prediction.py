@@ -222,18 +222,20 @@ class IntervalPredictor:
     ``z_lo+ = min_k (M_k+ z_lo - M_k- z_hi) + T^-1 B u + (T^-1 D)+ w_lo - (T^-1 D)- w_hi``
 
     (and symmetrically ``z_hi+`` with max) is the TIGHTEST box containing every
-    successor of the box, for every dt and every A (eq. (7) holds by induction; theta
-    may even vary in time). It is at least as tight as the errata's form
-    ``A_N x + [max_k X_k]`` (elementwise max of the positive/negative parts of
-    ``X_k = A(v_k) - A_N``) and as the exact interval-matrix product with
-    ``[A_N + min_k X_k, A_N + max_k X_k]``: both bound the same set by a box over a
-    larger matrix set. Its cost is k matrix products of size p, done as one batched
-    product. With ``basis="auto"`` the predictor seeks ``T^-1 A_N T >= 0`` (discrete
-    time: nonnegative, not Metzler), for which the nominal part has no wrapping
-    effect; a candidate is kept only if it narrows a trial tube (see
-    ``_choose_basis``). Every T
-    gives a sound predictor: entering and leaving the basis use exact interval
-    products, so choosing the identity is never less sound, only possibly wider.
+    successor ``A(theta) x + B u + D w`` of the box, for every dt and every A: the
+    minimum over (theta, z) of a row is attained at a parameter vertex and a box
+    corner, and the disturbance term separates. Eq. (7) follows by induction (theta
+    may even vary in time). Any other sound one-step bound contains this box, in
+    particular the errata's form ``A_N x`` plus the elementwise max over k of the
+    positive/negative parts of ``X_k = A(v_k) - A_N``, and the exact interval-matrix
+    product with ``[A_N + min_k X_k, A_N + max_k X_k]``. Its cost is k matrix
+    products of size p, done as one batched product.
+
+    With ``basis="auto"`` the predictor seeks ``T^-1 A_N T >= 0`` (discrete time:
+    nonnegative, not Metzler), for which the nominal part has no wrapping effect; a
+    candidate is kept only if it narrows a trial tube (see ``_choose_basis``). Every
+    T gives a sound predictor: entering and leaving the basis use exact interval
+    products, so keeping the identity is never less sound, only possibly wider.
     """
 
     def __init__(self, system: UncertainLinearSystem, parameters=None, *, basis=None) -> None:
