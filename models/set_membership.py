@@ -18,6 +18,11 @@ OUTWARD_ROUNDING = 1e-9
 #: always sound): the ellipsoid would be thinner than rounding can resolve.
 MIN_SHRINK = 1e-12
 
+#: The noise bound of each row is widened by this much relative to the magnitudes in
+#: the measurement, ``|y| + |phi| |c|``: targets formed in floating point carry rounding
+#: errors of that order, which would otherwise put theta* just outside an extreme strip.
+MEASUREMENT_ROUNDING = 1e-12
+
 #: ``s`` below ``-INCONSISTENCY_TOLERANCE`` proves the data empty the feasible set.
 INCONSISTENCY_TOLERANCE = 1e-9
 
@@ -60,7 +65,9 @@ class SetMembershipEstimator:
     measurement ``y = phi^T theta + v`` with ``|v| <= gamma``, prediction error
     ``e = y - phi^T c`` and ``g = phi^T P phi``:
 
-    * dead zone: if ``|e| <= gamma`` (or ``g = 0``), nothing changes (eq. (4c), kappa = 0);
+    * dead zone: if ``|e| <= gamma`` (or ``g = 0``), nothing changes (eq. (4c), kappa = 0).
+      Here gamma is the row's noise bound widened by ``MEASUREMENT_ROUNDING`` times
+      ``|y| + |phi|^T |c| + gamma``, so that rounding in the targets cannot exclude theta*;
     * otherwise, with the gain ``kappa = (|e| - gamma) / (gamma g)`` of eq. (4c) (it
       minimises the new scale, eq. (6)) every t in ``E_k`` that satisfies the
       measurement satisfies ``(t - c)^T (P^-1 + kappa phi phi^T) (t - c) <= s`` after
@@ -218,6 +225,7 @@ def _absorb_row(center: np.ndarray, factor: np.ndarray, phi: np.ndarray, y: floa
     v = factor.T @ phi
     g = float(v @ v)
     error = y - float(phi @ center)
+    gamma = gamma + MEASUREMENT_ROUNDING * (abs(y) + float(np.abs(phi) @ np.abs(center)) + gamma)
     if abs(error) <= gamma or g == 0.0:
         if abs(error) > gamma * (1 + INCONSISTENCY_TOLERANCE) + INCONSISTENCY_TOLERANCE * abs(y):
             # g == 0: the measurement does not depend on the free directions and misses the strip.

@@ -84,8 +84,9 @@ def test_reference_step_in_one_dimension():
     estimator = SetMembershipEstimator(1, noise_bound=0.1, prior=Box([-1.0], [1.0]))
     estimator.update([[1.0]], [0.5])
     # s = 1 - 0.4^2 = 0.84, c = 0.4, P = 0.84 (1 - (1 - 0.1/0.5)) = 0.168
-    assert estimator.estimate == pytest.approx([0.4], rel=1e-15)
-    assert estimator.shape_matrix == pytest.approx(np.array([[0.168]]), rel=1e-14)
+    # (up to the 1e-12 relative widening of gamma against rounding in the targets)
+    assert estimator.estimate == pytest.approx([0.4], rel=1e-11)
+    assert estimator.shape_matrix == pytest.approx(np.array([[0.168]]), rel=1e-11)
     assert estimator.radius == pytest.approx(np.sqrt(0.168), rel=2e-9)
     box = estimator.parameter_set()
     # the bounding interval, rounded outward by at most 1e-9 (|c| + half width)
