@@ -311,10 +311,14 @@ class IntervalPredictor:
         """
         k, p = self._nvertices, self._p
         candidates = np.concatenate([lower, upper], axis=-1) @ self._product
-        new_lower, new_upper = candidates[..., : k * p], candidates[..., k * p :]
-        if k > 1:
-            new_lower = new_lower.reshape(*new_lower.shape[:-1], k, p).min(axis=-2)
-            new_upper = new_upper.reshape(*new_upper.shape[:-1], k, p).max(axis=-2)
+        if candidates.ndim == 1:
+            new_lower = candidates[: k * p].reshape(k, p).min(axis=0)
+            new_upper = candidates[k * p :].reshape(k, p).max(axis=0)
+        else:  # numpy reduces a short middle axis slowly; fold the k slices pairwise instead
+            new_lower, new_upper = candidates[..., :p], candidates[..., k * p : (k + 1) * p]
+            for j in range(1, k):
+                new_lower = np.minimum(new_lower, candidates[..., j * p : (j + 1) * p])
+                new_upper = np.maximum(new_upper, candidates[..., (k + j) * p : (k + j + 1) * p])
         drift = u @ self._B_T
         return new_lower + drift + self._w_lo, new_upper + drift + self._w_hi
 
