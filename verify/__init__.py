@@ -1,5 +1,7 @@
 """minimaxplan.verify."""
 
+from .lmi import LMIResult, check_assumption4  # Assumption 4 LMI (cvxpy + Clarabel)
+
 from .selection import (  # LP model elimination (HiGHS)
     EliminationCertificate,
     ModelSelector,
