@@ -21,7 +21,6 @@ given state in place.
 
 from __future__ import annotations
 
-import heapq
 import numbers
 from typing import Any, Sequence
 
@@ -270,7 +269,7 @@ class RobustTreePlanner:
                 )
         else:
             states = [state] * n_models
-        tree = SearchTree(n_models, len(self.actions), self.gamma, 1 + self.budget * len(self.actions))
+        tree = SearchTree(n_models, len(self.actions), self.gamma, max_nodes=1 + self.budget * len(self.actions))
         tree.add_root(states)
         self.tree = tree
         solved = self._search(tree)
@@ -280,14 +279,9 @@ class RobustTreePlanner:
     def _search(self, tree: SearchTree) -> bool:
         """Run the expansions; True if stopped early because ``lower == upper`` at the root.
 
-        The heap holds every leaf keyed by ``(-b-value, action path)``. A leaf's
-        b-value is fixed at its creation, and an internal node's ``upper`` is the max
-        of its leaves' b-values, so popping the heap picks the same leaf as descending
-        from the root through the child of largest ``upper`` (smallest action index on
-        ties): both give the max-b-value leaf with the smallest path, since a
-        smaller-index subtree holds lexicographically smaller paths.
+        Each round expands the leaf of largest b-value, ties to the smallest action
+        path (`SearchTree.pop_best_leaf`), then backs the bounds up to the root.
         """
-        heap = [(-tree.leaf_upper[0], (), 0)]
         lower, upper = tree.lower, tree.upper
         for _ in range(self.budget):
             if upper[0] <= lower[0]:
@@ -295,12 +289,9 @@ class RobustTreePlanner:
                 # can change them. This is also what happens when the best leaf has
                 # every model terminated (its b-value equals its lower bound).
                 return True
-            _, _, leaf = heapq.heappop(heap)
-            first = self._expand(tree, leaf)
+            leaf = tree.pop_best_leaf()
+            self._expand(tree, leaf)
             tree.backup(leaf)
-            leaf_upper, paths = tree.leaf_upper, tree.paths
-            for child in range(first, first + len(self.actions)):
-                heapq.heappush(heap, (-leaf_upper[child], paths[child], child))
         return False
 
     def _expand(self, tree: SearchTree, leaf: int) -> int:

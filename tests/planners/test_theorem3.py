@@ -117,8 +117,8 @@ def test_bounds_bracket_the_exact_robust_value_at_every_node(game, fraction):
     tree, decision = plan(game, budget)
     assert decision.lower == tree.lower[0] and decision.upper == tree.upper[0]
     for node in range(tree.size):
-        exact = game.values[tree.paths[node]]
-        assert tree.lower[node] <= exact <= tree.upper[node], (node, tree.paths[node])
+        exact = game.values[tree.path(node)]
+        assert tree.lower[node] <= exact <= tree.upper[node], (node, tree.path(node))
     assert decision.lower <= game.values[()] <= decision.upper
 
 
@@ -143,7 +143,7 @@ def test_tree_grows_by_prefix_and_bounds_are_monotone_in_the_budget(game, max_bu
         tree, decision = plan(game, budget)
         n = previous_tree.size
         assert tree.size >= n
-        assert tree.paths[:n] == previous_tree.paths
+        assert [tree.path(i) for i in range(n)] == [previous_tree.path(i) for i in range(n)]
         assert tree.expanded[: len(previous_tree.expanded)] == previous_tree.expanded
         for name in ("parent", "action", "depth", "returns", "terminal", "leaf_lower", "leaf_upper"):
             assert np.array_equal(getattr(tree, name)[:n], getattr(previous_tree, name)[:n]), name

@@ -4,6 +4,7 @@ batched vs one-by-one transitions, terminal handling, M = 1 reduction, validatio
 from __future__ import annotations
 
 import json
+from unittest import mock
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from hypothesis import strategies as st
 
 from minimaxplan.models.errors import DimensionError, InputError, NonFiniteError, RewardRangeError
 from minimaxplan.planners import Decision, OptimisticPlanner, RobustTreePlanner
+from minimaxplan.planners import tree as tree_module
 
 
 class PathModel:
@@ -94,14 +96,22 @@ def naive_descent(tree) -> int:
 def best_leaf_by_enumeration(tree) -> int:
     """The leaf of largest b-value, lexicographically smallest path on ties."""
     leaves = [i for i in range(tree.size) if tree.is_leaf(i)]
-    return min(leaves, key=lambda i: (-tree.leaf_upper[i], tree.paths[i]))
+    return min(leaves, key=lambda i: (-tree.leaf_upper[i], tree.path(i)))
 
 
 @settings(max_examples=30)
-@given(problem=problems(), max_budget=st.integers(2, 25))
-def test_heap_selection_equals_naive_descent(problem, max_budget):
+@given(problem=problems(), max_budget=st.integers(2, 25), rank_digits=st.sampled_from([1, 2, 64]))
+def test_heap_selection_equals_naive_descent(problem, max_budget, rank_digits):
+    # Few initial rank digits force the ranks to be widened (rescaled) during the search.
+    with mock.patch.object(tree_module, "_INITIAL_RANK_DIGITS", rank_digits):
+        check_heap_selection_equals_naive_descent(problem, max_budget)
+
+
+def check_heap_selection_equals_naive_descent(problem, max_budget):
     for budget in range(1, max_budget):
         tree, decision, _ = run(problem, budget)
+        leaves = [i for i in range(tree.size) if tree.is_leaf(i)]
+        assert sorted(leaves, key=tree.rank.__getitem__) == sorted(leaves, key=tree.path)
         if decision.solved:
             # Stopped early: the root's bounds met, no further expansion.
             assert decision.lower == decision.upper and decision.expansions < budget
@@ -117,12 +127,33 @@ def test_heap_selection_equals_naive_descent(problem, max_budget):
         assert next_tree.expanded[budget] == descended
 
 
+@pytest.mark.parametrize("rank_digits", [1, 3, 64])
+def test_deep_tree_ties_follow_the_lexicographic_path(rank_digits):
+    # Both actions always pay 1 and gamma = 1/2, so every b-value is exactly
+    # 2 = 1 / (1 - gamma) in binary floating point: all leaves tie, and the smallest
+    # path (all zeros) is expanded each time, deeper than the initial rank digits.
+    class Ones:
+        def step(self, state, action):
+            return state, 1.0
+
+    budget = 50
+    with mock.patch.object(tree_module, "_INITIAL_RANK_DIGITS", rank_digits):
+        planner = OptimisticPlanner(Ones(), ["a", "b"], gamma=0.5, budget=budget)
+        decision = planner.plan(None)
+    tree = planner.tree
+    assert tree.leaf_upper == [2.0] * tree.size
+    assert tree.rank_digits >= budget
+    assert decision.depth == budget and decision.sequence == ("a",) * budget
+    assert [tree.path(i) for i in tree.expanded] == [(0,) * k for k in range(budget)]
+    assert decision.lower == 2.0 - 2.0 ** (1 - budget) and decision.upper == 2.0
+
+
 @given(problem=problems(), budget=st.integers(1, 40))
 def test_expand_protocol_and_step_build_identical_trees(problem, budget):
     tree, decision, _ = run(problem, budget, PathModel)
     batched_tree, batched_decision, batched_models = run(problem, budget, BatchedPathModel)
     assert decision.to_dict() == batched_decision.to_dict()
-    assert tree.size == batched_tree.size and tree.paths == batched_tree.paths
+    assert tree.size == batched_tree.size and tree.rank == batched_tree.rank
     for name in ("parent", "action", "depth", "first_child", "returns", "terminal",
                  "leaf_lower", "leaf_upper", "lower", "upper"):
         assert np.array_equal(getattr(tree, name)[: tree.size], getattr(batched_tree, name)[: tree.size]), name
@@ -140,7 +171,7 @@ def test_identical_models_reduce_to_optimistic_planning(problem, copies, budget)
                                range(n_actions), gamma=gamma, budget=budget)
     opd = OptimisticPlanner(PathModel(seeds[0], horizon, p_terminal), range(n_actions), gamma=gamma, budget=budget)
     assert robust.plan(()).to_dict() == opd.plan(()).to_dict()
-    assert robust.tree.paths == opd.tree.paths
+    assert robust.tree.rank == opd.tree.rank and robust.tree.parent == opd.tree.parent
 
 
 @given(problem=problems(), budget=st.integers(1, 40))
@@ -153,7 +184,7 @@ def test_optimistic_planner_b_values_are_the_corrected_eq12(problem, budget):
     planner.plan(())
     tree = planner.tree
     for node in range(1, tree.size):
-        path = tree.paths[node]
+        path = tree.path(node)
         total, done = 0.0, False
         for n in range(len(path)):
             reward, terminal = model.outcome(path[: n + 1])
