@@ -1,0 +1,442 @@
+"""Readable Markdown reports and their JSON twins for the ``lmi`` and ``select`` commands.
+
+A report is a frozen value built from library results (`LMIResult`, `SelectionResult`,
+`Box`) plus the figures worth showing next to them, which are recomputed here with
+numpy so that a reader can check them independently of the solver: eigenvalues of the
+state matrices and of P, and the largest eigenvalue of each LMI at the returned
+certificate. ``to_dict()`` is the JSON twin, ``to_markdown()`` the readable form.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from minimaxplan.models import Box
+
+__all__ = [
+    "LMIReport",
+    "SelectionReport",
+    "lmi_matrix",
+    "render_lmi_reports",
+    "lmi_reports_to_dict",
+    "to_json",
+    "REPORT_FORMAT_VERSION",
+]
+
+REPORT_FORMAT_VERSION = 1
+
+
+# ------------------------------------------------------------------- helpers
+def to_json(document: dict) -> str:
+    """``document`` as indented JSON; numpy scalars and arrays become numbers and lists."""
+    return json.dumps(_plain(document), indent=2, allow_nan=False) + "\n"
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return _plain(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    if hasattr(value, "to_dict"):
+        return _plain(value.to_dict())
+    return value
+
+
+def _num(x: float | None, digits: int = 4) -> str:
+    if x is None:
+        return "-"
+    x = float(x)
+    if not math.isfinite(x):
+        return str(x)
+    return f"{x:.{digits}g}"
+
+
+def _vector(values, digits: int = 4) -> str:
+    return "[" + ", ".join(_num(v, digits) for v in np.ravel(values)) + "]"
+
+
+def _complex_list(values: np.ndarray, digits: int = 4) -> str:
+    parts = []
+    for z in values:
+        if abs(z.imag) <= 1e-12 * max(1.0, abs(z.real)):
+            parts.append(_num(z.real, digits))
+        else:
+            parts.append(f"{_num(z.real, digits)}{'+' if z.imag >= 0 else '-'}{_num(abs(z.imag), digits)}j")
+    return ", ".join(parts)
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(str(cell).replace("|", "\\|") for cell in row) + " |" for row in rows]
+    return lines
+
+
+def _sorted_eigenvalues(matrix: np.ndarray) -> np.ndarray:
+    values = np.linalg.eigvals(matrix)
+    return values[np.lexsort((values.imag, values.real))]
+
+
+# ---------------------------------------------------------------- LMI reports
+def lmi_matrix(A, P, Q0, rho: float, D, form: str) -> np.ndarray:
+    """The matrix that Assumption 4 requires to be negative definite, at a given certificate.
+
+    Notes
+    -----
+    Continuous form (Assumption 4, with the disturbance matrix D):
+    ``[[A^T P + P A + Q0, P D], [D^T P, -rho I]]``. Discrete form, for
+    ``e+ = A e + D w``: ``[[A^T P A - P + Q0, A^T P D], [D^T P A, D^T P D - rho I]]``.
+    """
+    A, P, Q0, D = (np.asarray(m, dtype=float) for m in (A, P, Q0, D))
+    r = D.shape[1]
+    if form == "continuous":
+        top_left, top_right, bottom_right = A.T @ P + P @ A + Q0, P @ D, -rho * np.eye(r)
+    elif form == "discrete":
+        top_left, top_right, bottom_right = A.T @ P @ A - P + Q0, A.T @ P @ D, D.T @ P @ D - rho * np.eye(r)
+    else:
+        raise ValueError(f"form must be 'discrete' or 'continuous', got {form!r}")
+    matrix = np.block([[top_left, top_right], [top_right.T, bottom_right]])
+    return (matrix + matrix.T) / 2
+
+
+@dataclass(frozen=True, eq=False)
+class LMIReport:
+    """The outcome of checking Assumption 4 on one model, with independent numpy figures.
+
+    Parameters
+    ----------
+    model
+        The model's name.
+    form
+        "continuous" or "discrete".
+    matrices
+        The state matrices checked with one common P, shape (k, p, p).
+    parameters
+        The parameter value behind each matrix, shape (k, d).
+    D
+        The disturbance matrix, shape (p, r).
+    result
+        The `LMIResult` of `check_assumption4`.
+    wall_time
+        Seconds spent in `check_assumption4` (model building, solve and re-check).
+    vertices
+        True if ``matrices`` are the vertices of the parameter box, False for the nominal matrix.
+    """
+
+    model: str
+    form: str
+    matrices: np.ndarray
+    parameters: np.ndarray
+    D: np.ndarray
+    result: Any
+    wall_time: float
+    vertices: bool = False
+
+    @property
+    def has_certificate(self) -> bool:
+        return getattr(self.result, "P", None) is not None and getattr(self.result, "Q0", None) is not None
+
+    @property
+    def holds(self) -> bool:
+        """True iff the LMI is feasible and its certificate passed the numpy re-check."""
+        return self.result.status == "feasible" and bool(self.result.certified)
+
+    @property
+    def verdict(self) -> str:
+        status = self.result.status
+        if status == "feasible" and self.result.certified:
+            return "Assumption 4 holds: feasible, certificate re-checked"
+        if status == "feasible":
+            return "not certified: the solver reports feasible but the certificate fails the numpy re-check"
+        if status == "infeasible":
+            return "Assumption 4 fails: the LMI is infeasible"
+        reason = getattr(self.result, "reason", "")
+        return f"inconclusive: {reason}" if reason else f"inconclusive (status {status!r})"
+
+    def state_eigenvalues(self) -> list[np.ndarray]:
+        return [_sorted_eigenvalues(a) for a in self.matrices]
+
+    def stability_margins(self) -> np.ndarray:
+        """Per matrix: max real part of the eigenvalues (continuous) or the spectral radius (discrete)."""
+        if self.form == "continuous":
+            return np.array([np.max(np.linalg.eigvals(a).real) for a in self.matrices])
+        return np.array([np.max(np.abs(np.linalg.eigvals(a))) for a in self.matrices])
+
+    def lmi_max_eigenvalues(self) -> np.ndarray | None:
+        """Per matrix, the largest eigenvalue of the LMI at the returned certificate (< 0 required)."""
+        if not self.has_certificate:
+            return None
+        result = self.result
+        return np.array(
+            [np.linalg.eigvalsh(lmi_matrix(a, result.P, result.Q0, result.rho, self.D, self.form))[-1] for a in self.matrices]
+        )
+
+    def to_dict(self) -> dict:
+        margins = self.lmi_max_eigenvalues()
+        P = getattr(self.result, "P", None)
+        Q0 = getattr(self.result, "Q0", None)
+        return {
+            "model": self.model,
+            "form": self.form,
+            "vertices": self.vertices,
+            "verdict": self.verdict,
+            "holds": self.holds,
+            "matrices": [
+                {
+                    "parameters": theta.tolist(),
+                    "A": a.tolist(),
+                    "eigenvalues": {"real": ev.real.tolist(), "imag": ev.imag.tolist()},
+                    "stability_margin": float(s),
+                    "lmi_max_eigenvalue": None if margins is None else float(m),
+                }
+                for theta, a, ev, s, m in zip(
+                    self.parameters,
+                    self.matrices,
+                    self.state_eigenvalues(),
+                    self.stability_margins(),
+                    margins if margins is not None else [None] * len(self.matrices),
+                )
+            ],
+            "P_eigenvalues": None if P is None else np.linalg.eigvalsh(P).tolist(),
+            "Q0_eigenvalues": None if Q0 is None else np.linalg.eigvalsh(Q0).tolist(),
+            "wall_time": self.wall_time,
+            "result": self.result.to_dict(),
+        }
+
+    def to_markdown(self) -> str:
+        result = self.result
+        what = (
+            f"{len(self.matrices)} vertices of A(theta) over the parameter box, one common P"
+            if self.vertices
+            else "the nominal matrix A(theta) at the centre of the parameter box"
+        )
+        lmi = (
+            "[[A^T P + P A + Q0, P D], [D^T P, -rho I]] < 0, P > 0"
+            if self.form == "continuous"
+            else "[[A^T P A - P + Q0, A^T P D], [D^T P A, D^T P D - rho I]] < 0, P > 0"
+        )
+        solve_time = getattr(result, "solve_time", None)
+        rows = [
+            ("verdict", f"**{self.verdict}**"),
+            ("status", f"{result.status} (certified: {bool(result.certified)}, inaccurate: {bool(getattr(result, 'inaccurate', False))})"),
+            ("form", f"{self.form}: `{lmi}`"),
+            ("checked", what),
+            ("solver", f"{getattr(result, 'solver', '-')}, status `{getattr(result, 'solver_status', '-')}`"),
+            ("time", f"solver {_num(solve_time)} s, wall {_num(self.wall_time)} s"),
+        ]
+        if getattr(result, "rho", None) is not None:
+            rows.append(("rho", _num(result.rho, 6)))
+        if getattr(result, "reason", ""):
+            rows.append(("reason", result.reason))
+        lines = [f"## {self.model}", ""] + _table(("", ""), rows) + [""]
+
+        margins = self.lmi_max_eigenvalues()
+        stability = self.stability_margins()
+        label = "max Re eig(A)" if self.form == "continuous" else "spectral radius of A"
+        lines += ["### Margins", ""]
+        rows = []
+        for k, (theta, ev) in enumerate(zip(self.parameters, self.state_eigenvalues())):
+            rows.append(
+                (
+                    str(k),
+                    _vector(theta),
+                    _num(stability[k]),
+                    "-" if margins is None else _num(margins[k]),
+                    _complex_list(ev),
+                )
+            )
+        lines += _table(("matrix", "theta", label, "max eig of the LMI at P", "eigenvalues of A"), rows)
+        lines.append("")
+        if margins is not None:
+            lines.append(
+                f"Largest LMI eigenvalue over all matrices: {_num(np.max(margins), 6)} "
+                "(negative means every LMI holds strictly at the returned certificate)."
+            )
+            lines.append("")
+        if self.has_certificate:
+            p_eig = np.linalg.eigvalsh(result.P)
+            q_eig = np.linalg.eigvalsh(result.Q0)
+            lines += ["### Certificate", ""]
+            rows = [
+                ("eigenvalues of P", _vector(p_eig)),
+                ("condition number of P", _num(p_eig[-1] / p_eig[0])),
+                ("eigenvalues of Q0", _vector(q_eig)),
+            ]
+            if self.holds:
+                c0, cw = result.bound_constants()
+                step = "per step" if self.form == "discrete" else "per unit time"
+                rows += [
+                    ("bound constant c0 = sqrt(lmax(P) / lmin(P))", _num(c0, 6)),
+                    ("bound constant cw = sqrt(rho lmax(P) / (lmin(P) lmin(Q0)))", _num(cw, 6)),
+                    (f"decay factor of e^T P e {step}", _num(result.decay_factor(), 6)),
+                ]
+            lines += _table(("quantity", "value"), rows) + [""]
+            if self.holds:
+                lines += [
+                    "With this certificate, `e+ = A e + D w` (or `de/dt = A e + D w`) obeys "
+                    "`||e_n|| <= c0 ||e_0|| + cw sup ||w||` for every A of the checked set.",
+                    "",
+                ]
+        return "\n".join(lines)
+
+
+def lmi_reports_to_dict(reports: Sequence[LMIReport], *, source: str, exit_code: int) -> dict:
+    """The JSON document of ``minimaxplan lmi``."""
+    return {
+        "command": "lmi",
+        "format_version": REPORT_FORMAT_VERSION,
+        "model_file": source,
+        "exit_code": exit_code,
+        "all_hold": all(r.holds for r in reports),
+        "models": [r.to_dict() for r in reports],
+    }
+
+
+def render_lmi_reports(reports: Sequence[LMIReport], *, source: str) -> str:
+    """The Markdown document of ``minimaxplan lmi``: a summary table, then one section per model."""
+    lines = [f"# Assumption 4 (LMI) report: `{source}`", ""]
+    rows = [
+        (r.model, r.form, "vertices" if r.vertices else "nominal", r.result.status, str(bool(r.result.certified)), r.verdict)
+        for r in reports
+    ]
+    lines += _table(("model", "form", "matrices", "status", "certified", "verdict"), rows) + [""]
+    lines += [r.to_markdown() for r in reports]
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
+# ---------------------------------------------------------- selection reports
+@dataclass(frozen=True, eq=False)
+class SelectionReport:
+    """The outcome of model elimination on one data set.
+
+    Parameters
+    ----------
+    names
+        The hypotheses' names, in file order.
+    result
+        The `SelectionResult` of `eliminate_models`.
+    feasible_boxes
+        For each survivor (by index), the box bounding its data-consistent parameters.
+    ntransitions, nstates, ninputs
+        The data's size.
+    data_source, model_source
+        Where the data and the hypotheses came from.
+    measurement_noise
+        The measurement-noise bound used, or None.
+    elimination_time, box_time
+        Wall-clock seconds spent in `eliminate_models` and in `feasible_parameter_box`.
+    """
+
+    names: tuple[str, ...]
+    result: Any
+    feasible_boxes: dict[int, Box]
+    ntransitions: int
+    nstates: int
+    ninputs: int
+    data_source: str
+    model_source: str
+    measurement_noise: np.ndarray | None
+    elimination_time: float
+    box_time: float
+
+    @property
+    def survivors(self) -> list[int]:
+        return list(self.result.survivors)
+
+    def to_dict(self) -> dict:
+        return {
+            "command": "select",
+            "format_version": REPORT_FORMAT_VERSION,
+            "model_file": self.model_source,
+            "data_file": self.data_source,
+            "data": {"transitions": self.ntransitions, "states": self.nstates, "inputs": self.ninputs},
+            "measurement_noise": None if self.measurement_noise is None else np.asarray(self.measurement_noise).tolist(),
+            "hypotheses": [
+                {
+                    "index": i,
+                    "name": name,
+                    "survives": i in self.survivors,
+                    "margin": float(self.result.margins[i]),
+                    "certificate": None if i in self.survivors else _plain(self.result.eliminated[i]),
+                    "feasible_box": self.feasible_boxes[i].to_dict() if i in self.feasible_boxes else None,
+                }
+                for i, name in enumerate(self.names)
+            ],
+            "survivors": [self.names[i] for i in self.survivors],
+            "eliminated": [self.names[i] for i in sorted(self.result.eliminated)],
+            "timing": {"elimination": self.elimination_time, "feasible_boxes": self.box_time},
+            "result": _plain(self.result),
+        }
+
+    def to_markdown(self) -> str:
+        lines = [
+            f"# Model selection report: `{self.model_source}`",
+            "",
+            f"Data: `{self.data_source}`, {self.ntransitions} transitions, "
+            f"{self.nstates} states, {self.ninputs} inputs."
+            + (
+                ""
+                if self.measurement_noise is None
+                else f" Measurement noise bound: {_vector(self.measurement_noise)}."
+            ),
+            "",
+            "A hypothesis survives iff some parameter in its prior box explains every transition "
+            "with a disturbance inside its bounds (an LP). Its inconsistency margin is the least "
+            "inflation of the disturbance set (in units of its radius) that explains the data: 0 "
+            "when consistent. A hypothesis is eliminated only with a certificate: a lower bound on "
+            "the margin recomputed with numpy (weak duality) from the transitions that force it.",
+            "",
+        ]
+        rows = []
+        for i, name in enumerate(self.names):
+            margin = _num(self.result.margins[i], 6)
+            if i in self.survivors:
+                rows.append((str(i), name, "survives", margin, "-", "-"))
+            else:
+                certificate = self.result.eliminated[i]
+                rows.append(
+                    (
+                        str(i),
+                        name,
+                        "**eliminated**",
+                        margin,
+                        _num(certificate.lower_bound, 6),
+                        _transitions_text(certificate.transitions),
+                    )
+                )
+        header = ("#", "hypothesis", "verdict", "margin", "certified margin >=", "forcing transitions")
+        lines += _table(header, rows) + [""]
+        if self.survivors:
+            lines += ["## Feasible parameter boxes of the survivors", ""]
+            rows = []
+            for i in self.survivors:
+                box = self.feasible_boxes[i]
+                for k in range(box.dim):
+                    rows.append(
+                        (self.names[i], f"theta[{k}]", _num(box.low[k], 6), _num(box.high[k], 6), _num(box.high[k] - box.low[k], 4))
+                    )
+            lines += _table(("hypothesis", "parameter", "low", "high", "width"), rows) + [""]
+        else:
+            lines += ["**No hypothesis is consistent with the data.**", ""]
+        lines += [
+            f"Time: elimination {_num(self.elimination_time)} s, feasible boxes {_num(self.box_time)} s.",
+            "",
+        ]
+        return "\n".join(lines)
+
+
+def _transitions_text(transitions, limit: int = 12) -> str:
+    indices = [str(int(n)) for n in np.ravel(transitions)]
+    if len(indices) > limit:
+        return ", ".join(indices[:limit]) + f", ... ({len(indices)} in all)"
+    return ", ".join(indices)

@@ -1,0 +1,52 @@
+"""Execute every notebook in notebooks/ so that none can go stale.
+
+Nothing here is skipped: a missing nbclient/nbformat/ipykernel, a missing kernel or an
+empty notebooks/ folder is a failure.
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+TIMEOUT_PER_CELL = 120  # seconds; each notebook must run in well under a minute
+
+
+def test_there_are_notebooks_to_run():
+    assert NOTEBOOKS, f"no notebooks found in {ROOT / 'notebooks'}"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_notebook_is_committed_without_outputs(path):
+    notebook = json.loads(path.read_text(encoding="utf-8"))
+    for cell in notebook["cells"]:
+        if cell["cell_type"] == "code":
+            assert cell.get("outputs") == [] and cell.get("execution_count") is None, (
+                f"{path.name}: commit notebooks with cleared outputs (CI executes them)"
+            )
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_notebook_executes(path, monkeypatch):
+    import nbformat
+    from nbclient import NotebookClient
+
+    # The kernel must run this interpreter (the venv's), whatever is first on PATH:
+    # jupyter_client replaces a kernelspec's bare "python" by sys.executable, and we put
+    # the interpreter's folder first on PATH for any other launcher.
+    monkeypatch.setenv("PATH", str(pathlib.Path(sys.executable).parent), prepend=":")
+    notebook = nbformat.read(path, as_version=4)
+    client = NotebookClient(
+        notebook,
+        timeout=TIMEOUT_PER_CELL,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(path.parent)}},
+    )
+    client.execute()  # raises CellExecutionError, naming the cell, if any cell fails
+    executed = [cell for cell in notebook.cells if cell.cell_type == "code"]
+    assert executed and all(cell.execution_count is not None for cell in executed)
