@@ -66,6 +66,11 @@ class _Transitions:
             )
         next_states, rewards, terminals = out
         n = self.n_actions
+        if not hasattr(next_states, "__len__"):
+            raise InputError(
+                f"models[{self.index}].expand next_states must be a sequence of {n} states, "
+                f"got {type(next_states).__name__}"
+            )
         if len(next_states) != n:
             raise DimensionError(
                 f"models[{self.index}].expand returned {len(next_states)} next states "

@@ -389,6 +389,8 @@ def test_step_with_non_boolean_terminal():
 @pytest.mark.parametrize("outcome, error, text", [
     (([0, 0], np.array([0.5, 0.5])), InputError,
      r"models\[0\].expand\(state, actions\) must return a tuple \(next_states, rewards, terminals\), got a tuple of length 2"),
+    ((iter([0, 0]), np.array([0.5, 0.5]), np.array([False, False])), InputError,
+     r"models\[0\].expand next_states must be a sequence of 2 states, got list_iterator"),
     (([0], np.array([0.5, 0.5]), np.array([False, False])), DimensionError,
      r"models\[0\].expand returned 1 next states for 2 actions"),
     (([0, 0], np.array([0.5]), np.array([False, False])), DimensionError,
