@@ -54,24 +54,11 @@ def multi_model_robust_planner(
     """The multi-model robust planner: one interval model per ``(system, parameters)`` pair.
 
     The systems must share the state and input dimensions (the same plant under
-    different structural hypotheses); every model starts from the same box.
+    different structural hypotheses); every model starts from the same box. The
+    models are linked (`IntervalModel.linked`): one batched computation per expansion
+    steps every hypothesis under every action.
     """
-    try:
-        pairs = [tuple(pair) for pair in systems_with_parameters]
-    except TypeError:
-        raise InputError("systems_with_parameters must be a sequence of (system, parameters) pairs") from None
-    if not pairs:
-        raise InputError("systems_with_parameters must hold at least one (system, parameters) pair")
-    if any(len(pair) != 2 for pair in pairs):
-        raise InputError("each item of systems_with_parameters must be a (system, parameters) pair")
-    models = [IntervalModel(system, parameters, reward, controllers, substeps=substeps) for system, parameters in pairs]
-    first = models[0].system
-    for i, model in enumerate(models[1:], start=1):
-        if (model.system.nstates, model.system.ninputs) != (first.nstates, first.ninputs):
-            raise InputError(
-                f"systems_with_parameters[{i}] has {model.system.nstates} states and {model.system.ninputs} inputs, "
-                f"but the first system has {first.nstates} and {first.ninputs}"
-            )
+    models = IntervalModel.linked(systems_with_parameters, reward, controllers, substeps=substeps)
     return RobustTreePlanner(models, models[0].actions, gamma=gamma, budget=budget)
 
 

@@ -86,6 +86,197 @@ class _ActionIndex:
         return value
 
 
+class _SubstepTimes:
+    """``times[t]``: the sub-step indices t+1 .. t+S as an array (S, 1, 1), cached per t."""
+
+    def __init__(self, substeps: int) -> None:
+        self._offsets = np.arange(1, substeps + 1).reshape(substeps, 1, 1)
+        self._cache: dict[int, np.ndarray] = {}
+
+    def __getitem__(self, time: int) -> np.ndarray:
+        value = self._cache.get(time)
+        if value is None:
+            value = self._offsets + time
+            value.setflags(write=False)
+            if len(self._cache) < 4096:
+                self._cache[time] = value
+        return value
+
+
+class _IntervalCore:
+    """The batched arithmetic of one or several hypotheses under every controller.
+
+    Boxes are arrays (M, A', p): M hypotheses (``members``) times A' actions. Every
+    array below is precomputed; `propagate` runs on raw arrays only.
+    """
+
+    def __init__(self, members, reward_minimum, bank: ControllerBank, substeps: int) -> None:
+        self.reward_minimum = reward_minimum
+        self.bank = bank
+        self.substeps = substeps
+        self.times = _SubstepTimes(substeps)
+        systems = [system for system, _ in members]
+        self.M = M = len(members)
+        self.p = p = systems[0].nstates
+        predictors = [IntervalPredictor(system, parameters) for system, parameters in members]
+        self.predictors = predictors
+        k = max(pred.nvertices for pred in predictors)
+        # pad each hypothesis to k vertex matrices by repeating one (harmless under min / max)
+        vertices = np.stack(
+            [np.concatenate([pred.vertex_matrices, np.repeat(pred.vertex_matrices[:1], k - pred.nvertices, axis=0)])
+             for pred in predictors]
+        )  # (M, k, p, p), identity basis
+        B = np.stack([system.B for system in systems])  # (M, p, q)
+        self.k = k
+        self.per_action = bank.has_feedback
+        # columns: [-(lower candidates) | upper candidates], so that one max over k gives both bounds
+        self.open_product = self._product(vertices)  # (M, 2p, 2kp)
+        if self.per_action:
+            feedback = np.einsum("mpq,aqr->mapr", B, bank.gains)  # B_m K_a
+            closed = vertices[:, None] - feedback[:, :, None]  # (M, A, k, p, p)
+            self.product = self._product(closed)  # (M, A, 2p, 2kp)
+        else:
+            self.product = self.open_product
+        w = [interval_matvec(system.D, system.w.low, system.w.high) for system in systems]
+        self.w_lo = np.stack([lo for lo, _ in w])[:, None, :]  # (M, 1, p)
+        self.w_hi = np.stack([hi for _, hi in w])[:, None, :]
+        drift = np.einsum("mpq,aq->map", B, bank.offsets)  # (M, A, p): B_m c_a
+        self.drift_lo = drift + self.w_lo
+        self.drift_hi = drift + self.w_hi
+        self.B_pos = np.maximum(B, 0.0)
+        self.B_neg = np.maximum(-B, 0.0)
+        self.K_pos = np.maximum(bank.gains, 0.0)
+        self.K_neg = np.maximum(-bank.gains, 0.0)
+
+    def _product(self, matrices):
+        """``[z_lo | z_hi] @ product = [-(M+ z_lo - M- z_hi) | M+ z_hi - M- z_lo]`` for each of k matrices."""
+        p, k = self.p, matrices.shape[-3]
+        stacked = matrices.reshape(*matrices.shape[:-3], k * p, p)
+        pos_t = np.swapaxes(np.maximum(stacked, 0.0), -1, -2)  # (..., p, kp)
+        neg_t = np.swapaxes(np.maximum(-stacked, 0.0), -1, -2)
+        top = np.concatenate([-pos_t, -neg_t], axis=-1)  # rows for z_lo
+        bottom = np.concatenate([neg_t, pos_t], axis=-1)  # rows for z_hi
+        return np.ascontiguousarray(np.concatenate([top, bottom], axis=-2))
+
+    def substep(self, lower, upper, index):
+        """One sub-step of boxes (M, A', p) under the actions ``index`` (None = all, in order)."""
+        M, k, p = self.M, self.k, self.p
+        z = np.concatenate([lower, upper], axis=-1)
+        if self.per_action:
+            product = self.product if index is None else self.product[:, index]
+            candidates = np.matmul(z[..., None, :], product)[..., 0, :]
+        else:
+            candidates = np.matmul(z, self.open_product)
+        n = z.shape[1]
+        bounds = candidates.reshape(M, n, 2, k, p).max(axis=3) if k > 1 else candidates.reshape(M, n, 2, p)
+        if index is None:
+            new_lower = self.drift_lo - bounds[:, :, 0]
+            new_upper = bounds[:, :, 1] + self.drift_hi
+        else:
+            new_lower = self.drift_lo[:, index] - bounds[:, :, 0]
+            new_upper = bounds[:, :, 1] + self.drift_hi[:, index]
+        if self.bank.saturating:
+            new_lower, new_upper = self._saturation(lower, upper, new_lower, new_upper, z, index)
+        return new_lower, new_upper
+
+    def _saturation(self, lower, upper, cl_lower, cl_upper, z, index):
+        """Closed loop plus the bounded correction s(v), intersected with the open-loop bound."""
+        sel = slice(None) if index is None else index
+        bank = self.bank
+        k_pos, k_neg = self.K_pos[sel], self.K_neg[sel]
+        # v = c - K x over the box: [c - (K+ hi - K- lo), c - (K+ lo - K- hi)]
+        kx_lo = np.einsum("aqp,map->maq", k_pos, lower) - np.einsum("aqp,map->maq", k_neg, upper)
+        kx_hi = np.einsum("aqp,map->maq", k_pos, upper) - np.einsum("aqp,map->maq", k_neg, lower)
+        offsets, low, high = bank.offsets[sel], bank.low[sel], bank.high[sel]
+        v_lo, v_hi = offsets - kx_hi, offsets - kx_lo
+        u_lo, u_hi = np.clip(v_lo, low, high), np.clip(v_hi, low, high)
+        # s(v) = sat(v) - v is nonincreasing: s in [s(v_hi), s(v_lo)], entered through B
+        s_lo, s_hi = u_hi - v_hi, u_lo - v_lo
+        cl_lower = cl_lower + self._input_lower(s_lo, s_hi)
+        cl_upper = cl_upper + self._input_upper(s_lo, s_hi)
+        # open loop with the interval input [sat(v_lo), sat(v_hi)]
+        M, k, p = self.M, self.k, self.p
+        n = z.shape[1]
+        candidates = np.matmul(z, self.open_product)
+        bounds = candidates.reshape(M, n, 2, k, p).max(axis=3)
+        ol_lower = self.w_lo - bounds[:, :, 0] + self._input_lower(u_lo, u_hi)
+        ol_upper = bounds[:, :, 1] + self.w_hi + self._input_upper(u_lo, u_hi)
+        return np.maximum(cl_lower, ol_lower), np.minimum(cl_upper, ol_upper)
+
+    def _input_lower(self, u_lo, u_hi):
+        return np.einsum("mpq,maq->map", self.B_pos, u_lo) - np.einsum("mpq,maq->map", self.B_neg, u_hi)
+
+    def _input_upper(self, u_lo, u_hi):
+        return np.einsum("mpq,maq->map", self.B_pos, u_hi) - np.einsum("mpq,maq->map", self.B_neg, u_lo)
+
+    def propagate(self, lower, upper, time, index, n_actions):
+        """All sub-steps of one decision; boxes broadcast to (M, n_actions, p).
+
+        Returns the final boxes, the pessimistic rewards (M, n_actions) (minimum over
+        the sub-steps) and the collision flags (any over the sub-steps). The reward is
+        evaluated once for the boxes of all sub-steps, stacked as (S, M, n_actions, p)
+        with the sub-step indices ``t`` of shape (S, 1, 1).
+        """
+        shape = (self.M, n_actions, self.p)
+        lower = np.broadcast_to(lower, shape)
+        upper = np.broadcast_to(upper, shape)
+        S = self.substeps
+        if S == 1:
+            lower, upper = self.substep(lower, upper, index)
+            reward, collided = self.reward_minimum(lower, upper, time + 1)
+            return lower, upper, reward, collided
+        lowers = np.empty((S,) + shape)
+        uppers = np.empty((S,) + shape)
+        for s in range(S):
+            lower, upper = self.substep(lower, upper, index)
+            lowers[s] = lower
+            uppers[s] = upper
+        reward, collided = self.reward_minimum(lowers, uppers, self.times[time])
+        return lower, upper, reward.min(axis=0), collided.any(axis=0)
+
+
+class _LinkedGroup:
+    """The hypotheses of a multi-model planner, stepped together.
+
+    The planner steps its M models one after the other from the same node. Linked
+    models share one `_IntervalCore`: the first model asked computes the transitions of
+    all M hypotheses in one batched call and the others read their row from a
+    one-entry cache, keyed by the identity of the (immutable) state and actions objects.
+    """
+
+    def __init__(self, core: _IntervalCore) -> None:
+        self.core = core
+        self.actions = _ActionIndex(len(core.bank))
+        self._key_state = None
+        self._key_actions = None
+        self._result = None
+
+    def expand(self, state: BoxState, actions):
+        if state is self._key_state and actions is self._key_actions:
+            return self._result
+        if type(state) is not BoxState:
+            raise InputError(f"state must be a BoxState (see IntervalModel.initial_state), got {type(state).__name__}")
+        core = self.core
+        index = self.actions(actions)
+        n = len(core.bank) if index is None else len(index)
+        lower, upper = state.lower, state.upper
+        if lower.ndim == 2:  # one box per hypothesis
+            if lower.shape[0] != core.M:
+                raise DimensionError(f"state holds {lower.shape[0]} boxes, expected {core.M} (one per linked hypothesis)")
+            lower, upper = lower[:, None, :], upper[:, None, :]
+        lower, upper, rewards, collided = core.propagate(lower, upper, state.time, index, n)
+        time = state.time + core.substeps
+        if core.M == 1:
+            next_states = [BoxState(lower[0, i], upper[0, i], time) for i in range(n)]
+        else:
+            next_states = [BoxState(lower[:, i], upper[:, i], time) for i in range(n)]
+        rewards.flags.writeable = False
+        collided.flags.writeable = False
+        self._key_state, self._key_actions = state, actions
+        self._result = (next_states, rewards, collided)
+        return self._result
+
+
 class IntervalModel:
     """A planner model whose state is a box containing the true state (Theorem 1).
 
@@ -98,9 +289,9 @@ class IntervalModel:
         `IntervalPredictor`; None means ``system.theta``.
     reward
         A reward family with ``box_minimum(lower, upper, t) -> (reward, collided)``
-        returning the EXACT minimum over each box (e.g. `minimaxplan.scenarios.GoalReward`),
-        rewards in [0, 1]. It reads full states (each family holds its own coordinate
-        indices).
+        returning the EXACT minimum over each box, vectorised over leading dimensions
+        (e.g. `minimaxplan.scenarios.GoalReward`), rewards in [0, 1]. It reads full
+        states (each family holds its own coordinate indices).
     controllers
         One `OpenLoop` or `LinearFeedback` per action; the planner's actions are the
         indices ``0 .. len(controllers) - 1``.
@@ -110,7 +301,7 @@ class IntervalModel:
 
     Notes
     -----
-    Per sub-step, for every action a at once (one batched product), the box is
+    Per sub-step, for every action at once (one batched product), the box is
     propagated by the interval predictor of the closed loop. Writing the controller as
     ``u = sat(v)``, ``v = c_a - K_a x`` (`ControllerBank`), and ``sat(v) = v + s(v)``:
 
@@ -133,22 +324,61 @@ class IntervalModel:
     transition terminal with reward 0. The predictor runs in the identity basis,
     because the closed-loop matrices differ per action and the reward reads the
     boxes in plant coordinates at every sub-step.
+
+    Several hypotheses for one planner: `IntervalModel.linked` builds one model per
+    hypothesis that compute their transitions together (the planner sees M ordinary
+    models; states then hold one box per hypothesis).
     """
 
     def __init__(self, system: UncertainLinearSystem, parameters, reward, controllers, *, substeps: int = 1) -> None:
-        if not isinstance(system, UncertainLinearSystem):
-            raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
-        p, q = system.nstates, system.ninputs
-        self.system = system
-        self.parameters = system.theta if parameters is None else parameters
-        self.reward = reward
-        self._reward_min = _check_reward(reward, p)
-        self.substeps = _check_substeps(substeps)
-        self.bank = ControllerBank(controllers, p, q)
-        self.controllers = self.bank.controllers
-        self.predictor = IntervalPredictor(system, self.parameters)
-        self._actions = _ActionIndex(len(self.bank))
-        self._precompute()
+        (model,) = self.linked([(system, parameters)], reward, controllers, substeps=substeps)
+        self.__dict__.update(model.__dict__)
+
+    @classmethod
+    def linked(cls, systems_with_parameters, reward, controllers, *, substeps: int = 1) -> list["IntervalModel"]:
+        """One `IntervalModel` per ``(system, parameters)`` hypothesis, computing their transitions together.
+
+        The systems must have the same numbers of states and inputs. Use the list as
+        the ``models`` of a `RobustTreePlanner` (in this order).
+        """
+        try:
+            pairs = [tuple(pair) for pair in systems_with_parameters]
+        except TypeError:
+            raise InputError("systems_with_parameters must be a sequence of (system, parameters) pairs") from None
+        if not pairs:
+            raise InputError("systems_with_parameters must hold at least one (system, parameters) pair")
+        if any(len(pair) != 2 for pair in pairs):
+            raise InputError("each item of systems_with_parameters must be a (system, parameters) pair")
+        resolved = []
+        for i, (system, parameters) in enumerate(pairs):
+            if not isinstance(system, UncertainLinearSystem):
+                raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+            first = pairs[0][0]
+            if (system.nstates, system.ninputs) != (first.nstates, first.ninputs):
+                raise InputError(
+                    f"systems_with_parameters[{i}] has {system.nstates} states and {system.ninputs} inputs, "
+                    f"but the first system has {first.nstates} and {first.ninputs}"
+                )
+            resolved.append((system, system.theta if parameters is None else parameters))
+        p, q = pairs[0][0].nstates, pairs[0][0].ninputs
+        reward_minimum = _check_reward(reward, p)
+        substeps = _check_substeps(substeps)
+        bank = ControllerBank(controllers, p, q)
+        group = _LinkedGroup(_IntervalCore(resolved, reward_minimum, bank, substeps))
+        models = []
+        for m, (system, parameters) in enumerate(resolved):
+            model = cls.__new__(cls)
+            model.system = system
+            model.parameters = parameters
+            model.reward = reward
+            model.substeps = substeps
+            model.bank = bank
+            model.controllers = bank.controllers
+            model.predictor = group.core.predictors[m]
+            model.member = m
+            model._group = group
+            models.append(model)
+        return models
 
     @property
     def n_actions(self) -> int:
@@ -159,96 +389,10 @@ class IntervalModel:
         """The planner's actions: the controller indices."""
         return tuple(range(self.n_actions))
 
-    # ----------------------------------------------------------------- set-up
-    def _precompute(self) -> None:
-        system, bank = self.system, self.bank
-        p = system.nstates
-        vertices = np.asarray(self.predictor.vertex_matrices)  # (k, p, p), identity basis
-        k = vertices.shape[0]
-        closed = vertices[None] - np.einsum("ij,ajl->ail", system.B, bank.gains)[:, None]  # (a, k, p, p)
-        stacked = closed.reshape(len(bank), k * p, p)
-        positive, negative = np.maximum(stacked, 0.0), np.maximum(-stacked, 0.0)
-        pt, nt = positive.transpose(0, 2, 1), negative.transpose(0, 2, 1)
-        # [lower | upper] @ product -> [all k lower candidates | all k upper candidates]
-        product = np.concatenate([np.concatenate([pt, -nt], axis=2), np.concatenate([-nt, pt], axis=2)], axis=1)
-        self._k, self._p = k, p
-        self._shared = not bank.has_feedback
-        self._product = np.ascontiguousarray(product[0] if self._shared else product)  # (2p, 2kp) or (a, 2p, 2kp)
-        self._open_product = None
-        if bank.saturating:
-            open_stacked = vertices.reshape(k * p, p)
-            op, on = np.maximum(open_stacked, 0.0).T, np.maximum(-open_stacked, 0.0).T
-            self._open_product = np.ascontiguousarray(np.block([[op, -on], [-on, op]]))
-        w_lo, w_hi = interval_matvec(system.D, system.w.low, system.w.high)
-        self._w_lo, self._w_hi = w_lo, w_hi
-        self._drift = bank.offsets @ system.B.T  # (a, p): B c_a
-        self._B = np.asarray(system.B)
-        self._B_pos_T = np.maximum(self._B, 0.0).T.copy()
-        self._B_neg_T = np.maximum(-self._B, 0.0).T.copy()
-        self._K_pos = np.maximum(bank.gains, 0.0)
-        self._K_neg = np.maximum(-bank.gains, 0.0)
-
-    # -------------------------------------------------------------- hot path
-    def _substep(self, lower, upper, index):
-        """One sub-step for the actions ``index`` (None = all), boxes (a, p)."""
-        k, p = self._k, self._p
-        z = np.concatenate([lower, upper], axis=-1)
-        if self._shared:
-            candidates = z @ self._product
-        else:
-            product = self._product if index is None else self._product[index]
-            candidates = np.matmul(z[:, None, :], product)[:, 0, :]
-        new_lower, new_upper = candidates[:, : k * p], candidates[:, k * p :]
-        if k > 1:
-            new_lower = new_lower.reshape(-1, k, p).min(axis=1)
-            new_upper = new_upper.reshape(-1, k, p).max(axis=1)
-        drift = self._drift if index is None else self._drift[index]
-        new_lower = new_lower + (drift + self._w_lo)
-        new_upper = new_upper + (drift + self._w_hi)
-        if self.bank.saturating:
-            new_lower, new_upper = self._saturation(lower, upper, new_lower, new_upper, z, index)
-        return new_lower, new_upper
-
-    def _saturation(self, lower, upper, cl_lower, cl_upper, z, index):
-        """Account for saturation: closed loop + bounded correction, intersected with the open-loop bound."""
-        sel = slice(None) if index is None else index
-        bank = self.bank
-        # v = c - K x over the box: [c - (K+ hi - K- lo), c - (K+ lo - K- hi)]
-        kx_lo = np.einsum("aqp,ap->aq", self._K_pos[sel], lower) - np.einsum("aqp,ap->aq", self._K_neg[sel], upper)
-        kx_hi = np.einsum("aqp,ap->aq", self._K_pos[sel], upper) - np.einsum("aqp,ap->aq", self._K_neg[sel], lower)
-        offsets, low, high = bank.offsets[sel], bank.low[sel], bank.high[sel]
-        v_lo, v_hi = offsets - kx_hi, offsets - kx_lo
-        u_lo, u_hi = np.clip(v_lo, low, high), np.clip(v_hi, low, high)
-        # correction s(v) = sat(v) - v is nonincreasing: s in [s(v_hi), s(v_lo)]
-        s_lo, s_hi = u_hi - v_hi, u_lo - v_lo
-        cl_lower = cl_lower + (s_lo @ self._B_pos_T - s_hi @ self._B_neg_T)
-        cl_upper = cl_upper + (s_hi @ self._B_pos_T - s_lo @ self._B_neg_T)
-        # open loop with the interval input [sat(v_lo), sat(v_hi)]
-        k, p = self._k, self._p
-        candidates = z @ self._open_product
-        ol_lower, ol_upper = candidates[:, : k * p], candidates[:, k * p :]
-        if k > 1:
-            ol_lower = ol_lower.reshape(-1, k, p).min(axis=1)
-            ol_upper = ol_upper.reshape(-1, k, p).max(axis=1)
-        ol_lower = ol_lower + (u_lo @ self._B_pos_T - u_hi @ self._B_neg_T) + self._w_lo
-        ol_upper = ol_upper + (u_hi @ self._B_pos_T - u_lo @ self._B_neg_T) + self._w_hi
-        return np.maximum(cl_lower, ol_lower), np.minimum(cl_upper, ol_upper)
-
-    def _propagate(self, lower, upper, time, index, n_actions):
-        """All sub-steps of one decision for n_actions actions; returns boxes, rewards, collisions."""
-        lower = np.broadcast_to(lower, (n_actions, self._p))
-        upper = np.broadcast_to(upper, (n_actions, self._p))
-        worst = None
-        collided = None
-        for s in range(1, self.substeps + 1):
-            lower, upper = self._substep(lower, upper, index)
-            reward, hit = self._reward_min(lower, upper, time + s)
-            if worst is None:
-                worst, collided = reward, hit
-            else:
-                worst = np.minimum(worst, reward)
-                collided = collided | hit
-        return lower, upper, np.asarray(worst, dtype=float), np.asarray(collided, dtype=bool)
+    @property
+    def n_linked(self) -> int:
+        """How many hypotheses this model is computed together with (itself included)."""
+        return self._group.core.M
 
     # --------------------------------------------------------------- protocol
     def expand(self, state: BoxState, actions) -> tuple[list, np.ndarray, np.ndarray]:
@@ -257,13 +401,9 @@ class IntervalModel:
         Returns ``(next_states, rewards, terminals)``: a list of `BoxState`, the
         pessimistic rewards (len(actions),) and the collision flags (len(actions),).
         """
-        if type(state) is not BoxState:
-            raise InputError(f"state must be a BoxState (see IntervalModel.initial_state), got {type(state).__name__}")
-        index = self._actions(actions)
-        n = self.n_actions if index is None else len(index)
-        lower, upper, rewards, terminals = self._propagate(state.lower, state.upper, state.time, index, n)
-        time = state.time + self.substeps
-        return [BoxState(lower[i], upper[i], time) for i in range(n)], rewards, terminals
+        next_states, rewards, terminals = self._group.expand(state, actions)
+        m = self.member
+        return next_states, rewards[m], terminals[m]
 
     def step(self, state: BoxState, action) -> tuple[BoxState, float, bool]:
         """One transition: ``(next_state, pessimistic reward, terminal)``."""
@@ -271,8 +411,11 @@ class IntervalModel:
         return next_states[0], float(rewards[0]), bool(terminals[0])
 
     def initial_state(self, lower, upper=None, *, time: int = 0) -> BoxState:
-        """The planner's root state: a `Box` (or arrays ``lower``, ``upper`` of shape (p,)) at sub-step ``time``."""
-        p = self._p
+        """The planner's root state: a `Box` (or arrays ``lower``, ``upper`` of shape (p,)) at sub-step ``time``.
+
+        The same root state serves every linked hypothesis.
+        """
+        p = self.system.nstates
         if isinstance(lower, Box):
             if upper is not None:
                 raise InputError("give either a Box or the arrays lower and upper, not both")
@@ -289,8 +432,14 @@ class IntervalModel:
         hi.setflags(write=False)
         return BoxState(lo, hi, _check_time(time))
 
+    def box(self, state: BoxState) -> tuple[np.ndarray, np.ndarray]:
+        """This hypothesis's box in ``state`` (states of linked models hold one box per hypothesis)."""
+        if state.lower.ndim == 2:
+            return state.lower[self.member], state.upper[self.member]
+        return state.lower, state.upper
+
     def rollout(self, state: BoxState, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Boxes at every sub-step along an action sequence.
+        """This hypothesis's boxes at every sub-step along an action sequence.
 
         Returns ``lower, upper`` of shape (len(actions) * substeps + 1, p) (row 0 is
         the initial box) and the per-decision pessimistic rewards and terminal flags,
@@ -300,22 +449,24 @@ class IntervalModel:
         if type(state) is not BoxState:
             raise InputError(f"state must be a BoxState, got {type(state).__name__}")
         seq = list(actions)
-        self._actions(seq)
-        S = self.substeps
-        lowers = [np.asarray(state.lower)]
-        uppers = [np.asarray(state.upper)]
+        self._group.actions(seq)
+        core, m = self._group.core, self.member
+        lower, upper = (state.lower[:, None, :], state.upper[:, None, :]) if state.lower.ndim == 2 else (state.lower, state.upper)
+        lower = np.broadcast_to(lower, (core.M, 1, core.p))
+        upper = np.broadcast_to(upper, (core.M, 1, core.p))
+        lowers, uppers = [lower[m, 0]], [upper[m, 0]]
         rewards = np.empty(len(seq))
         terminals = np.zeros(len(seq), dtype=bool)
-        lower, upper, time = state.lower[None], state.upper[None], state.time
+        time = state.time
         for n, action in enumerate(seq):
             index = np.array([int(action)])
             worst, hit = 1.0, False
-            for s in range(1, S + 1):
-                lower, upper = self._substep(lower, upper, index)
-                r, c = self._reward_min(lower, upper, time + s)
-                worst, hit = min(worst, float(r[0])), hit or bool(c[0])
-                lowers.append(lower[0])
-                uppers.append(upper[0])
+            for s in range(1, self.substeps + 1):
+                lower, upper = core.substep(lower, upper, index)
+                r, c = core.reward_minimum(lower, upper, time + s)
+                worst, hit = min(worst, float(r[m, 0])), hit or bool(c[m, 0])
+                lowers.append(lower[m, 0])
+                uppers.append(upper[m, 0])
             rewards[n], terminals[n] = worst, hit
-            time += S
+            time += self.substeps
         return np.array(lowers), np.array(uppers), rewards, terminals

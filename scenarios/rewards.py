@@ -90,14 +90,26 @@ class _CollisionTerm:
         self.has_moving = len(moving_obstacles) > 0
 
     def boxes(self, lower, upper, t):
-        """Whether each box of positions (..., 2) holds a colliding point at sub-step t."""
-        hit = np.zeros(np.broadcast_shapes(lower.shape, upper.shape)[:-1], dtype=bool)
+        """Whether each box of positions (..., 2) holds a colliding point at sub-step t.
+
+        Planner hot path: per axis the box-to-point gap is ``max(lo - c, c - hi, 0)``
+        (at most one of the two differences is positive, as lo <= hi).
+        """
+        hit = None
         if self.has_static:
-            hit |= np.any(box_point_sq_distance(lower, upper, self._centers) <= self._reach_sq, axis=-1)
+            gap = np.maximum(lower[..., None, :] - self._centers, self._centers - upper[..., None, :])
+            np.maximum(gap, 0.0, out=gap)
+            gap *= gap
+            hit = (gap[..., 0] + gap[..., 1] <= self._reach_sq).any(axis=-1)
         if self.has_moving:
             olo, ohi = self.moving.boxes(t)
-            gap = np.maximum(olo - upper[..., None, :], 0.0) + np.maximum(lower[..., None, :] - ohi, 0.0)
-            hit |= np.any(np.einsum("...i,...i->...", gap, gap) <= self._moving_reach_sq, axis=-1)
+            gap = np.maximum(olo - upper[..., None, :], lower[..., None, :] - ohi)
+            np.maximum(gap, 0.0, out=gap)
+            gap *= gap
+            moving_hit = (gap[..., 0] + gap[..., 1] <= self._moving_reach_sq).any(axis=-1)
+            hit = moving_hit if hit is None else hit | moving_hit
+        if hit is None:
+            return np.zeros(np.broadcast_shapes(lower.shape, upper.shape)[:-1], dtype=bool)
         return hit
 
     def points(self, positions, t, moving_positions=None):
@@ -285,8 +297,10 @@ class GoalReward(_RewardBase):
 
     def _free_minimum(self, lower, upper):
         pos = self._collision.pos
-        far = np.maximum(np.abs(lower[..., pos] - self.goal), np.abs(upper[..., pos] - self.goal))
-        return 1.0 / (1.0 + np.sqrt(np.einsum("...i,...i->...", far, far)))
+        # max(|lo - g|, |hi - g|) = max(g - lo, hi - g) as lo <= hi
+        far = self.goal - lower[..., pos]
+        np.maximum(far, upper[..., pos] - self.goal, out=far)
+        return 1.0 / (1.0 + np.hypot(far[..., 0], far[..., 1]))
 
     def _free_argmin(self, lower, upper):
         pos = self._collision.pos

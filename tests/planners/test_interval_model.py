@@ -316,3 +316,78 @@ def test_point_model_validation():
     small = systems.random_system(np.random.default_rng(0), p=3, q=2, d=2)
     with pytest.raises(InputError, match=r"systems_with_parameters\[1\] has 3 states and 2 inputs"):
         multi_model_robust_planner([(system, None), (small, None)], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
+
+
+# --------------------------------------------------------------- linked models
+def _hypotheses(rng, n):
+    p, q = 4, 2
+    return [systems.random_system(rng, p=p, q=q, d=int(rng.integers(1, 3))) for _ in range(n)]
+
+
+@settings(max_examples=15)
+@given(seeds, st.integers(1, 3))
+def test_linked_models_equal_separate_models(seed, substeps):
+    rng = np.random.default_rng(seed)
+    hypotheses = _hypotheses(rng, int(rng.integers(2, 4)))
+    controllers = systems.random_controllers(rng, hypotheses[0], n=3)
+    reward = GoalReward([2.0, 2.0], obstacles=CircularObstacles(rng.uniform(-3, 3, (5, 2)), np.full(5, 0.4)), robot_radius=0.2)
+    linked = IntervalModel.linked([(h, h.theta) for h in hypotheses], reward, controllers, substeps=substeps)
+    separate = [IntervalModel(h, h.theta, reward, controllers, substeps=substeps) for h in hypotheses]
+    assert [m.n_linked for m in linked] == [len(hypotheses)] * len(hypotheses) and separate[0].n_linked == 1
+    root = linked[0].initial_state(rng.uniform(-1, 0, 4), rng.uniform(0, 1, 4))
+    same = dict(rtol=1e-13, atol=1e-13)
+    # members asked in reverse order (the cache must not mix rows up), twice
+    for order in (reversed(range(len(linked))), range(len(linked))):
+        for m in order:
+            states, rewards, terminals = linked[m].expand(root, linked[m].actions)
+            ref_states, ref_rewards, ref_terminals = separate[m].expand(root, separate[m].actions)
+            np.testing.assert_allclose(rewards, ref_rewards, **same)
+            np.testing.assert_array_equal(terminals, ref_terminals)
+            for state, ref in zip(states, ref_states):
+                lo, hi = linked[m].box(state)
+                np.testing.assert_allclose(lo, ref.lower, **same)
+                np.testing.assert_allclose(hi, ref.upper, **same)
+    # one step further from the joint states: each member continues from its own box
+    child = linked[0].expand(root, linked[0].actions)[0][1]
+    ref_child = [s.expand(root, s.actions)[0][1] for s in separate]
+    for m, model in enumerate(linked):
+        _, rewards, _ = model.expand(child, model.actions)
+        _, ref_rewards, _ = separate[m].expand(ref_child[m], separate[m].actions)
+        np.testing.assert_allclose(rewards, ref_rewards, **same)
+    # rollout of a member == rollout of the separate model
+    for m, model in enumerate(linked):
+        a, b = model.rollout(root, [0, 2, 1]), separate[m].rollout(root, [0, 2, 1])
+        for x, y in zip(a, b):
+            np.testing.assert_allclose(x, y, **same)
+
+
+def test_linked_planner_decides_like_separate_models():
+    rng = np.random.default_rng(4)
+    system = robot_system()
+    boxes = [Box([0.2, 0.2], [0.4, 0.5]), Box([0.5, 0.3], [0.8, 0.6]), Box([0.3, 0.6], [0.5, 0.8])]
+    obstacles = CircularObstacles(rng.uniform(0.5, 4.0, (6, 2)), rng.uniform(0.2, 0.5, 6))
+    reward = GoalReward([4.0, 4.0], obstacles=obstacles, robot_radius=0.3)
+    linked = multi_model_robust_planner([(system, b) for b in boxes], reward, ROBOT_ACTIONS, budget=60, substeps=3)
+    separate = RobustTreePlanner(
+        [IntervalModel(system, b, reward, ROBOT_ACTIONS, substeps=3) for b in boxes], range(4), gamma=0.9, budget=60
+    )
+    root = linked.models[0].initial_state([0, 0, 0, 0], [0.1, 0.1, 0, 0])
+    a, b = linked.plan(root), separate.plan(root)
+    assert a.sequence == b.sequence and a.expansions == b.expansions == 60
+    assert a.lower == pytest.approx(b.lower, abs=1e-12) and a.upper == pytest.approx(b.upper, abs=1e-12)
+    # one initial box per model
+    roots = [linked.models[0].initial_state([0, 0, 0, 0], [0.1 * (m + 1), 0.1, 0, 0]) for m in range(3)]
+    a, b = linked.plan(roots, per_model=True), separate.plan(roots, per_model=True)
+    assert a.sequence == b.sequence and a.lower == pytest.approx(b.lower, abs=1e-12)
+
+
+def test_linked_validation():
+    system = robot_system()
+    with pytest.raises(InputError, match="systems_with_parameters must hold at least one"):
+        IntervalModel.linked([], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
+    with pytest.raises(InputError, match=r"each item of systems_with_parameters must be a \(system, parameters\) pair"):
+        IntervalModel.linked([(system,)], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
+    models = IntervalModel.linked([(system, None), (system, None)], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
+    bad = BoxState(np.zeros((3, 4)), np.ones((3, 4)), 0)
+    with pytest.raises(DimensionError, match=r"state holds 3 boxes, expected 2"):
+        models[0].expand(bad, models[0].actions)
