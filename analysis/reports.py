@@ -16,7 +16,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from minimaxplan.models import Box
+from minimaxplan.models import Box, InputError
 
 __all__ = [
     "LMIReport",
@@ -104,7 +104,7 @@ def lmi_matrix(A, P, Q0, rho: float, D, form: str) -> np.ndarray:
     elif form == "discrete":
         top_left, top_right, bottom_right = A.T @ P @ A - P + Q0, A.T @ P @ D, D.T @ P @ D - rho * np.eye(r)
     else:
-        raise ValueError(f"form must be 'discrete' or 'continuous', got {form!r}")
+        raise InputError(f"form must be 'discrete' or 'continuous', got {form!r}")
     matrix = np.block([[top_left, top_right], [top_right.T, bottom_right]])
     return (matrix + matrix.T) / 2
 
@@ -144,7 +144,7 @@ class LMIReport:
 
     @property
     def has_certificate(self) -> bool:
-        return getattr(self.result, "P", None) is not None and getattr(self.result, "Q0", None) is not None
+        return all(getattr(self.result, key, None) is not None for key in ("P", "Q0", "rho"))
 
     @property
     def holds(self) -> bool:
@@ -282,9 +282,10 @@ class LMIReport:
                 ]
             lines += _table(("quantity", "value"), rows) + [""]
             if self.holds:
+                dynamics, error = ("e+ = A e + D w", "||e_n||") if self.form == "discrete" else ("de/dt = A e + D w", "||e(t)||")
                 lines += [
-                    "With this certificate, `e+ = A e + D w` (or `de/dt = A e + D w`) obeys "
-                    "`||e_n|| <= c0 ||e_0|| + cw sup ||w||` for every A of the checked set.",
+                    f"With this certificate, `{dynamics}` obeys `{error} <= c0 ||e_0|| + cw sup ||w||` "
+                    "for every A of the checked set (Theorem 2, bound constants of `LMIResult.bound_constants`).",
                     "",
                 ]
         return "\n".join(lines)
