@@ -17,6 +17,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
+from scipy.optimize import minimize_scalar
 
 from minimaxplan.models._validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError, SolverFailure
@@ -220,11 +221,10 @@ class LMIResult:
 def _as_vertices(A) -> np.ndarray:
     if isinstance(A, (list, tuple)) and len(A) == 0:
         raise DimensionError("A must hold at least one matrix, got an empty sequence")
-    stack = as_finite_array("A", A)
-    if stack.ndim == 2:
-        stack = stack[None]
+    given = as_finite_array("A", A)
+    stack = given[None] if given.ndim == 2 else given
     if stack.ndim != 3 or stack.shape[0] == 0 or stack.shape[1] != stack.shape[2] or stack.shape[1] == 0:
-        raise DimensionError(f"A must have shape (p, p) or (k, p, p) with k, p >= 1, got shape {stack.shape}")
+        raise DimensionError(f"A must have shape (p, p) or (k, p, p) with k, p >= 1, got shape {given.shape}")
     return stack
 
 
@@ -409,6 +409,42 @@ def _smallest_rho(form: str, vertices: np.ndarray, D: np.ndarray, P: np.ndarray,
     return rho, slack
 
 
+def _disturbance_gain(form, vertices, D, P, Q0) -> float:
+    """``rho / lmin(Q0)`` for the returned rho (the factor of ``cw^2`` that Q0 controls)."""
+    smallest = _smallest_rho(form, vertices, D, P, Q0)
+    if smallest is None:
+        return np.inf
+    return RHO_FACTOR * smallest[0] / float(np.linalg.eigvalsh(Q0)[0])
+
+
+def _tuned_q0(form: str, vertices: np.ndarray, D: np.ndarray, P: np.ndarray, Q_solver: np.ndarray) -> np.ndarray:
+    """The free Q0 that makes ``cw`` smallest for the solver's P: ``q I`` or the solver's.
+
+    ``cw^2 = rho lmax(P) / (lmin(P) lmin(Q0))``; for fixed P, a larger ``Q0`` raises the
+    smallest admissible rho, so ``rho(q I) / q`` is minimised over ``0 < q < q_max``,
+    ``q_max = min_k -lmax(N0_k)`` (``N0`` the Lyapunov block without Q0), by a bounded
+    scalar search; the solver's own Q0 is kept if it does better.
+    """
+    p = P.shape[0]
+    if form == "continuous":
+        blocks = [A.T @ P + P @ A for A in vertices]
+    else:
+        blocks = [A.T @ P @ A - P for A in vertices]
+    q_max = min(-float(np.linalg.eigvalsh((N + N.T) / 2)[-1]) for N in blocks)
+    if not q_max > 0:
+        return Q_solver
+    search = minimize_scalar(
+        lambda s: _disturbance_gain(form, vertices, D, P, s * q_max * np.eye(p)),
+        bounds=(1e-6, 1 - 1e-6),
+        method="bounded",
+        options={"xatol": 1e-4},
+    )
+    candidate = float(search.x) * q_max * np.eye(p)
+    if _disturbance_gain(form, vertices, D, P, candidate) < _disturbance_gain(form, vertices, D, P, Q_solver):
+        return candidate
+    return Q_solver
+
+
 # --------------------------------------------------------------------------- entry point
 
 
@@ -484,8 +520,9 @@ def check_assumption4(A, *, form, Q0=None, D=None, margin=1e-6, solver="CLARABEL
     "infeasible_inaccurate". Maximising ``t`` also makes the bound constants
     meaningful: in the solver's units ``cond(P) <= 1 / t`` and the decay rate
     ``mu = lmin(Q0) / lmax(P) >= t``; the tiny weight on ``rho`` only keeps it finite.
-    The returned ``rho`` is ``RHO_FACTOR`` times the smallest value that the returned
-    ``(P, Q0)`` allow (closed form, Schur complement), which minimises ``cw`` for them.
+    A free ``Q0`` is then re-chosen for the solver's ``P`` to make ``cw`` small (see
+    `_tuned_q0`), and the returned ``rho`` is ``RHO_FACTOR`` times the smallest value
+    that the returned ``(P, Q0)`` allow (closed form, Schur complement).
 
     *Scaling.* A stable matrix near the stability boundary with an ill-conditioned
     eigenbasis needs a ``P`` whose condition number is about ``cond(V)^2 / distance``,
@@ -570,6 +607,8 @@ def check_assumption4(A, *, form, Q0=None, D=None, margin=1e-6, solver="CLARABEL
         c = float(program.sigma.value) / q0_unit
         P_cert, Q_cert = P_cert / c, q0
     P_cert, Q_cert = (P_cert + P_cert.T) / 2, (Q_cert + Q_cert.T) / 2
+    if q0 is None:
+        Q_cert = _tuned_q0(form, vertices, D_mat, P_cert, Q_cert)
     smallest = _smallest_rho(form, vertices, D_mat, P_cert, Q_cert)
     if smallest is None:
         return outcome(
