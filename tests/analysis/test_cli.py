@@ -283,3 +283,20 @@ def test_check_model_reports_the_library_result_for_each_form():
         assert report.holds and report.result.status == direct.status == "feasible"
         np.testing.assert_allclose(report.result.P, direct.P, rtol=1e-6, atol=1e-9)
         np.testing.assert_allclose(report.lmi_max_eigenvalues().max(), direct.max_eigenvalue, rtol=1e-6)
+
+
+def test_select_passes_the_measurement_noise_bound(tmp_path, capsys):
+    model_file = load_model_file(HYPOTHESES)
+    noisy = write(tmp_path, "noisy.toml", format_model_file(model_file.hypotheses, measurement_noise=[0.001] * 4))
+    code, out, err = run(capsys, "select", noisy, ROBOT_DATA, "--json")
+    assert (code, err) == (0, "")
+    document = json.loads(out)
+    assert document["measurement_noise"] == [0.001] * 4
+    data = load_data_file(ROBOT_DATA)
+    direct = eliminate_models(model_file.systems, data.states, data.controls, measurement_noise=0.001)
+    np.testing.assert_allclose([h["margin"] for h in document["hypotheses"]], direct.margins, rtol=1e-9, atol=1e-12)
+    quiet = eliminate_models(model_file.systems, data.states, data.controls)
+    assert direct.margins[0] < quiet.margins[0]  # the noise allowance explains part of the misfit
+    i = model_file.names.index("anisotropic friction")
+    box = feasible_parameter_box(model_file.systems[i], data.states, data.controls, measurement_noise=0.001)
+    assert document["hypotheses"][i]["feasible_box"] == box.to_dict()

@@ -96,6 +96,8 @@ def test_generator_csv_round_trips(tmp_path):
 
 # ---------------------------------------------------------------- round trips
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
+# Any text, including quotes, backslashes, control and non-ASCII characters (no surrogates).
+names = st.text(st.characters(blacklist_categories=("Cs",)), min_size=1, max_size=12).filter(lambda t: t.strip())
 
 
 @st.composite
@@ -119,10 +121,11 @@ def hypotheses(draw):
             dt = draw(st.floats(1e-4, 10.0))
             system = UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=w, theta=theta, dt=dt)
             cont = UncertainLinearSystem(A, phi, B, D=D, w=w, theta=theta)
-            out.append(ModelHypothesis(f'model "{index}" \\ x', system, "continuous", dt, cont))
+            out.append(ModelHypothesis(f"{draw(names)} {index}", system, "continuous", dt, cont))
         else:
             dt = draw(st.none() | st.floats(1e-4, 10.0))
-            out.append(ModelHypothesis(f"model {index}", UncertainLinearSystem(A, phi, B, D=D, w=w, theta=theta), "discrete", dt))
+            system = UncertainLinearSystem(A, phi, B, D=D, w=w, theta=theta)
+            out.append(ModelHypothesis(f"{draw(names)} {index}", system, "discrete", dt))
     noise = draw(st.none() | st.lists(st.floats(0, 1e3), min_size=p, max_size=p))
     return out, noise
 
