@@ -56,7 +56,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--model", dest="model_name", metavar="NAME", help="check only the model with this name")
     parser.add_argument("--json", action="store_true", help="write the JSON report instead of Markdown")
-    parser.add_argument("--out", type=pathlib.Path, help="write the report to this file (default: stdout)")
+    parser.add_argument("--out", type=pathlib.Path, metavar="FILE", help="write the report to this file (default: stdout)")
     parser.set_defaults(func=run)
 
 

@@ -39,7 +39,7 @@ def register(subparsers) -> None:
     parser.add_argument("models", type=pathlib.Path, help="TOML model file with one or more [[hypothesis]] tables")
     parser.add_argument("data", type=pathlib.Path, help="observed trajectory: .csv or .npz")
     parser.add_argument("--json", action="store_true", help="write the JSON report instead of Markdown")
-    parser.add_argument("--out", type=pathlib.Path, help="write the report to this file (default: stdout)")
+    parser.add_argument("--out", type=pathlib.Path, metavar="FILE", help="write the report to this file (default: stdout)")
     parser.set_defaults(func=run)
 
 
