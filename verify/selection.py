@@ -155,40 +155,57 @@ def _disturbance_set_is_box(D: np.ndarray, radius: np.ndarray) -> bool:
 
 
 # --------------------------------------------------------------- one hypothesis, data
-class _HypothesisData:
-    """The regression ``z_n = E_n theta + D w_n + e_n`` of one hypothesis on transitions.
+class _Structure:
+    """Everything about one hypothesis that does not depend on the data (computed once).
 
-    ``z_n = x_{n+1} - A0 x_n - B u_n``, ``E_n = regressor(x_n)``, ``|e_n| <= ebar + a_n``
-    (measurement noise, rounding allowance), ``w_n`` in the box ``W = c_w +- r_w``.
     The inflation unit ``beta`` (per state coordinate) is the radius of the interval
     hull of ``D W + [-ebar, ebar]``, or 1 where that radius is 0.
     """
 
-    def __init__(self, hyp: UncertainLinearSystem, X, U, Xn, noise_bound: np.ndarray, allowance: float) -> None:
+    def __init__(self, hyp: UncertainLinearSystem, noise_bound: np.ndarray, allowance: float) -> None:
         self.hyp = hyp
+        self.noise_bound = noise_bound
+        self.allowance = allowance
         self.theta_low, self.theta_high = hyp.theta.low, hyp.theta.high
         self.D = hyp.D
         self.w_center, self.w_radius = hyp.w.center, hyp.w.radius
-        self.z = Xn - X @ hyp.A0.T - U @ hyp.B.T
-        self.E = np.einsum("ipq,nq->npi", hyp.phi, X)
-        abs_x = np.abs(X)
+        self.A0_T, self.B_T, self.phi = hyp.A0.T, hyp.B.T, hyp.phi
         theta_max = np.maximum(np.abs(self.theta_low), np.abs(self.theta_high))
         w_max = np.maximum(np.abs(hyp.w.low), np.abs(hyp.w.high))
-        magnitude = (
-            np.abs(Xn)
-            + abs_x @ np.abs(hyp.A0).T
-            + np.abs(U) @ np.abs(hyp.B).T
-            + abs_x @ np.tensordot(theta_max, np.abs(hyp.phi), 1).T
-            + np.abs(hyp.D) @ w_max
-            + noise_bound
-        )
-        self.e = noise_bound + allowance * magnitude
+        self.abs_A0_T = np.abs(hyp.A0).T
+        self.abs_B_T = np.abs(hyp.B).T
+        self.abs_regression_T = np.tensordot(theta_max, np.abs(hyp.phi), 1).T
+        self.constant_magnitude = np.abs(hyp.D) @ w_max + noise_bound
         self.hull_center = self.D @ self.w_center
         self.hull_radius = np.abs(self.D) @ self.w_radius
         beta = self.hull_radius + noise_bound
         self.beta = np.where(beta > 0, beta, 1.0)
         self.is_box = _disturbance_set_is_box(self.D, self.w_radius)
         self.d_pinv = None if self.is_box else np.linalg.pinv(self.D)
+
+
+class _HypothesisData:
+    """The regression ``z_n = E_n theta + D w_n + e_n`` of one hypothesis on transitions.
+
+    ``z_n = x_{n+1} - A0 x_n - B u_n``, ``E_n = regressor(x_n)``, ``|e_n| <= ebar + a_n``
+    (measurement noise, rounding allowance), ``w_n`` in the box ``W = c_w +- r_w``.
+    """
+
+    def __init__(self, structure: _Structure, X, U, Xn) -> None:
+        st = structure
+        self.hyp = st.hyp
+        self.theta_low, self.theta_high = st.theta_low, st.theta_high
+        self.D, self.w_center, self.w_radius = st.D, st.w_center, st.w_radius
+        self.hull_center, self.hull_radius, self.beta = st.hull_center, st.hull_radius, st.beta
+        self.is_box, self.d_pinv = st.is_box, st.d_pinv
+        self.z = Xn - X @ st.A0_T - U @ st.B_T
+        self.E = np.einsum("ipq,nq->npi", st.phi, X)
+        abs_x = np.abs(X)
+        magnitude = (
+            np.abs(Xn) + abs_x @ st.abs_A0_T + np.abs(U) @ st.abs_B_T + abs_x @ st.abs_regression_T
+            + st.constant_magnitude
+        )
+        self.e = st.noise_bound + st.allowance * magnitude
 
     @property
     def ntransitions(self) -> int:
@@ -208,7 +225,9 @@ class _HypothesisData:
         Exact (the least such s) when ``D W`` is a box; otherwise an upper bound, from
         the disturbance ``clip(pinv(D) residual, W)``.
         """
-        residual = self.z[idx] - self.E[idx] @ theta
+        n, p, d = self.E.shape
+        fitted = (self.E.reshape(n * p, d) @ theta).reshape(n, p)
+        residual = self.z[idx] - fitted[idx]
         if self.is_box:
             excess = np.abs(residual - self.hull_center) - self.hull_radius - self.e[idx]
         else:
@@ -368,16 +387,17 @@ def _generate(
             active = np.arange(n)
         sol = _solve_lp(data, active, objective, s_fixed)
         rounds += 1
-        inactive = np.setdiff1d(np.arange(n), active, assume_unique=True)
-        needed = data.needed_margin(sol.theta, inactive) if inactive.size else np.zeros(0)
+        needed_all = data.needed_margin(sol.theta)
+        needed = needed_all.copy()
+        needed[active] = -np.inf
         violated = needed > sol.s + GENERATION_TOLERANCE
         if last or not np.any(violated):
             break
-        candidates = inactive[violated]
-        worst = candidates[np.argsort(-needed[violated], kind="stable")[:batch]]
+        candidates = np.flatnonzero(violated)
+        worst = candidates[np.argsort(-needed[candidates], kind="stable")[:batch]]
         active = np.union1d(active, worst)
     if data.is_box:
-        upper = float(np.max(data.needed_margin(sol.theta), initial=0.0))
+        upper = float(np.max(needed_all, initial=0.0))
     else:
         on_active = data.needed_margin_with(sol.theta, sol.w, active)
         upper = float(max(np.max(on_active, initial=0.0), np.max(needed, initial=0.0)))
@@ -457,7 +477,7 @@ class EliminationCertificate:
         check_shape("multipliers_upper", self.multipliers_upper, (self.transitions.size, p))
         t = self.transitions
         noise = measurement_noise_bound(hypothesis, self.measurement_noise)
-        data = _HypothesisData(hypothesis, X[t], U[t], Xn[t], noise, self.rounding_allowance)
+        data = _HypothesisData(_Structure(hypothesis, noise, self.rounding_allowance), X[t], U[t], Xn[t])
         local = np.arange(t.size)
         return _lagrangian_bound(data, local, self.multipliers_upper, self.multipliers_lower, np.zeros(data.nparams), None)
 
@@ -666,7 +686,7 @@ def eliminate_models(
     noise = _noise_vector(measurement_noise, p)
     survivors, eliminated, margins, rounds = [], {}, [], []
     for m, hyp in enumerate(hyps):
-        data = _HypothesisData(hyp, X, U, Xn, measurement_noise_bound(hyp, noise), allowance)
+        data = _HypothesisData(_Structure(hyp, measurement_noise_bound(hyp, noise), allowance), X, U, Xn)
         verdict = _decide(m, data, initial=None, tolerance=tol, max_rounds=rounds_cap, allowance=allowance, noise=noise)
         margins.append(verdict.margin)
         rounds.append(verdict.rounds)
@@ -726,7 +746,7 @@ def feasible_parameter_box(
     X, U, Xn = _check_trajectory(states, controls, hypothesis.nstates, hypothesis.ninputs)
     tol, allowance, rounds_cap = _check_options(tolerance, rounding_allowance, max_rounds)
     noise = _noise_vector(measurement_noise, hypothesis.nstates)
-    data = _HypothesisData(hypothesis, X, U, Xn, measurement_noise_bound(hypothesis, noise), allowance)
+    data = _HypothesisData(_Structure(hypothesis, measurement_noise_bound(hypothesis, noise), allowance), X, U, Xn)
     if data.ntransitions == 0:
         return hypothesis.theta
     verdict = _decide(0, data, initial=None, tolerance=tol, max_rounds=rounds_cap, allowance=allowance, noise=noise)
@@ -795,7 +815,9 @@ class ModelSelector:
         self._p, self._q = h0.nstates, h0.ninputs
         self._tolerance, self._allowance, self._max_rounds = _check_options(tolerance, rounding_allowance, max_rounds)
         self._noise = _noise_vector(measurement_noise, self._p)
-        self._noise_bounds = [measurement_noise_bound(h, self._noise) for h in self._hypotheses]
+        self._structures = [
+            _Structure(h, measurement_noise_bound(h, self._noise), self._allowance) for h in self._hypotheses
+        ]
         self._count = 0
         self._X = np.empty((16, self._p))
         self._U = np.empty((16, self._q))
@@ -852,8 +874,7 @@ class ModelSelector:
         self._X[n], self._U[n], self._Xn[n] = x, u, xn
         self._count += 1
         for m in self.survivors:
-            hyp = self._hypotheses[m]
-            one = _HypothesisData(hyp, x[None], u[None], xn[None], self._noise_bounds[m], self._allowance)
+            one = _HypothesisData(self._structures[m], x[None], u[None], xn[None])
             needed = float(one.needed_margin(self._theta[m])[0])
             if max(self._upper[m], needed) <= self._tolerance:
                 self._upper[m] = max(self._upper[m], needed, 0.0)
@@ -863,9 +884,7 @@ class ModelSelector:
 
     def _resolve(self, m: int, newest: int) -> None:
         n = self._count
-        data = _HypothesisData(
-            self._hypotheses[m], self._X[:n], self._U[:n], self._Xn[:n], self._noise_bounds[m], self._allowance
-        )
+        data = _HypothesisData(self._structures[m], self._X[:n], self._U[:n], self._Xn[:n])
         initial = np.union1d(self._active[m], [newest])
         verdict = _decide(
             m, data, initial=initial, tolerance=self._tolerance, max_rounds=self._max_rounds,

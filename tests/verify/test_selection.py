@@ -1,0 +1,386 @@
+"""Tests of LP model elimination (minimaxplan.verify.selection)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import linprog
+
+from minimaxplan.models import Box, UncertainLinearSystem
+from minimaxplan.models.errors import (
+    DimensionError,
+    InputError,
+    NoConsistentModel,
+    NonFiniteError,
+    SolverFailure,
+)
+from minimaxplan.verify import ModelSelector, eliminate_models, feasible_parameter_box
+from minimaxplan.verify import selection
+from minimaxplan.verify.selection import ELIMINATION_MARGIN, measurement_noise_bound
+
+D_KINDS = ("identity", "scaled", "square", "tall", "wide")
+
+
+# ------------------------------------------------------------------ random worlds
+def random_system(rng, p, d, q, d_kind, continuous):
+    """A random hypothesis with non-Metzler matrices and ||A(theta)||_2 <= 1 on its prior."""
+    theta_center = rng.uniform(-1, 1, d)
+    theta_radius = rng.uniform(0, 1, d) * (rng.random(d) > 0.1)  # some degenerate sides
+    theta = Box.from_center(theta_center, theta_radius)
+    theta_max = np.maximum(np.abs(theta.low), np.abs(theta.high))
+    r = {"identity": p, "scaled": p, "square": p, "tall": max(1, p - 1), "wide": p + 1}[d_kind]
+    if d_kind == "identity":
+        D = np.eye(p)
+    elif d_kind == "scaled":
+        D = np.diag(rng.uniform(0.1, 2.0, p))
+    else:
+        D = rng.normal(size=(p, r))
+    w_radius = rng.uniform(0, 0.5, r) * (rng.random(r) > 0.15)
+    w = Box.from_center(rng.uniform(-0.2, 0.2, r), w_radius)
+    phi = rng.normal(size=(d, p, p))
+    phi *= (0.1 / d) / (np.linalg.norm(phi, 2, axis=(1, 2)) * np.maximum(theta_max, 1e-3))[:, None, None]
+    B = rng.normal(size=(p, q))
+    if continuous:
+        dt = rng.uniform(0.01, 0.5)
+        R = rng.normal(size=(p, p))
+        A = -np.eye(p) + 0.5 * R / np.linalg.norm(R, 2)
+        # I + dt A has norm <= 1 - dt/2; the forward-Euler phi is dt * phi/dt = phi.
+        return UncertainLinearSystem.from_continuous(A, phi / dt, B, D=D / dt, w=w, theta=theta, dt=dt)
+    A0 = rng.normal(size=(p, p))
+    A0 *= 0.9 / np.linalg.norm(A0, 2)
+    return UncertainLinearSystem(A0, phi, B, D=D, w=w, theta=theta)
+
+
+def simulate(system, theta, n, rng, *, w_mode="vertex", x0=None):
+    """States (n+1, p), controls (n, q) of the true plant, w at random vertices of W (or uniform)."""
+    p, q = system.nstates, system.ninputs
+    x = np.zeros((n + 1, p))
+    x[0] = rng.normal(size=p) if x0 is None else x0
+    u = rng.uniform(-1, 1, (n, q))
+    for k in range(n):
+        if w_mode == "vertex":
+            w = np.where(rng.random(system.ndisturbances) < 0.5, system.w.low, system.w.high)
+        else:
+            w = rng.uniform(system.w.low, system.w.high)
+        x[k + 1] = system.step(x[k], u[k], theta, w)
+    return x, u
+
+
+def true_parameter(system, rng, at_vertex):
+    t = system.theta
+    if at_vertex:
+        return np.where(rng.random(t.dim) < 0.5, t.low, t.high)
+    return rng.uniform(t.low, t.high)
+
+
+def wrong_variant(system, rng):
+    """A structurally different hypothesis: another input gain or another nominal matrix."""
+    if rng.random() < 0.5:
+        B = system.B * rng.uniform(1.3, 2.0) + 0.3 * rng.normal(size=system.B.shape)
+        return UncertainLinearSystem(system.A0, system.phi, B, D=system.D, w=system.w, theta=system.theta)
+    A0 = system.A0 + 0.5 * rng.normal(size=system.A0.shape)
+    return UncertainLinearSystem(A0, system.phi, system.B, D=system.D, w=system.w, theta=system.theta)
+
+
+@st.composite
+def worlds(draw, max_n=200):
+    p = draw(st.integers(1, 4))
+    d = draw(st.integers(1, 3))
+    q = draw(st.integers(1, 2))
+    d_kind = draw(st.sampled_from(D_KINDS))
+    continuous = draw(st.booleans())
+    at_vertex = draw(st.booleans())
+    n = draw(st.integers(1, max_n))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    system = random_system(rng, p, d, q, d_kind, continuous)
+    theta = true_parameter(system, rng, at_vertex)
+    states, controls = simulate(system, theta, n, rng)
+    return system, theta, states, controls, rng
+
+
+# --------------------------------------------------------------- soundness
+@given(worlds())
+def test_true_hypothesis_is_never_eliminated_and_its_parameter_is_in_the_box(world):
+    system, theta, states, controls, _ = world
+    result = eliminate_models([system], states, controls)
+    assert result.survivors == [0], (result.margins, result.eliminated)
+    assert result.eliminated == {}
+    assert result.margins[0] <= ELIMINATION_MARGIN
+    box = feasible_parameter_box(system, states, controls)
+    assert isinstance(box, Box)
+    assert box.contains(theta), (box, theta)
+    assert system.theta.contains(box.low) and system.theta.contains(box.high)
+
+
+@given(worlds(max_n=120), st.floats(0.0, 0.3))
+def test_true_hypothesis_survives_bounded_measurement_noise_at_its_extremes(world, noise):
+    system, theta, states, controls, rng = world
+    v_bar = noise * rng.uniform(0.2, 1.0, system.nstates)
+    measured = states + v_bar * rng.choice((-1.0, 1.0), states.shape)
+    result = eliminate_models([system], measured, controls, measurement_noise=v_bar)
+    assert result.survivors == [0], result.margins
+    box = feasible_parameter_box(system, measured, controls, measurement_noise=v_bar)
+    assert box.contains(theta), (box, theta)
+
+
+@given(worlds(max_n=60))
+def test_streaming_selector_matches_batch_and_never_revives(world):
+    system, _, states, controls, rng = world
+    hypotheses = [system, wrong_variant(system, rng), wrong_variant(system, rng)]
+    selector = ModelSelector(hypotheses)
+    assert selector.survivors == [0, 1, 2]
+    eliminated_so_far: set[int] = set()
+    half = len(controls) // 2
+    for k in range(len(controls)):
+        survivors = selector.add(states[k], controls[k], states[k + 1])
+        assert survivors == selector.survivors
+        assert eliminated_so_far <= set(selector.eliminated), "an eliminated hypothesis came back"
+        eliminated_so_far = set(selector.eliminated)
+        if k + 1 == half:
+            batch = eliminate_models(hypotheses, states[: half + 1], controls[:half])
+            assert selector.survivors == batch.survivors
+    batch = eliminate_models(hypotheses, states, controls)
+    assert selector.survivors == batch.survivors
+    assert 0 in selector.survivors
+    X, U, Xn = selector.transitions()
+    for m, certificate in selector.certificates.items():
+        assert certificate.recheck_transitions(hypotheses[m], X, U, Xn) > certificate.tolerance
+
+
+# ------------------------------------------------ generation against a dense LP
+def dense_reference_margin(system, states, controls):
+    """The margin LP over every transition with explicit w_n variables (independent code)."""
+    X, U, Xn = states[:-1], controls, states[1:]
+    n, p, d, r = len(U), system.nstates, system.nparams, system.ndisturbances
+    z = Xn - X @ system.A0.T - U @ system.B.T
+    E = np.stack([system.regressor(x) for x in X]) if n else np.zeros((0, p, d))
+    beta = np.abs(system.D) @ system.w.radius
+    beta[beta == 0] = 1.0
+    nvar = d + 1 + n * r
+    rows, rhs = [], []
+    for k in range(n):
+        for i in range(p):
+            for sign in (1.0, -1.0):
+                row = np.zeros(nvar)
+                # sign * (E theta + D w - z) - beta s <= 0
+                row[:d] = sign * E[k, i]
+                row[d] = -beta[i]
+                row[d + 1 + k * r : d + 1 + (k + 1) * r] = sign * system.D[i]
+                rows.append(row)
+                rhs.append(sign * z[k, i])
+    bounds = list(zip(system.theta.low, system.theta.high)) + [(0, None)]
+    bounds += list(zip(system.w.low, system.w.high)) * n
+    cost = np.zeros(nvar)
+    cost[d] = 1.0
+    res = linprog(cost, A_ub=np.array(rows), b_ub=np.array(rhs), bounds=bounds, method="highs")
+    assert res.status == 0, res.message
+    return res.fun
+
+
+@given(worlds(max_n=40))
+def test_constraint_generation_gives_the_dense_lp_margins_and_verdicts(world):
+    system, _, states, controls, rng = world
+    hypotheses = [system, wrong_variant(system, rng), wrong_variant(system, rng)]
+    generated = eliminate_models(hypotheses, states, controls, rounding_allowance=0.0)
+    all_rows = eliminate_models(hypotheses, states, controls, rounding_allowance=0.0, max_rounds=0)
+    assert all(r == 1 for r in all_rows.rounds)
+    for m, hyp in enumerate(hypotheses):
+        reference = dense_reference_margin(hyp, states, controls)
+        scale = 1 + abs(reference)
+        assert abs(generated.margins[m] - reference) <= 1e-6 * scale, (m, generated.margins[m], reference)
+        assert abs(all_rows.margins[m] - reference) <= 1e-6 * scale, (m, all_rows.margins[m], reference)
+        if abs(reference - ELIMINATION_MARGIN) > 1e-5 * scale:  # not on the knife edge
+            assert (m in generated.eliminated) == (reference > ELIMINATION_MARGIN)
+            assert (m in all_rows.eliminated) == (reference > ELIMINATION_MARGIN)
+
+
+@given(worlds(max_n=150))
+def test_certificates_recheck_and_bound_the_margin(world):
+    system, _, states, controls, rng = world
+    hypotheses = [system] + [wrong_variant(system, rng) for _ in range(3)]
+    result = eliminate_models(hypotheses, states, controls)
+    assert 0 in result.survivors
+    for m, certificate in result.eliminated.items():
+        rechecked = certificate.recheck(hypotheses[m], states, controls)
+        assert rechecked == pytest.approx(certificate.lower_bound, rel=1e-12, abs=1e-15)
+        assert certificate.verify(hypotheses[m], states, controls)
+        assert certificate.lower_bound <= result.margins[m] * (1 + 1e-7) + 1e-9
+        assert certificate.transitions.size >= 1
+        # the certificate's transitions alone already contradict the hypothesis
+        alone = ModelSelector([hypotheses[m]])
+        for k in certificate.transitions:
+            alone.add(states[k], controls[k], states[k + 1])
+        assert alone.eliminated == [0]
+    json.dumps(result.to_dict())
+
+
+# ------------------------------------------------------------- reference values
+def scalar_system():
+    return UncertainLinearSystem([[0.0]], [[[1.0]]], [[0.0]], w=Box([-0.1], [0.1]), theta=Box([0.0], [1.0]))
+
+
+def test_scalar_margin_and_box_by_hand():
+    system = scalar_system()
+    # x1 = theta * 1 + w: 1.5 needs w = 0.5 at theta = 1, i.e. W inflated by s = 4 radii
+    result = eliminate_models([system], [[1.0], [1.5]], [[0.0]])
+    assert result.survivors == []
+    assert result.margins[0] == pytest.approx(4.0, rel=1e-6)
+    certificate = result.eliminated[0]
+    assert certificate.lower_bound == pytest.approx(4.0, rel=1e-6)
+    assert certificate.transitions.tolist() == [0]
+    # x1 = 0.5: theta in [0.4, 0.6]
+    box = feasible_parameter_box(system, [[1.0], [0.5]], [[0.0]])
+    assert box.low[0] <= 0.4 <= box.low[0] + 1e-7
+    assert box.high[0] - 1e-7 <= 0.6 <= box.high[0]
+
+
+def test_scalar_box_of_two_transitions():
+    system = scalar_system()
+    X, U, Xn = np.array([[1.0], [2.0]]), np.zeros((2, 1)), np.array([[0.5], [1.1]])
+    selector = ModelSelector([system])
+    for k in range(2):
+        selector.add(X[k], U[k], Xn[k])
+    assert selector.survivors == [0]
+    # trajectory form of the same two transitions through an exact intermediate: x 1 -> 0.5, then 0.5 -> 0.275
+    box = feasible_parameter_box(system, [[1.0], [0.5], [0.275]], [[0.0], [0.0]])
+    # 0.5 = theta + w, 0.275 = 0.5 theta + w: theta in [0.4, 0.6] and [0.35, 0.75]
+    assert box.low[0] == pytest.approx(0.4, abs=1e-7) and box.low[0] <= 0.4
+    assert box.high[0] == pytest.approx(0.6, abs=1e-7) and box.high[0] >= 0.6
+
+
+def test_measurement_noise_bound_by_interval_arithmetic():
+    system = UncertainLinearSystem(
+        [[0.5, -1.0], [0.0, 0.2]], [[[1.0, 0.0], [0.0, -2.0]]], np.zeros((2, 1)),
+        w=Box([-0.1, -0.1], [0.1, 0.1]), theta=Box([-1.0], [0.5]),
+    )
+    # A(theta) = [[0.5 + t, -1], [0, 0.2 - 2 t]], t in [-1, 0.5]: max |.| = [[1, 1], [0, 2.2]]
+    bound = measurement_noise_bound(system, [0.1, 0.2])
+    expected = np.array([0.1, 0.2]) + np.array([[1.0, 1.0], [0.0, 2.2]]) @ np.array([0.1, 0.2])
+    assert np.all(bound >= expected)
+    np.testing.assert_allclose(bound, expected, rtol=1e-14)
+    assert np.array_equal(measurement_noise_bound(system, None), np.zeros(2))
+
+
+def test_without_the_noise_allowance_noisy_data_eliminates_the_true_model():
+    """The measurement-noise inflation is needed: the same data without it is rejected."""
+    rng = np.random.default_rng(3)
+    system = random_system(rng, 3, 2, 1, "identity", False)
+    theta = true_parameter(system, rng, True)
+    states, controls = simulate(system, theta, 200, rng)
+    measured = states + 0.3 * rng.choice((-1.0, 1.0), states.shape)
+    assert eliminate_models([system], measured, controls).survivors == []
+    assert eliminate_models([system], measured, controls, measurement_noise=0.3).survivors == [0]
+
+
+# ----------------------------------------------------------------------- power
+def robot(anisotropic: bool, input_gain: float = 1.0) -> UncertainLinearSystem:
+    """(px, py, vx, vy) with friction on the velocities, forward Euler with dt = 0.1."""
+    A = np.zeros((4, 4))
+    A[0, 2] = A[1, 3] = 1.0
+    if anisotropic:
+        phi = np.zeros((2, 4, 4))
+        phi[0, 2, 2] = phi[1, 3, 3] = -1.0
+        theta = Box([0.0, 0.0], [3.0, 3.0])
+    else:
+        phi = np.zeros((1, 4, 4))
+        phi[0, 2, 2] = phi[0, 3, 3] = -1.0
+        theta = Box([0.0], [3.0])
+    B = input_gain * np.vstack([np.zeros((2, 2)), np.eye(2)])
+    D = np.vstack([np.zeros((2, 2)), np.eye(2)])
+    return UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=Box.from_center(np.zeros(2), 0.1), theta=theta, dt=0.1)
+
+
+def transitions_to_elimination(true_system, true_theta, hypotheses, n_max, seed):
+    """Stream transitions of the true plant; return the step count at which each hypothesis fell."""
+    rng = np.random.default_rng(seed)
+    states, controls = simulate(true_system, true_theta, n_max, rng, w_mode="uniform", x0=np.zeros(4))
+    selector = ModelSelector(hypotheses)
+    fell: dict[int, int] = {}
+    for k in range(n_max):
+        selector.add(states[k], controls[k], states[k + 1])
+        for m in selector.eliminated:
+            fell.setdefault(m, k + 1)
+    return fell, selector
+
+
+def test_wrong_friction_structure_and_input_gain_are_eliminated():
+    truth = robot(anisotropic=True)
+    hypotheses = [truth, robot(anisotropic=False), robot(anisotropic=True, input_gain=1.5)]
+    fell, selector = transitions_to_elimination(truth, np.array([0.5, 2.0]), hypotheses, 300, seed=7)
+    print(f"transitions to elimination: isotropic friction {fell.get(1)}, input gain x1.5 {fell.get(2)}")
+    assert selector.survivors == [0]
+    assert fell[1] <= 100 and fell[2] <= 20
+
+
+# ------------------------------------------------------------------ bad input
+def test_error_messages():
+    system = scalar_system()
+    states, controls = np.zeros((6, 1)), np.zeros((5, 1))
+    with pytest.raises(InputError, match="at least one"):
+        eliminate_models([], states, controls)
+    with pytest.raises(InputError, match="single system"):
+        eliminate_models(system, states, controls)
+    with pytest.raises(InputError, match=r"hypotheses\[1\] must be an UncertainLinearSystem"):
+        eliminate_models([system, "model"], states, controls)
+    other = UncertainLinearSystem(np.eye(2), np.zeros((1, 2, 2)), np.zeros((2, 1)), w=Box.from_center(np.zeros(2), 0.1), theta=Box([0.0], [1.0]))
+    with pytest.raises(DimensionError, match=r"hypotheses\[1\] has \(nstates, ninputs\) = \(2, 1\).*\(1, 1\)"):
+        eliminate_models([system, other], states, controls)
+    with pytest.raises(DimensionError, match=r"states must have shape \(\*, 1\), got shape \(6, 2\)"):
+        eliminate_models([system], np.zeros((6, 2)), controls)
+    with pytest.raises(DimensionError, match=r"controls must have shape \(N, q\) = \(5, 1\) for states of shape \(6, 1\), got shape \(4, 1\)"):
+        eliminate_models([system], states, np.zeros((4, 1)))
+    with pytest.raises(DimensionError, match=r"states must be 2-dimensional, got shape \(6,\)"):
+        eliminate_models([system], np.zeros(6), controls)
+    bad = states.copy()
+    bad[2, 0] = np.nan
+    with pytest.raises(NonFiniteError, match="states contains NaN"):
+        eliminate_models([system], bad, controls)
+    with pytest.raises(NonFiniteError, match="controls contains NaN"):
+        eliminate_models([system], states, np.full((5, 1), np.inf))
+    with pytest.raises(DimensionError, match=r"measurement_noise must have shape \(1,\), got shape \(2,\)"):
+        eliminate_models([system], states, controls, measurement_noise=[0.1, 0.1])
+    with pytest.raises(InputError, match="measurement_noise must be >= 0"):
+        eliminate_models([system], states, controls, measurement_noise=-0.1)
+    with pytest.raises(InputError, match="tolerance must be > 0"):
+        eliminate_models([system], states, controls, tolerance=0.0)
+    with pytest.raises(InputError, match="max_rounds must be an integer"):
+        eliminate_models([system], states, controls, max_rounds=-1)
+    with pytest.raises(InputError, match="hypothesis must be an UncertainLinearSystem"):
+        feasible_parameter_box([system], states, controls)
+    selector = ModelSelector([system])
+    with pytest.raises(DimensionError, match=r"next_state must have shape \(1,\), got shape \(2,\)"):
+        selector.add([0.0], [0.0], [0.0, 1.0])
+    with pytest.raises(NonFiniteError, match="state contains NaN"):
+        selector.add([np.nan], [0.0], [0.0])
+    assert selector.ntransitions == 0
+    with pytest.raises(InputError, match="at least one"):
+        ModelSelector([])
+
+
+def test_inconsistent_hypothesis_has_no_parameter_box():
+    with pytest.raises(NoConsistentModel, match=r"margin 4.*> tolerance"):
+        feasible_parameter_box(scalar_system(), [[1.0], [1.5]], [[0.0]])
+
+
+def test_no_transition_keeps_everything_and_gives_the_prior():
+    system = scalar_system()
+    result = eliminate_models([system], [[0.3]], np.zeros((0, 1)))
+    assert result.survivors == [0] and result.margins == [0.0]
+    assert feasible_parameter_box(system, [[0.3]], np.zeros((0, 1))) == system.theta
+
+
+class _FakeResult:
+    def __init__(self, status):
+        self.status, self.message = status, f"fake status {status}"
+
+
+@pytest.mark.parametrize("status, reason", [(1, "iteration limit"), (2, "infeasible.*numerical failure"), (3, "unbounded"), (4, "numerical difficulties")])
+def test_every_highs_status_but_optimal_is_a_solver_failure(monkeypatch, status, reason):
+    monkeypatch.setattr(selection, "linprog", lambda *args, **kwargs: _FakeResult(status))
+    with pytest.raises(SolverFailure, match=rf"status {status} \({reason}"):
+        eliminate_models([scalar_system()], [[1.0], [1.5]], [[0.0]])
