@@ -15,9 +15,9 @@ from scipy.spatial import HalfspaceIntersection, QhullError
 
 from ._validation import as_finite_array
 from .errors import DimensionError, EmptySetError, InputError, SolverFailure
-from .sets import Box, Ellipsoid
+from .sets import Box, Ellipsoid, hypercube_signs
 
-__all__ = ["parameter_vertices", "box_halfspaces", "parallelotope_halfspaces", "polytope_vertices"]
+__all__ = ["parameter_vertices", "box_corners", "box_halfspaces", "parallelotope_halfspaces", "polytope_vertices"]
 
 #: Absolute error budget of qhull's vertices, relative to the coordinates' magnitude.
 #: The returned vertices are dilated about an interior point so that their hull
@@ -35,17 +35,32 @@ def box_halfspaces(box: Box) -> tuple[np.ndarray, np.ndarray]:
     return np.vstack([eye, -eye]), np.concatenate([box.high, -box.low])
 
 
+def _parallelotope(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
+    """Axes P (columns) and half-widths h of the enclosing parallelotope ``|P^T (t - c)| <= h``.
+
+    The half-widths are the ellipsoid's support ``radius sqrt(p_i^T G^-1 p_i)`` along the
+    computed axes (equal to ``radius / sqrt(l_i)`` for exact eigenvectors, and correct for
+    any direction, so rounding in the eigenvectors cannot cut the ellipsoid), grown by a
+    relative ``1e-12 + 16 d eps cond(G)`` for the rounding of that solve.
+    """
+    _, axes = ellipsoid.semi_axes()
+    eps = np.finfo(float).eps
+    support = ellipsoid.radius * np.sqrt(np.einsum("ji,ji->i", axes, np.linalg.solve(ellipsoid.gramian, axes)))
+    return axes, support * (1.0 + 1e-12 + 16 * ellipsoid.dim * eps * np.linalg.cond(ellipsoid.gramian))
+
+
 def parallelotope_halfspaces(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
-    """The enclosing parallelotope of `Ellipsoid.vertices` as ``{t : a t <= b}``.
+    """The enclosing parallelotope of the ellipsoid as ``{t : a t <= b}``.
 
     Notes
     -----
     With ``G = P diag(l) P^T`` the parallelotope is ``|P^T (t - c)|_i <= radius / sqrt(l_i)``
-    (DESIGN errata: the box of the ellipsoid's principal axes). Rows of ``a`` are unit vectors.
+    (DESIGN errata: the box of the ellipsoid's principal axes), see `_parallelotope`.
+    Rows of ``a`` are unit vectors.
     """
-    lengths, axes = ellipsoid.semi_axes()
+    axes, support = _parallelotope(ellipsoid)
     offset = axes.T @ ellipsoid.center
-    return np.vstack([axes.T, -axes.T]), np.concatenate([offset + lengths, -offset + lengths])
+    return np.vstack([axes.T, -axes.T]), np.concatenate([offset + support, -offset + support])
 
 
 def _chebyshev_center(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
@@ -121,6 +136,27 @@ def _drop_near_duplicates(points: np.ndarray, tol: float) -> np.ndarray:
     return np.array(kept)
 
 
+def box_corners(box: Box) -> np.ndarray:
+    """The 2^d corners of a box, each coordinate exactly ``low`` or ``high`` (no rounding).
+
+    `Box.vertices` computes ``center +- radius``, which can land one ulp inside the box.
+    """
+    return np.where(hypercube_signs(box.dim) > 0, box.high, box.low)
+
+
+def _dilated_parallelotope_vertices(ellipsoid: Ellipsoid) -> np.ndarray:
+    """The parallelotope's 2^d vertices ``c + P diag(h) s`` (as `Ellipsoid.vertices`), rounding-safe.
+
+    The half-widths come from `_parallelotope`; the vertices are then dilated about c
+    by their own rounding error, ``4 (d + 1) eps (|c| + sum h)``, over the smallest
+    half-width (the parallelotope's inradius, P being orthonormal).
+    """
+    axes, support = _parallelotope(ellipsoid)
+    vertices = ellipsoid.center + (hypercube_signs(ellipsoid.dim) * support) @ axes.T
+    vertex_error = 4 * (ellipsoid.dim + 1) * np.finfo(float).eps * (np.max(np.abs(ellipsoid.center)) + np.sum(support))
+    return ellipsoid.center + (1.0 + vertex_error / np.min(support)) * (vertices - ellipsoid.center)
+
+
 def _intersect_boxes(box: Box, prior: Box, what: str) -> Box:
     try:
         return box.intersect(prior)
@@ -138,7 +174,7 @@ def _ellipsoid_in_box_vertices(ellipsoid: Ellipsoid, prior: Box) -> np.ndarray:
     vertices = polytope_vertices(np.vstack([a_par, a_box]), np.concatenate([b_par, b_box]))
     if vertices is None:
         # Flat intersection (e.g. a prior side of zero width): the box, which contains it, is enumerable.
-        return box.vertices()
+        return box_corners(box)
     return vertices
 
 
@@ -149,13 +185,13 @@ def _array_in_box_vertices(vertices: np.ndarray, prior: Box) -> np.ndarray:
     hull_box = _intersect_boxes(Box(vertices.min(axis=0), vertices.max(axis=0)), prior, "the vertices' bounding box")
     d = vertices.shape[1]
     if vertices.shape[0] <= d or np.linalg.matrix_rank(vertices[1:] - vertices[0]) < d:
-        return hull_box.vertices()  # a flat hull: its bounding box (∩ prior) contains co{V} ∩ prior
+        return box_corners(hull_box)  # a flat hull: its bounding box (∩ prior) contains co{V} ∩ prior
     from scipy.spatial import ConvexHull
 
     equations = ConvexHull(vertices).equations
     a_box, b_box = box_halfspaces(hull_box)
     clipped = polytope_vertices(np.vstack([equations[:, :-1], a_box]), np.concatenate([-equations[:, -1], b_box]))
-    return hull_box.vertices() if clipped is None else clipped
+    return box_corners(hull_box) if clipped is None else clipped
 
 
 def parameter_vertices(parameters, prior: Box | None = None) -> np.ndarray:
@@ -184,9 +220,10 @@ def parameter_vertices(parameters, prior: Box | None = None) -> np.ndarray:
 
     Notes
     -----
-    - Box: its 2^d corners (intersected with ``prior`` first; box ∩ box is exact).
+    - Box: its 2^d corners, exactly (intersected with ``prior`` first; box ∩ box is exact).
     - Ellipsoid, no prior: the 2^d vertices of the enclosing parallelotope of the
-      errata, ``c + radius P diag(l)^(-1/2) h``.
+      errata, ``c + radius P diag(l)^(-1/2) h``, grown by rounding-level margins so
+      that their hull contains the ellipsoid in floating point too.
     - Ellipsoid with prior: clipping the parallelotope's vertices to the prior is NOT
       sound (the clipped hull can miss parts of the ellipsoid). The result here is the
       exact vertex set of parallelotope ∩ bounding box ∩ prior, three sound
@@ -208,12 +245,12 @@ def parameter_vertices(parameters, prior: Box | None = None) -> np.ndarray:
         if prior is not None:
             if prior.dim != parameters.dim:
                 raise DimensionError(f"prior must have dimension {parameters.dim} (the parameter box's), got {prior.dim}")
-            return _intersect_boxes(parameters, prior, "the parameter box").vertices()
-        return parameters.vertices()
+            return box_corners(_intersect_boxes(parameters, prior, "the parameter box"))
+        return box_corners(parameters)
     if isinstance(parameters, Ellipsoid):
         if prior is not None:
             return _ellipsoid_in_box_vertices(parameters, prior)
-        return parameters.vertices()
+        return _dilated_parallelotope_vertices(parameters)
     vertices = as_finite_array("parameters", parameters, ndim=2)
     if vertices.shape[0] == 0 or vertices.shape[1] == 0:
         raise DimensionError(f"parameters must have shape (k, d) with k, d >= 1, got shape {vertices.shape}")

@@ -21,19 +21,18 @@ from .system import UncertainLinearSystem
 
 __all__ = ["Tube", "IntervalPredictor", "predict_tube", "ROUNDING_TOL", "interval_matvec"]
 
-#: Relative tolerance that covers floating-point rounding: the bounds are computed in
-#: round-to-nearest float64, so a bound may be off by a few ulps per step; a state x
-#: counts as inside when ``lower - tol (1 + |x|) <= x <= upper + tol (1 + |x|)``.
+#: Default relative tolerance of `Tube.contains`: a state x counts as inside when
+#: ``lower - tol (1 + |x|) <= x <= upper + tol (1 + |x|)``. The tube's own bounds are
+#: rounded outward (they contain the exact trajectories); this slack is for the
+#: rounding in the caller's floating-point simulation of the states it checks.
 ROUNDING_TOL = 1e-9
 
-#: Largest condition number of a change of basis that ``basis="auto"`` accepts. The
-#: internal coordinates use the computed inverse of T, whose relative error is about
-#: cond(T) * eps; this cap keeps it far below `ROUNDING_TOL`.
+#: Largest condition number of a change of basis that ``basis="auto"`` accepts (the
+#: outward-rounding margins, and the wrapping of entering and leaving, grow with it).
 AUTO_BASIS_MAX_CONDITION = 1e4
 
-#: Largest condition number accepted for a user-given basis. The predictor uses the
-#: computed T^-1 and T as if they were exact inverses; the mismatch, about
-#: cond(T) * eps per step relative to |x|, stays below `ROUNDING_TOL` under this cap.
+#: Largest condition number accepted for a user-given basis (the mismatch between the
+#: computed T and T^-1 is bounded and accounted for, but grows with it).
 BASIS_MAX_CONDITION = 1e6
 
 #: ``basis="auto"`` adopts a candidate only if it narrows the trial tube by this factor.
@@ -41,6 +40,18 @@ AUTO_BASIS_MIN_GAIN = 1e-6
 
 #: Number of steps of the trial tube by which ``basis="auto"`` compares candidate bases.
 AUTO_BASIS_HORIZON = 20
+
+
+#: The unit roundoff of float64, 2^-53.
+UNIT_ROUNDOFF = np.finfo(float).eps / 2
+
+
+def _gamma(n: int) -> float:
+    """Twice the classical bound ``n u / (1 - n u)`` on the relative rounding error of an n-term sum.
+
+    The factor 2 leaves room for the rounding of the error bound itself.
+    """
+    return 2.0 * n * UNIT_ROUNDOFF / (1.0 - n * UNIT_ROUNDOFF)
 
 
 def interval_matvec(matrix: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -103,7 +114,7 @@ class Tube:
             A trajectory of shape (H+1, p), or a batch of shape (..., H+1, p).
         tol
             Relative slack: x is inside when ``lower - tol (1 + |x|) <= x <= upper + tol (1 + |x|)``.
-            None means `ROUNDING_TOL` (the bounds are not rounded outward); 0 is exact.
+            None means `ROUNDING_TOL`, for states from a floating-point simulation; 0 is exact.
         """
         x = as_finite_array("states", states)
         if x.ndim < 2 or x.shape[-2:] != self.lower.shape:
@@ -236,6 +247,17 @@ class IntervalPredictor:
     candidate is kept only if it narrows a trial tube (see ``_choose_basis``). Every
     T gives a sound predictor: entering and leaving the basis use exact interval
     products, so keeping the identity is never less sound, only possibly wider.
+
+    Rounding: every bound is rounded outward, so the tube contains the EXACT
+    trajectories, not just up to a tolerance (in a non-normal system, rounding errors
+    of an interval recursion grow like ``rho(|M|)^n``, faster than the states, so a
+    fixed relative tolerance would not do). Each step subtracts a rigorous bound
+    ``max(|z_lo|, |z_hi|) @ G^T + |u| @ H^T + g`` on its floating-point error
+    (``gamma_n = 2 n u / (1 - n u)`` per n-term sum, u = 2^-53, plus the rounding of
+    forming ``A(v_k)``, of the basis change and of the mismatch between the computed
+    T and T^-1); n includes the final additions, so the rounded results are still
+    outward. The cost is one more small matrix product per step; the margins are of
+    order eps relative to |x|.
     """
 
     def __init__(self, system: UncertainLinearSystem, parameters=None, *, basis=None) -> None:
@@ -248,7 +270,12 @@ class IntervalPredictor:
                 f"parameters must have dimension {system.nparams} (phi has shape {system.phi.shape}), "
                 f"got vertices of shape {vertices.shape}"
             )
-        matrices = np.unique(system.A(vertices).reshape(len(vertices), p * p), axis=0).reshape(-1, p, p)
+        raw = system.A(vertices)
+        # Rounding in forming A(v) = A0 + sum_i v_i phi_i (d + 1 terms), one bound for all vertices.
+        formation_error = _gamma(system.nparams + 1) * np.max(
+            np.abs(system.A0) + np.tensordot(np.abs(vertices), np.abs(system.phi), axes=1), axis=0
+        )
+        matrices = np.unique(raw.reshape(len(vertices), p * p), axis=0).reshape(-1, p, p)
         self.system = system
         self.basis_note = ""
         if basis is None:
@@ -263,15 +290,38 @@ class IntervalPredictor:
             if not condition <= BASIS_MAX_CONDITION:
                 raise InputError(f"basis must be invertible with condition number <= {BASIS_MAX_CONDITION:g}, got {condition:.3g}")
         self._transform = transform
+        abs_matrices = np.max(np.abs(matrices), axis=0)
         if transform is None:
             self.basis = frozen_copy(np.eye(p))
             self._inverse = None
             B, D = system.B, system.D
+            matrix_error, B_error, D_error = formation_error, np.zeros_like(B), np.zeros_like(D)
         else:
             self.basis = frozen_copy(transform)
-            self._inverse = np.linalg.inv(transform)
-            matrices = self._inverse @ matrices @ transform
-            B, D = self._inverse @ system.B, self._inverse @ system.D
+            inverse = np.linalg.inv(transform)
+            self._inverse = inverse
+            abs_t, abs_inv = np.abs(transform), np.abs(inverse)
+            # The internal state is z = inverse @ x exactly, so x = S z with S the exact
+            # inverse of `inverse`; bound |S - T| from the residual R = I - inverse @ T.
+            residual = np.abs(np.eye(p) - inverse @ transform) + _gamma(p + 1) * (np.eye(p) + abs_inv @ abs_t)
+            r = float(np.max(residual.sum(axis=1)))
+            if not r < 0.5:
+                raise InputError(f"basis is too ill-conditioned for rigorous bounds: ||I - T^-1 T|| bound {r:.3g}")
+            inverse_error = abs_t @ residual
+            inverse_error = inverse_error + (r / (1 - r)) * inverse_error.sum(axis=1, keepdims=True)
+            self._leave_error = _gamma(2 * p + 1) * abs_t + inverse_error
+            self._enter_error = _gamma(2 * p + 1) * abs_inv
+            matrices = inverse @ matrices @ transform
+            # Target: inverse @ A_exact(v) @ S. Error: rounding of the triple product, of
+            # forming A(v), and of using T for S.
+            matrix_error = (
+                _gamma(2 * p + 1) * abs_inv @ abs_matrices @ abs_t
+                + abs_inv @ formation_error @ abs_t
+                + abs_inv @ (abs_matrices + formation_error) @ inverse_error
+            )
+            B, D = inverse @ system.B, inverse @ system.D
+            B_error, D_error = _gamma(p) * abs_inv @ np.abs(system.B), _gamma(p) * abs_inv @ np.abs(system.D)
+            abs_matrices = np.max(np.abs(matrices), axis=0)
         self.vertex_matrices = frozen_copy(matrices)
         k = matrices.shape[0]
         stacked = matrices.reshape(k * p, p)
@@ -283,7 +333,20 @@ class IntervalPredictor:
         self._nvertices, self._p = k, p
         self._B_T = np.ascontiguousarray(B.T)
         w_lo, w_hi = interval_matvec(D, system.w.low, system.w.high)
+        w_max = np.maximum(np.abs(system.w.low), np.abs(system.w.high))
+        w_error = _gamma(2 * system.ndisturbances + 1) * np.abs(D) @ w_max + D_error @ w_max
         self._w_lo, self._w_hi = w_lo, w_hi
+        # Outward rounding: the step's error is at most  m @ G.T + |u| @ H.T + g  with
+        # m = max(|z_lo|, |z_hi|); see the class Notes. The n-term sum counts the 2p
+        # products, the q control terms, the constant, the margin and the final rounding.
+        gamma_step = _gamma(2 * p + system.ninputs + 5)
+        safety = 1.0 + 1e-10  # covers the rounding in evaluating the bound itself
+        self._error_state_T = np.ascontiguousarray(safety * (matrix_error + gamma_step * abs_matrices).T)
+        self._error_input_T = np.ascontiguousarray(safety * (B_error + gamma_step * np.abs(B)).T)
+        # Underflow: each of the terms may lose up to the smallest subnormal.
+        underflow = (2 * p + system.ninputs + 5) * 2.0 * np.finfo(float).smallest_subnormal
+        constant = safety * (w_error + gamma_step * np.maximum(np.abs(w_lo), np.abs(w_hi))) + underflow
+        self._lower_shift, self._upper_shift = w_lo - constant, w_hi + constant
 
     @property
     def nvertices(self) -> int:
@@ -291,23 +354,26 @@ class IntervalPredictor:
         return self._nvertices
 
     def enter(self, lower, upper) -> tuple[np.ndarray, np.ndarray]:
-        """The box ``[lower, upper]`` (original coordinates, (..., p)) as an internal box."""
+        """The box ``[lower, upper]`` (original coordinates, (..., p)) as an internal box (rounded outward)."""
         lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
         if self._inverse is None:
             return lower.copy(), upper.copy()
-        return interval_matvec(self._inverse, lower, upper)
+        z_lower, z_upper = interval_matvec(self._inverse, lower, upper)
+        return _widen(z_lower, z_upper, np.maximum(np.abs(lower), np.abs(upper)) @ self._enter_error.T)
 
     def leave(self, lower, upper) -> tuple[np.ndarray, np.ndarray]:
-        """An internal box back in original coordinates (exact interval product with T)."""
+        """An internal box back in original coordinates (interval product with T, rounded outward)."""
         lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
         if self._transform is None:
             return lower.copy(), upper.copy()
-        return interval_matvec(self._transform, lower, upper)
+        x_lower, x_upper = interval_matvec(self._transform, lower, upper)
+        return _widen(x_lower, x_upper, np.maximum(np.abs(lower), np.abs(upper)) @ self._leave_error.T)
 
     def step(self, lower: np.ndarray, upper: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """One step of the predictor on internal boxes (..., p) under controls (..., q).
 
         Leading dimensions broadcast. No validation: this is a planner's hot loop.
+        The result is rounded outward (see the class Notes).
         """
         k, p = self._nvertices, self._p
         candidates = np.concatenate([lower, upper], axis=-1) @ self._product
@@ -320,7 +386,13 @@ class IntervalPredictor:
                 new_lower = np.minimum(new_lower, candidates[..., j * p : (j + 1) * p])
                 new_upper = np.maximum(new_upper, candidates[..., (k + j) * p : (k + j + 1) * p])
         drift = u @ self._B_T
-        return new_lower + drift + self._w_lo, new_upper + drift + self._w_hi
+        error = np.maximum(np.abs(lower), np.abs(upper)) @ self._error_state_T + np.abs(u) @ self._error_input_T
+        return new_lower + (drift - error) + self._lower_shift, new_upper + (drift + error) + self._upper_shift
+
+
+def _widen(lower: np.ndarray, upper: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``[lower - error, upper + error]``, each bound then moved one ulp outward."""
+    return np.nextafter(lower - error, -np.inf), np.nextafter(upper + error, np.inf)
 
 
 def _check_no_overflow(lower: np.ndarray, upper: np.ndarray) -> None:
@@ -359,8 +431,9 @@ def predict_tube(system: UncertainLinearSystem, x0: Box, controls, parameters=No
     -----
     Guarantee (the inclusion property, eq. (7)), for every dt and every system, Metzler
     or not: for all theta in ``parameters``, all x0 in the box and all ``w_n`` in
-    ``system.w``, ``lower[n] <= x_n <= upper[n]``, up to floating-point rounding
-    (`ROUNDING_TOL`). See `IntervalPredictor` for the one-step bound used.
+    ``system.w``, ``lower[n] <= x_n <= upper[n]``; the bounds are rounded outward, so
+    this holds for the exact x_n (see `IntervalPredictor` for the one-step bound and
+    the rounding).
     ``parameters`` is used as given, not intersected with ``system.theta``.
 
     Raises `NonFiniteError` if the bounds overflow the float range.

@@ -161,6 +161,55 @@ def test_auto_basis_is_sound_where_it_changes_the_basis(seed, p, d, kind):
     assert tube.contains(states)
 
 
+def test_outward_rounding_keeps_a_non_normal_tube_sound():
+    # A point tube in a basis where rho(|T^-1 A T|) = 14.7 but rho(A) = 1.5: rounding
+    # errors of the interval recursion grow 10x faster than the state. Without outward
+    # rounding the bounds cross and miss the trajectory by ~3e-5 relative.
+    rng = np.random.default_rng(1)
+    p, d, dt = int(rng.integers(1, 7)), int(rng.integers(1, 5)), float(rng.uniform(0.01, 1))
+    assert (p, d) == (3, 3)
+    system = random_system(rng, p, d, 2, 3, dt, metzler=False)
+    theta, w = rng.normal(size=d), rng.normal(size=3)
+    point_system = UncertainLinearSystem(system.A0, system.phi, system.B, D=system.D, w=Box(w, w), theta=Box(theta, theta))
+    x, controls, basis = rng.normal(size=p), rng.normal(size=(HORIZON, 2)), random_basis(rng, p)
+    states = [x]
+    for u in controls:
+        states.append(point_system.step(states[-1], u, theta, w))
+    states = np.array(states)
+    # The same recursion in round-to-nearest without the margins, started from bounds
+    # crossed by one ulp (as rounding can leave them): the crossing grows like 14.7^n.
+    inverse = np.linalg.inv(basis)
+    matrix = inverse @ point_system.A(theta) @ basis
+    pos, neg = np.maximum(matrix, 0), np.maximum(-matrix, 0)
+    z_lo = inverse @ x
+    z_hi = np.nextafter(z_lo, -np.inf)
+    naive_lower = [x]
+    for u in controls:
+        shift = inverse @ point_system.B @ u + inverse @ point_system.D @ w
+        z_lo, z_hi = pos @ z_lo - neg @ z_hi + shift, pos @ z_hi - neg @ z_lo + shift
+        naive_lower.append(np.maximum(basis, 0) @ z_lo - np.maximum(-basis, 0) @ z_hi)
+    assert np.max((np.array(naive_lower) - states) / (1 + np.abs(states))) > 1e-6
+    tube = predict_tube(point_system, Box(x, x), controls, basis=basis)
+    assert tube.contains(states, tol=1e-13)
+    assert np.all(tube.lower <= tube.upper)
+    # The same non-normal matrix as the system itself, identity basis: the step's own margins.
+    internal = UncertainLinearSystem(matrix, np.zeros((1, p, p)), inverse @ point_system.B, D=inverse @ point_system.D,
+                                     w=Box(w, w), theta=Box(np.zeros(1), np.zeros(1)))
+    z0 = inverse @ x
+    internal_states = [z0]
+    for u in controls:
+        internal_states.append(internal.step(internal_states[-1], u, np.zeros(1), w))
+    internal_tube = predict_tube(internal, Box(z0, z0), controls)
+    assert internal_tube.contains(np.array(internal_states), tol=1e-13)
+    assert np.all(internal_tube.lower <= internal_tube.upper)
+
+
+def test_box_corners_are_exact():
+    box = Box(np.array([0.1, -0.7]), np.array([0.3, 0.2]))
+    corners = parameter_vertices(box)
+    assert set(corners[:, 0]) == {0.1, 0.3} and set(corners[:, 1]) == {-0.7, 0.2}
+
+
 def test_overflow_is_reported():
     system = UncertainLinearSystem(
         1e3 * np.eye(2), np.zeros((1, 2, 2)), np.ones((2, 1)), w=Box.from_center(np.zeros(2), 1.0), theta=Box(np.zeros(1), np.ones(1))
@@ -216,23 +265,35 @@ def test_at_least_as_tight_as_the_errata_predictor(seed, p, d, dt):
         assert np.all(tube.lower[n + 1] >= lower - slack) and np.all(tube.upper[n + 1] <= upper + slack)
 
 
-def test_tube_of_a_point_without_uncertainty_is_the_simulation():
-    rng = np.random.default_rng(7)
-    system = random_system(rng, 4, 2, 2, 3, 0.3, metzler=False)
-    theta = rng.normal(size=2)
+@given(seed=st.integers(0, 2**32 - 1), p=st.integers(1, 6), d=st.integers(1, 4), dt=st.floats(0.01, 1.0), basis=st.sampled_from([None, "random"]))
+def test_tube_of_a_point_without_uncertainty_is_the_simulation(seed, p, d, dt, basis):
+    rng = np.random.default_rng(seed)
+    system = random_system(rng, p, d, 2, 3, dt, metzler=False)
+    theta = rng.normal(size=d)
     w = rng.normal(size=3)
     point_system = UncertainLinearSystem(
         system.A0, system.phi, system.B, D=system.D, w=Box(w, w), theta=Box(theta, theta)
     )
-    x = rng.normal(size=4)
+    x = rng.normal(size=p)
     controls = rng.normal(size=(HORIZON, 2))
-    tube = predict_tube(point_system, Box(x, x), controls)
+    tube = predict_tube(point_system, Box(x, x), controls, basis=random_basis(rng, p) if basis else None)
     states = [x]
     for u in controls:
         states.append(point_system.step(states[-1], u, theta, w))
-    np.testing.assert_allclose(tube.lower, np.array(states), rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(tube.upper, np.array(states), rtol=1e-12, atol=1e-12)
-    assert tube.contains(np.array(states), tol=0.0) or np.allclose(tube.widths, 0)
+    states = np.array(states)
+    assert tube.contains(states)
+    if basis is None:
+        # The tube is the simulation up to its outward rounding, whose width obeys
+        # W+ = |A| W + 2 c (|A|_formed |x| + |B| |u| + |D| |w|), c a generous multiple of eps.
+        formed = np.abs(system.A0) + np.tensordot(np.abs(theta), np.abs(system.phi), axes=1)
+        c = 1e-13
+        bound = np.zeros(p)
+        for n in range(HORIZON):
+            assert np.all(tube.widths[n] <= bound)
+            bound = np.abs(point_system.A(theta)) @ bound + 2 * c * (
+                formed @ np.abs(states[n]) + np.abs(system.B) @ np.abs(controls[n]) + np.abs(system.D) @ np.abs(w)
+            )
+        assert np.all(tube.widths[HORIZON] <= bound)
 
 
 @given(seed=st.integers(0, 2**32 - 1), p=st.integers(1, 5), d=st.integers(1, 3), dt=st.floats(0.01, 1.0), fixed_basis=st.booleans())
