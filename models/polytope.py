@@ -35,6 +35,19 @@ def box_halfspaces(box: Box) -> tuple[np.ndarray, np.ndarray]:
     return np.vstack([eye, -eye]), np.concatenate([box.high, -box.low])
 
 
+def _support(ellipsoid: Ellipsoid, directions: np.ndarray) -> np.ndarray:
+    """``radius sqrt(p^T G^-1 p)`` for each column p, grown by ``1e-12 + 16 d eps cond(G)`` for rounding."""
+    eps = np.finfo(float).eps
+    support = ellipsoid.radius * np.sqrt(np.einsum("ji,ji->i", directions, np.linalg.solve(ellipsoid.gramian, directions)))
+    return support * (1.0 + 1e-12 + 16 * ellipsoid.dim * eps * np.linalg.cond(ellipsoid.gramian))
+
+
+def _bounding_box(ellipsoid: Ellipsoid) -> Box:
+    """The ellipsoid's bounding box, from its support along the axes (rounding-safe)."""
+    half_width = _support(ellipsoid, np.eye(ellipsoid.dim))
+    return Box(ellipsoid.center - half_width, ellipsoid.center + half_width)
+
+
 def _parallelotope(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
     """Axes P (columns) and half-widths h of the enclosing parallelotope ``|P^T (t - c)| <= h``.
 
@@ -44,9 +57,7 @@ def _parallelotope(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
     relative ``1e-12 + 16 d eps cond(G)`` for the rounding of that solve.
     """
     _, axes = ellipsoid.semi_axes()
-    eps = np.finfo(float).eps
-    support = ellipsoid.radius * np.sqrt(np.einsum("ji,ji->i", axes, np.linalg.solve(ellipsoid.gramian, axes)))
-    return axes, support * (1.0 + 1e-12 + 16 * ellipsoid.dim * eps * np.linalg.cond(ellipsoid.gramian))
+    return axes, _support(ellipsoid, axes)
 
 
 def parallelotope_halfspaces(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
@@ -168,7 +179,7 @@ def _ellipsoid_in_box_vertices(ellipsoid: Ellipsoid, prior: Box) -> np.ndarray:
     """Vertices of (parallelotope ∩ bounding box ∩ prior), a sound enclosure of ellipsoid ∩ prior."""
     if prior.dim != ellipsoid.dim:
         raise DimensionError(f"prior must have dimension {ellipsoid.dim} (the ellipsoid's), got {prior.dim}")
-    box = _intersect_boxes(ellipsoid.bounding_box(), prior, "the ellipsoid's bounding box")
+    box = _intersect_boxes(_bounding_box(ellipsoid), prior, "the ellipsoid's bounding box")
     a_par, b_par = parallelotope_halfspaces(ellipsoid)
     a_box, b_box = box_halfspaces(box)
     vertices = polytope_vertices(np.vstack([a_par, a_box]), np.concatenate([b_par, b_box]))

@@ -89,6 +89,19 @@ def test_ellipsoid_with_prior_contains_the_intersection(seed, d):
     assert np.all(in_hull(ellipsoid.vertices(), vertices))
 
 
+@given(seed=st.integers(0, 2**32 - 1), d=st.integers(2, 4), log_condition=st.floats(0, 8))
+def test_ill_conditioned_ellipsoids_are_contained(seed, d, log_condition):
+    rng = np.random.default_rng(seed)
+    rotation, _ = np.linalg.qr(rng.normal(size=(d, d)))
+    spectrum = np.logspace(0, log_condition, d)
+    ellipsoid = Ellipsoid(rng.normal(size=d) * 10, rotation @ np.diag(spectrum) @ rotation.T, 1.0)
+    points = ellipsoid_points(rng, ellipsoid, 500)
+    assert np.all(in_hull(parameter_vertices(ellipsoid), points))
+    prior = Box(ellipsoid.center - 0.5 / np.sqrt(spectrum[0]), ellipsoid.center + 0.5 / np.sqrt(spectrum[0]))
+    inside = points[np.all((points >= prior.low) & (points <= prior.high), axis=1)]
+    assert np.all(in_hull(parameter_vertices(ellipsoid, prior), inside))
+
+
 def test_clipping_vertices_would_be_unsound_but_the_intersection_is_not():
     # A thin ellipsoid along the diagonal; the prior cuts off its two tips in x.
     rotation = np.array([[1.0, -1.0], [1.0, 1.0]]) / np.sqrt(2)
