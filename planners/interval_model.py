@@ -16,8 +16,6 @@ unchecked ``box_minimum_raw`` with the same meaning, used on the hot path).
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
 from ..models._validation import as_finite_array
@@ -30,12 +28,36 @@ from .controllers import ControllerBank
 __all__ = ["BoxState", "IntervalModel"]
 
 
-class BoxState(NamedTuple):
-    """A planner state of `IntervalModel`: the box ``[lower, upper]`` at sub-step ``time``."""
+class BoxState:
+    """A planner state of `IntervalModel`: the box ``[lower, upper]`` at sub-step ``time``.
 
-    lower: np.ndarray
-    upper: np.ndarray
-    time: int
+    Immutable by convention (its arrays are read-only views). ``lower`` and ``upper``
+    have shape (p,), or (M, p) for the states of linked models (one box per
+    hypothesis). ``z`` is the same box as ``[-lower | upper]``, the form the
+    arithmetic works on (computed on demand when not given).
+    """
+
+    __slots__ = ("lower", "upper", "time", "_z")
+
+    def __init__(self, lower, upper, time: int, z=None) -> None:
+        self.lower = lower
+        self.upper = upper
+        self.time = time
+        self._z = z
+
+    @property
+    def z(self) -> np.ndarray:
+        if self._z is None:
+            z = np.concatenate([-np.asarray(self.lower, dtype=float), np.asarray(self.upper, dtype=float)], axis=-1)
+            z.setflags(write=False)
+            self._z = z
+        return self._z
+
+    def __iter__(self):
+        return iter((self.lower, self.upper, self.time))
+
+    def __repr__(self) -> str:
+        return f"BoxState(lower={np.asarray(self.lower).tolist()}, upper={np.asarray(self.upper).tolist()}, time={self.time})"
 
 
 def _check_substeps(substeps) -> int:
@@ -106,8 +128,12 @@ class _SubstepTimes:
 class _IntervalCore:
     """The batched arithmetic of one or several hypotheses under every controller.
 
-    Boxes are arrays (M, A', p): M hypotheses (``members``) times A' actions. Every
-    array below is precomputed; `propagate` runs on raw arrays only.
+    A box is stored as ``z = [-lower | upper]`` (shape (..., 2p)). For a fixed matrix
+    M the exact box of ``{M x : lower <= x <= upper}`` is then ``z @ [[M+^T, M-^T],
+    [M-^T, M+^T]]`` (``M+ = max(M, 0)``, ``M- = max(-M, 0)``): one product, and the
+    bound over the k vertex matrices is one max over k. Boxes are arrays (M, A', 2p):
+    M hypotheses (``members``) times A' actions. Everything is precomputed;
+    `propagate` runs on raw arrays only.
     """
 
     def __init__(self, members, reward_minimum, bank: ControllerBank, substeps: int) -> None:
@@ -116,12 +142,12 @@ class _IntervalCore:
         self.substeps = substeps
         self.times = _SubstepTimes(substeps)
         systems = [system for system, _ in members]
-        self.M = M = len(members)
+        self.M = len(members)
         self.p = p = systems[0].nstates
         predictors = [IntervalPredictor(system, parameters) for system, parameters in members]
         self.predictors = predictors
         k = max(pred.nvertices for pred in predictors)
-        # pad each hypothesis to k vertex matrices by repeating one (harmless under min / max)
+        # pad each hypothesis to k vertex matrices by repeating one (harmless under max)
         vertices = np.stack(
             [np.concatenate([pred.vertex_matrices, np.repeat(pred.vertex_matrices[:1], k - pred.nvertices, axis=0)])
              for pred in predictors]
@@ -129,7 +155,6 @@ class _IntervalCore:
         B = np.stack([system.B for system in systems])  # (M, p, q)
         self.k = k
         self.per_action = bank.has_feedback
-        # columns: [-(lower candidates) | upper candidates], so that one max over k gives both bounds
         self.open_product = self._product(vertices)  # (M, 2p, 2kp)
         if self.per_action:
             feedback = np.einsum("mpq,aqr->mapr", B, bank.gains)  # B_m K_a
@@ -140,47 +165,57 @@ class _IntervalCore:
         w = [interval_matvec(system.D, system.w.low, system.w.high) for system in systems]
         self.w_lo = np.stack([lo for lo, _ in w])[:, None, :]  # (M, 1, p)
         self.w_hi = np.stack([hi for _, hi in w])[:, None, :]
+        self.w_z = np.concatenate([-self.w_lo, self.w_hi], axis=-1)  # (M, 1, 2p)
         drift = np.einsum("mpq,aq->map", B, bank.offsets)  # (M, A, p): B_m c_a
-        self.drift_lo = drift + self.w_lo
-        self.drift_hi = drift + self.w_hi
+        self.drift_z = np.concatenate([-drift, drift], axis=-1) + self.w_z  # (M, A, 2p)
         self.B_pos = np.maximum(B, 0.0)
         self.B_neg = np.maximum(-B, 0.0)
         self.K_pos = np.maximum(bank.gains, 0.0)
         self.K_neg = np.maximum(-bank.gains, 0.0)
 
     def _product(self, matrices):
-        """``[z_lo | z_hi] @ product = [-(M+ z_lo - M- z_hi) | M+ z_hi - M- z_lo]`` for each of k matrices."""
-        p, k = self.p, matrices.shape[-3]
-        stacked = matrices.reshape(*matrices.shape[:-3], k * p, p)
-        pos_t = np.swapaxes(np.maximum(stacked, 0.0), -1, -2)  # (..., p, kp)
-        neg_t = np.swapaxes(np.maximum(-stacked, 0.0), -1, -2)
-        top = np.concatenate([-pos_t, -neg_t], axis=-1)  # rows for z_lo
-        bottom = np.concatenate([neg_t, pos_t], axis=-1)  # rows for z_hi
-        return np.ascontiguousarray(np.concatenate([top, bottom], axis=-2))
+        """``[[M+^T, M-^T], [M-^T, M+^T]]`` for each of the k matrices, side by side: (..., 2p, 2kp).
 
-    def substep(self, lower, upper, index):
-        """One sub-step of boxes (M, A', p) under the actions ``index`` (None = all, in order)."""
-        M, k, p = self.M, self.k, self.p
-        z = np.concatenate([lower, upper], axis=-1)
+        The columns are ordered (bound, vertex, coordinate), so that the product's
+        result reshapes to (..., 2, k, p).
+        """
+        p, k = self.p, matrices.shape[-3]
+        pos = np.maximum(matrices, 0.0)
+        neg = np.maximum(-matrices, 0.0)
+        # rows i of z (for -lower, then upper), columns (bound b, vertex j, coordinate r)
+        product = np.empty(matrices.shape[:-3] + (2, p, 2, k, p))
+        pos_t = np.swapaxes(pos, -1, -2)  # (..., k, i, r)
+        neg_t = np.swapaxes(neg, -1, -2)
+        product[..., 0, :, 0, :, :] = np.moveaxis(pos_t, -3, -2)  # -lower -> -(new lower): M+
+        product[..., 0, :, 1, :, :] = np.moveaxis(neg_t, -3, -2)  # -lower -> new upper: M-
+        product[..., 1, :, 0, :, :] = np.moveaxis(neg_t, -3, -2)  # upper -> -(new lower): M-
+        product[..., 1, :, 1, :, :] = np.moveaxis(pos_t, -3, -2)  # upper -> new upper: M+
+        return np.ascontiguousarray(product.reshape(matrices.shape[:-3] + (2 * p, 2 * k * p)))
+
+    def substep(self, z, index):
+        """One sub-step of boxes z = [-lower | upper] under the actions ``index`` (None = all).
+
+        ``z`` has shape (M or 1, A' or 1, 2p): a box shared by all actions (or all
+        hypotheses) is propagated once and broadcast against the per-action terms.
+        """
+        k, p = self.k, self.p
         if self.per_action:
             product = self.product if index is None else self.product[:, index]
             candidates = np.matmul(z[..., None, :], product)[..., 0, :]
         else:
             candidates = np.matmul(z, self.open_product)
-        n = z.shape[1]
-        bounds = candidates.reshape(M, n, 2, k, p).max(axis=3) if k > 1 else candidates.reshape(M, n, 2, p)
-        if index is None:
-            new_lower = self.drift_lo - bounds[:, :, 0]
-            new_upper = bounds[:, :, 1] + self.drift_hi
-        else:
-            new_lower = self.drift_lo[:, index] - bounds[:, :, 0]
-            new_upper = bounds[:, :, 1] + self.drift_hi[:, index]
+        lead = candidates.shape[:-1]
+        bounds = candidates.reshape(lead + (2, k, p)).max(axis=-2).reshape(lead + (2 * p,)) if k > 1 else candidates
+        new_z = bounds + (self.drift_z if index is None else self.drift_z[:, index])
         if self.bank.saturating:
-            new_lower, new_upper = self._saturation(lower, upper, new_lower, new_upper, z, index)
-        return new_lower, new_upper
+            new_z = self._saturation(z, new_z, index)
+        return new_z
 
-    def _saturation(self, lower, upper, cl_lower, cl_upper, z, index):
+    def _saturation(self, z, closed_z, index):
         """Closed loop plus the bounded correction s(v), intersected with the open-loop bound."""
+        p = self.p
+        z = np.broadcast_to(z, closed_z.shape)
+        lower, upper = -z[..., :p], z[..., p:]
         sel = slice(None) if index is None else index
         bank = self.bank
         k_pos, k_neg = self.K_pos[sel], self.K_neg[sel]
@@ -191,48 +226,51 @@ class _IntervalCore:
         v_lo, v_hi = offsets - kx_hi, offsets - kx_lo
         u_lo, u_hi = np.clip(v_lo, low, high), np.clip(v_hi, low, high)
         # s(v) = sat(v) - v is nonincreasing: s in [s(v_hi), s(v_lo)], entered through B
-        s_lo, s_hi = u_hi - v_hi, u_lo - v_lo
-        cl_lower = cl_lower + self._input_lower(s_lo, s_hi)
-        cl_upper = cl_upper + self._input_upper(s_lo, s_hi)
+        closed_z = closed_z + self._input_z(u_hi - v_hi, u_lo - v_lo)
         # open loop with the interval input [sat(v_lo), sat(v_hi)]
-        M, k, p = self.M, self.k, self.p
-        n = z.shape[1]
+        k = self.k
         candidates = np.matmul(z, self.open_product)
-        bounds = candidates.reshape(M, n, 2, k, p).max(axis=3)
-        ol_lower = self.w_lo - bounds[:, :, 0] + self._input_lower(u_lo, u_hi)
-        ol_upper = bounds[:, :, 1] + self.w_hi + self._input_upper(u_lo, u_hi)
-        return np.maximum(cl_lower, ol_lower), np.minimum(cl_upper, ol_upper)
+        lead = candidates.shape[:-1]
+        open_z = candidates.reshape(lead + (2, k, p)).max(axis=-2).reshape(lead + (2 * p,)) + self.w_z + self._input_z(u_lo, u_hi)
+        # intersection of the two boxes: max of -lower and min of upper
+        return np.concatenate([np.minimum(closed_z[..., :p], open_z[..., :p]), np.minimum(closed_z[..., p:], open_z[..., p:])], axis=-1)
 
-    def _input_lower(self, u_lo, u_hi):
-        return np.einsum("mpq,maq->map", self.B_pos, u_lo) - np.einsum("mpq,maq->map", self.B_neg, u_hi)
+    def _input_z(self, u_lo, u_hi):
+        """``[-lower | upper]`` of ``B u`` for u in the box [u_lo, u_hi] (M, A', q)."""
+        lower = np.einsum("mpq,maq->map", self.B_pos, u_lo) - np.einsum("mpq,maq->map", self.B_neg, u_hi)
+        upper = np.einsum("mpq,maq->map", self.B_pos, u_hi) - np.einsum("mpq,maq->map", self.B_neg, u_lo)
+        return np.concatenate([-lower, upper], axis=-1)
 
-    def _input_upper(self, u_lo, u_hi):
-        return np.einsum("mpq,maq->map", self.B_pos, u_hi) - np.einsum("mpq,maq->map", self.B_neg, u_lo)
+    def state_z(self, state: BoxState) -> np.ndarray:
+        """The boxes of a state as z of shape (M or 1, 1, 2p)."""
+        z = state.z
+        if z.ndim == 1:
+            return z[None, None, :]
+        if z.shape[0] != self.M:
+            raise DimensionError(f"state holds {z.shape[0]} boxes, expected {self.M} (one per linked hypothesis)")
+        return z[:, None, :]
 
-    def propagate(self, lower, upper, time, index, n_actions):
-        """All sub-steps of one decision; boxes broadcast to (M, n_actions, p).
+    def propagate(self, z, time, index):
+        """All sub-steps of one decision from boxes z (M or 1, 1 or A', 2p).
 
-        Returns the final boxes, the pessimistic rewards (M, n_actions) (minimum over
-        the sub-steps) and the collision flags (any over the sub-steps). The reward is
-        evaluated once for the boxes of all sub-steps, stacked as (S, M, n_actions, p)
-        with the sub-step indices ``t`` of shape (S, 1, 1).
+        Returns the final boxes z, the pessimistic rewards (M, A') (minimum over the
+        sub-steps) and the collision flags (any over the sub-steps). The reward is
+        evaluated once for the boxes of all sub-steps, stacked as (S, M, A', p), with
+        the sub-step indices ``t`` of shape (S, 1, 1).
         """
-        shape = (self.M, n_actions, self.p)
-        lower = np.broadcast_to(lower, shape)
-        upper = np.broadcast_to(upper, shape)
-        S = self.substeps
+        p, S = self.p, self.substeps
         if S == 1:
-            lower, upper = self.substep(lower, upper, index)
-            reward, collided = self.reward_minimum(lower, upper, time + 1)
-            return lower, upper, reward, collided
-        lowers = np.empty((S,) + shape)
-        uppers = np.empty((S,) + shape)
-        for s in range(S):
-            lower, upper = self.substep(lower, upper, index)
-            lowers[s] = lower
-            uppers[s] = upper
-        reward, collided = self.reward_minimum(lowers, uppers, self.times[time])
-        return lower, upper, reward.min(axis=0), collided.any(axis=0)
+            z = self.substep(z, index)
+            reward, collided = self.reward_minimum(-z[..., :p], z[..., p:], time + 1)
+            return z, reward, collided
+        z = self.substep(z, index)
+        stack = np.empty((S,) + z.shape)
+        stack[0] = z
+        for s in range(1, S):
+            z = self.substep(z, index)
+            stack[s] = z
+        reward, collided = self.reward_minimum(-stack[..., :p], stack[..., p:], self.times[time])
+        return z, reward.min(axis=0), collided.any(axis=0)
 
 
 class _LinkedGroup:
@@ -259,19 +297,17 @@ class _LinkedGroup:
         core = self.core
         index = self.actions(actions)
         n = len(core.bank) if index is None else len(index)
-        lower, upper = state.lower, state.upper
-        if lower.ndim == 2:  # one box per hypothesis
-            if lower.shape[0] != core.M:
-                raise DimensionError(f"state holds {lower.shape[0]} boxes, expected {core.M} (one per linked hypothesis)")
-            lower, upper = lower[:, None, :], upper[:, None, :]
-        lower, upper, rewards, collided = core.propagate(lower, upper, state.time, index, n)
+        z, rewards, collided = core.propagate(core.state_z(state), state.time, index)
+        # z, rewards and collided have full shape (M, n, .): the per-action drift broadcasts them
+        z.flags.writeable = False
+        p = core.p
+        lower, upper = -z[..., :p], z[..., p:]
+        lower.flags.writeable = False
         time = state.time + core.substeps
         if core.M == 1:
-            next_states = [BoxState(lower[0, i], upper[0, i], time) for i in range(n)]
+            next_states = [BoxState(lower[0, i], upper[0, i], time, z[0, i]) for i in range(n)]
         else:
-            next_states = [BoxState(lower[:, i], upper[:, i], time) for i in range(n)]
-        rewards.flags.writeable = False
-        collided.flags.writeable = False
+            next_states = [BoxState(lower[:, i], upper[:, i], time, z[:, i]) for i in range(n)]
         self._key_state, self._key_actions = state, actions
         self._result = (next_states, rewards, collided)
         return self._result
@@ -451,10 +487,9 @@ class IntervalModel:
         seq = list(actions)
         self._group.actions(seq)
         core, m = self._group.core, self.member
-        lower, upper = (state.lower[:, None, :], state.upper[:, None, :]) if state.lower.ndim == 2 else (state.lower, state.upper)
-        lower = np.broadcast_to(lower, (core.M, 1, core.p))
-        upper = np.broadcast_to(upper, (core.M, 1, core.p))
-        lowers, uppers = [lower[m, 0]], [upper[m, 0]]
+        z = np.broadcast_to(core.state_z(state), (core.M, 1, 2 * core.p))
+        p = core.p
+        lowers, uppers = [-z[m, 0, :p]], [z[m, 0, p:]]
         rewards = np.empty(len(seq))
         terminals = np.zeros(len(seq), dtype=bool)
         time = state.time
@@ -462,11 +497,11 @@ class IntervalModel:
             index = np.array([int(action)])
             worst, hit = 1.0, False
             for s in range(1, self.substeps + 1):
-                lower, upper = core.substep(lower, upper, index)
-                r, c = core.reward_minimum(lower, upper, time + s)
+                z = core.substep(z, index)
+                r, c = core.reward_minimum(-z[..., :p], z[..., p:], time + s)
                 worst, hit = min(worst, float(r[m, 0])), hit or bool(c[m, 0])
-                lowers.append(lower[m, 0])
-                uppers.append(upper[m, 0])
+                lowers.append(-z[m, 0, :p])
+                uppers.append(z[m, 0, p:])
             rewards[n], terminals[n] = worst, hit
             time += self.substeps
         return np.array(lowers), np.array(uppers), rewards, terminals

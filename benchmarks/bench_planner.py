@@ -1,0 +1,198 @@
+"""Decision latency of the multi-model robust planner against a simulator-per-node reference.
+
+Setting (the paper's robot, Section IV): a 2-D double integrator with anisotropic
+friction (p = 4, q = 2), forward Euler at dt = 0.1 s; |A| = 4 open-loop actions
+(u in {-1, 1}^2); M = 4 structural hypotheses (anisotropic friction with the
+confidence box, isotropic friction, a wrong input gain, anisotropic friction with the
+prior box); 10 circular obstacles; the goal reward with the robot's footprint; gamma =
+0.9 and K = 100 expansions; 1 and 5 sub-steps per action.
+
+Ours: `multi_model_robust_planner` (linked `IntervalModel`s: every hypothesis and
+action of an expansion in one batched numpy computation). Reference: the same search
+with a simulator object per node deep-copied at every expansion and stepped by
+per-step Python interval code, as rl-agents' planners with highway-env's interval
+models do (`benchmarks/reference_planner.py`). Both must reach the same decision:
+same action and the same root bounds to 1e-9 (asserted for every measured root).
+
+Writes benchmarks/results/planner.md and .json.
+"""
+
+from __future__ import annotations
+
+import datetime
+import importlib.util
+import json
+import os
+import pathlib
+import platform
+import statistics
+import time
+
+import numpy as np
+
+from minimaxplan.models import Box, UncertainLinearSystem
+from minimaxplan.planners import OpenLoop, multi_model_robust_planner
+
+HERE = pathlib.Path(__file__).parent
+RESULTS = pathlib.Path(os.environ.get("BENCH_RESULTS", HERE / "results"))
+SEED = 20261122
+GAMMA, BUDGET, DT = 0.9, 100, 0.1
+N_ROOTS, OUR_REPEATS, REFERENCE_REPEATS = int(os.environ.get("BENCH_ROOTS", 6)), 7, 1
+GOALS = {1: 5.0, 5: 20.0}  # latency goals in ms
+SPEEDUP_GOAL = 100.0
+
+_spec = importlib.util.spec_from_file_location("reference_planner", HERE / "reference_planner.py")
+reference = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(reference)
+
+
+def robot(phi, B_scale=1.0, theta=Box([0.2, 0.2], [0.8, 0.8])):
+    A = np.zeros((4, 4))
+    A[0, 2] = A[1, 3] = 1.0
+    B = np.zeros((4, 2))
+    B[2, 0] = B[3, 1] = 1.0
+    return UncertainLinearSystem.from_continuous(
+        A, phi, B_scale * B, D=B.copy(), w=Box([-0.1, -0.1], [0.1, 0.1]), theta=theta, dt=DT
+    )
+
+
+def hypotheses():
+    anisotropic = np.zeros((2, 4, 4))
+    anisotropic[0, 2, 2] = anisotropic[1, 3, 3] = -1.0
+    isotropic = np.zeros((1, 4, 4))
+    isotropic[0, 2, 2] = isotropic[0, 3, 3] = -1.0
+    return [
+        (robot(anisotropic), Box([0.3, 0.4], [0.5, 0.6])),
+        (robot(isotropic, theta=Box([0.2], [0.8])), Box([0.35], [0.55])),
+        (robot(anisotropic, B_scale=0.6), Box([0.3, 0.4], [0.5, 0.6])),
+        (robot(anisotropic), Box([0.2, 0.2], [0.8, 0.8])),
+    ]
+
+
+def scene(rng):
+    from minimaxplan.scenarios import CircularObstacles, GoalReward
+
+    centers = rng.uniform(1.5, 8.5, (10, 2))
+    radii = rng.uniform(0.4, 1.0, 10)
+    return GoalReward([10.0, 10.0], obstacles=CircularObstacles(centers, radii), robot_radius=0.3)
+
+
+def reference_envs(pairs, reward, controls, substeps, lower, upper, time_index):
+    from minimaxplan.models.prediction import IntervalPredictor
+
+    obstacles = [(c[0], c[1], r) for c, r in zip(reward.obstacles.centers, reward.obstacles.radii)]
+    envs = []
+    for system, parameters in pairs:
+        vertex_matrices = list(IntervalPredictor(system, parameters).vertex_matrices)
+        envs.append(
+            reference.ReferenceIntervalEnv(
+                vertex_matrices, system.B, system.D, system.w.low, system.w.high, controls, substeps,
+                reward.goal, obstacles, reward.robot_radius, lower, upper, time_index,
+            )
+        )
+    return envs
+
+
+def roots(rng, n):
+    """Measured boxes (position noise 0.01, velocity noise 0.01) at points along the way to the goal."""
+    out = []
+    for i in range(n):
+        centre = np.concatenate([np.full(2, 1.5 * i) + rng.uniform(-0.3, 0.3, 2), rng.uniform(-0.5, 0.5, 2)])
+        out.append((centre - 0.01, centre + 0.01))
+    return out
+
+
+def measure(substeps, rng):
+    pairs = hypotheses()
+    reward = scene(rng)
+    controls = [np.array(u) for u in ([-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0])]
+    planner = multi_model_robust_planner(pairs, reward, [OpenLoop(u) for u in controls], gamma=GAMMA, budget=BUDGET, substeps=substeps)
+    ref_planner = reference.ReferenceRobustPlanner(len(controls), gamma=GAMMA, budget=BUDGET)
+    ours, theirs, ours_cpu, theirs_cpu, depths, checks = [], [], [], [], [], 0
+    for lower, upper in roots(rng, N_ROOTS):
+        root = planner.models[0].initial_state(lower, upper)
+        for _ in range(OUR_REPEATS):
+            started, started_cpu = time.perf_counter(), time.process_time()
+            decision = planner.plan(root)
+            ours.append(time.perf_counter() - started)
+            ours_cpu.append(time.process_time() - started_cpu)
+        for _ in range(REFERENCE_REPEATS):
+            envs = reference_envs(pairs, reward, controls, substeps, lower, upper, 0)
+            started, started_cpu = time.perf_counter(), time.process_time()
+            ref = ref_planner.plan(envs)
+            theirs.append(time.perf_counter() - started)
+            theirs_cpu.append(time.process_time() - started_cpu)
+        # the same tree search must reach the same decision
+        assert ref["action"] == decision.action_index, (ref, decision)
+        assert abs(ref["lower"] - decision.lower) <= 1e-9 and abs(ref["upper"] - decision.upper) <= 1e-9, (ref, decision)
+        assert ref["expansions"] == decision.expansions
+        depths.append(decision.depth)
+        checks += 1
+    our_ms, ref_ms = statistics.median(ours) * 1e3, statistics.median(theirs) * 1e3
+    our_cpu_ms, ref_cpu_ms = statistics.median(ours_cpu) * 1e3, statistics.median(theirs_cpu) * 1e3
+    return {
+        "substeps": substeps,
+        "ours_median_ms": our_ms,
+        "reference_median_ms": ref_ms,
+        "speedup": ref_ms / our_ms,
+        "ours_cpu_median_ms": our_cpu_ms,
+        "reference_cpu_median_ms": ref_cpu_ms,
+        "cpu_speedup": ref_cpu_ms / our_cpu_ms,
+        "goal_ms": GOALS[substeps],
+        "same_decisions": f"{checks}/{checks}",
+        "median_depth": statistics.median(depths),
+        "our_runs": len(ours),
+        "reference_runs": len(theirs),
+    }
+
+
+def main() -> dict:
+    started = time.perf_counter()
+    rows = [measure(substeps, np.random.default_rng(SEED + substeps)) for substeps in (1, 5)]
+    results = {
+        "rows": rows,
+        "setting": f"K={BUDGET} expansions, |A|=4, M=4 hypotheses, p=4, 10 obstacles, gamma={GAMMA}",
+        "machine": f"{platform.machine()} {platform.processor() or ''} {platform.python_implementation()} {platform.python_version()}".strip(),
+        "cpus": os.cpu_count(),
+        "load_average": os.getloadavg()[0],
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "numpy": np.__version__,
+    }
+    results["seconds"] = time.perf_counter() - started
+    lines = [
+        "# Planner decision latency",
+        "",
+        f"{results['setting']}; roots: {N_ROOTS} measured boxes per row; ours timed {OUR_REPEATS}x per root, "
+        f"the reference {REFERENCE_REPEATS}x. Every root: same action, same root bounds (to 1e-9) and same number "
+        "of expansions for both.",
+        "",
+        "Latency is the median wall-clock time of one `plan` call; the CPU columns give the median process CPU time "
+        "of the same calls (less sensitive to other jobs on a shared machine).",
+        "",
+        "| sub-steps | ours, median (ms) | goal (ms) | reference, median (ms) | speed-up (goal >= "
+        f"{SPEEDUP_GOAL:.0f}x) | ours, CPU (ms) | reference, CPU (ms) | CPU speed-up | median depth | same decisions |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for row in rows:
+        lines.append(
+            f"| {row['substeps']} | {row['ours_median_ms']:.2f} | <= {row['goal_ms']:.0f} | {row['reference_median_ms']:.1f} "
+            f"| {row['speedup']:.1f}x | {row['ours_cpu_median_ms']:.2f} | {row['reference_cpu_median_ms']:.1f} "
+            f"| {row['cpu_speedup']:.1f}x | {row['median_depth']:.0f} | {row['same_decisions']} |"
+        )
+    lines += [
+        "",
+        f"Machine: {results['machine']}, {results['cpus']} CPUs, 1-minute load average {results['load_average']:.2f} "
+        f"at the end (the machine is shared); numpy {results['numpy']}; date: {results['date']}; seed {SEED}; "
+        f"run time {results['seconds']:.0f} s.",
+        "",
+    ]
+    text = "\n".join(lines)
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "planner.md").write_text(text)
+    (RESULTS / "planner.json").write_text(json.dumps(results, indent=2) + "\n")
+    print(text)
+    return results
+
+
+if __name__ == "__main__":
+    main()
