@@ -109,10 +109,10 @@ class _ActionIndex:
 
 
 class _SubstepTimes:
-    """``times[t]``: the sub-step indices t+1 .. t+S as an array (S, 1, 1), cached per t."""
+    """``times[t]``: the sub-step indices t+1 .. t+S as an array (S, 1, ..., 1), cached per t."""
 
-    def __init__(self, substeps: int) -> None:
-        self._offsets = np.arange(1, substeps + 1).reshape(substeps, 1, 1)
+    def __init__(self, substeps: int, trailing: int = 2) -> None:
+        self._offsets = np.arange(1, substeps + 1).reshape((substeps,) + (1,) * trailing)
         self._cache: dict[int, np.ndarray] = {}
 
     def __getitem__(self, time: int) -> np.ndarray:

@@ -17,7 +17,7 @@ from ..models._validation import as_finite_array
 from ..models.errors import DimensionError, InputError
 from ..models.system import UncertainLinearSystem
 from .controllers import ControllerBank
-from .interval_model import _ActionIndex, _check_reward, _check_substeps, _check_time
+from .interval_model import _ActionIndex, _check_reward, _check_substeps, _check_time, _SubstepTimes
 
 __all__ = ["PointState", "PointModel"]
 
@@ -68,6 +68,10 @@ class PointModel:
         self._B_T = np.ascontiguousarray(system.B.T)
         self._actions = _ActionIndex(len(self.bank))
         self._p = system.nstates
+        self._times = _SubstepTimes(self.substeps, trailing=1)
+        # open-loop controls without saturation: B u is a constant per action
+        constant = not self.bank.has_feedback and not self.bank.saturating
+        self._constant_drift = self.bank.offsets @ self._B_T if constant else None
 
     @property
     def n_actions(self) -> int:
@@ -78,18 +82,24 @@ class PointModel:
         return tuple(range(self.n_actions))
 
     def _propagate(self, x, time, index, n):
-        x = np.broadcast_to(x, (n, self._p))
+        """All sub-steps for n actions from x (p,); the reward is evaluated once for all sub-steps."""
         sel = slice(None) if index is None else index
-        worst = collided = None
-        for s in range(1, self.substeps + 1):
-            u = self.bank.controls(x, sel)
-            x = x @ self._A_T + u @ self._B_T
-            reward, hit = self._reward_min(x, x, time + s)
-            if worst is None:
-                worst, collided = reward, hit
-            else:
-                worst, collided = np.minimum(worst, reward), collided | hit
-        return x, np.asarray(worst, dtype=float), np.asarray(collided, dtype=bool)
+        S = self.substeps
+        states = np.empty((S, n, self._p))
+        if self._constant_drift is not None:
+            drift = self._constant_drift[sel]
+            x = x @ self._A_T + drift  # the first step from one state, broadcast over actions
+            states[0] = x
+            for s in range(1, S):
+                x = x @ self._A_T + drift
+                states[s] = x
+        else:
+            x = np.broadcast_to(x, (n, self._p))
+            for s in range(S):
+                x = x @ self._A_T + self.bank.controls(x, sel) @ self._B_T
+                states[s] = x
+        reward, collided = self._reward_min(states, states, self._times[time])
+        return states[-1], reward.min(axis=0), collided.any(axis=0)
 
     def expand(self, state: PointState, actions) -> tuple[list, np.ndarray, np.ndarray]:
         """Step every action from ``state`` in one batched call."""

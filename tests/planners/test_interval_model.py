@@ -180,11 +180,12 @@ def test_pessimistic_reward_is_the_worst_sub_step_and_collision_is_terminal():
 
 
 # --------------------------------------------------------------- point model
-def test_point_model_matches_system_step():
+@pytest.mark.parametrize("with_feedback", [True, False])
+def test_point_model_matches_system_step(with_feedback):
     system = robot_system()
     theta = np.array([0.3, 0.6])
     feedback = LinearFeedback(np.array([[1.0, 0, 1, 0], [0, 1.0, 0, 1]]), [2.0, 1.0, 0, 0], u_low=-1.0, u_high=1.0)
-    controllers = ROBOT_ACTIONS + [feedback]
+    controllers = ROBOT_ACTIONS + [feedback] if with_feedback else ROBOT_ACTIONS
     reward = GoalReward([3.0, 3.0], obstacles=CircularObstacles([[1.0, 1.0]], [0.3]), robot_radius=0.3)
     model = PointModel(system, theta, reward, controllers, substeps=3)
     x0 = np.array([0.0, 0.0, 0.2, -0.1])
