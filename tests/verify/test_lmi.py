@@ -444,3 +444,17 @@ def test_width_bound_rejects_bad_norms():
         result.width_bound(-1.0, 1.0)
     with pytest.raises(InputError, match="steps must be >= 0"):
         result.width_bound(1.0, 1.0, steps=[-1, 2])
+
+
+def test_returned_certificate_is_the_one_with_smaller_constants():
+    rng = np.random.default_rng(5)
+    for _ in range(4):
+        A = rng.uniform(0, 1, (3, 3))
+        A *= 0.9 / np.abs(np.linalg.eigvals(A)).max()
+        result = check_assumption4(A, form="discrete")
+        assert_certificate(result, A, np.eye(3), "discrete")
+        assert result.coordinates in ("caller", "preconditioned")
+        T, T_inv = lmi._preconditioner(A[None], "discrete")
+        decision = lmi._attempt("discrete", A[None], np.eye(3), None, 1e-6, "CLARABEL", T, T_inv, "preconditioned")
+        assert_certificate(decision, A, np.eye(3), "discrete")
+        assert sum(result.bound_constants()) <= sum(decision.bound_constants()) * (1 + 1e-9)
