@@ -9,10 +9,10 @@ least ``1 - delta`` when the noise is sub-Gaussian (Abbasi-Yadkori, Pal & Szepes
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import solve_triangular
+from scipy.linalg.lapack import dtrtrs
 
 from ._validation import as_finite_array, as_positive_scalar, check_shape
-from .errors import DimensionError, InputError
+from .errors import DimensionError, InputError, SolverFailure
 from .sets import Ellipsoid
 
 __all__ = ["confidence_ellipsoid", "ConfidenceEllipsoidEstimator", "MAX_CONDITION"]
@@ -76,7 +76,7 @@ def confidence_ellipsoid(regressors, targets, *, sigma: float, lam: float, delta
 
     the matrix form of Abbasi-Yadkori et al. (2011), Theorem 2, applied to the
     regression rescaled by ``1/sigma`` (each of the p rows is one scalar observation).
-    The log-determinant is computed with `numpy.linalg.slogdet`.
+    The log-determinant is ``2 sum log diag(L)`` of the Cholesky factor ``G = L L^T``.
     """
     sigma = as_positive_scalar("sigma", sigma)
     lam = as_positive_scalar("lam", lam)
@@ -93,12 +93,19 @@ def confidence_ellipsoid(regressors, targets, *, sigma: float, lam: float, delta
     gramian_ext = np.einsum("npi,npj->ij", U.astype(_EXTENDED), U.astype(_EXTENDED)) + _EXTENDED(lam) * np.eye(d, dtype=_EXTENDED)
     moment_ext = np.einsum("npi,np->i", U.astype(_EXTENDED), (y / sigma).astype(_EXTENDED))
     gramian = gramian_ext.astype(float)
-    _check_conditioning(gramian)
-    factor = np.linalg.cholesky(gramian)
+    try:
+        factor = np.linalg.cholesky(gramian)
+    except np.linalg.LinAlgError:
+        factor = None
+    if factor is None or not np.all(np.diag(factor) > 0):
+        raise InputError(
+            f"the Gramian is numerically singular (condition number above {MAX_CONDITION:.0e}; Cholesky failed): "
+            "increase lam or rescale the regressors"
+        )
     center = _refined_solve(factor, gramian_ext, moment_ext)
-    _, logdet = np.linalg.slogdet(gramian)
-    radius = _confidence_radius(float(logdet), d, lam=lam, delta=delta, bound=bound)
-    return Ellipsoid(center, gramian, radius)
+    logdet = 2.0 * float(np.sum(np.log(np.diag(factor))))
+    radius = _confidence_radius(logdet, d, lam=lam, delta=delta, bound=bound)
+    return _conditioned_ellipsoid(center, gramian, radius)
 
 
 def _refined_solve(factor: np.ndarray, gramian_ext: np.ndarray, moment_ext: np.ndarray) -> np.ndarray:
@@ -109,21 +116,38 @@ def _refined_solve(factor: np.ndarray, gramian_ext: np.ndarray, moment_ext: np.n
     the solution with residuals computed in it makes the centre exact to about
     ``1e-19 cond(G)``, so that two routes to the same data (batch, online) agree.
     """
-    center = solve_triangular(factor.T, solve_triangular(factor, moment_ext.astype(float), lower=True), lower=False)
+    center = _cholesky_solve(factor, moment_ext.astype(float))
     for _ in range(_REFINEMENT_STEPS):
         residual = (moment_ext - gramian_ext @ center.astype(_EXTENDED)).astype(float)
-        center = center + solve_triangular(factor.T, solve_triangular(factor, residual, lower=True), lower=False)
+        center = center + _cholesky_solve(factor, residual)
     return center
 
 
-def _check_conditioning(gramian: np.ndarray) -> None:
-    """Refuse a Gramian that is singular to working precision (its smallest axis would be noise)."""
-    eigenvalues = np.linalg.eigvalsh(gramian)
-    if not eigenvalues[0] > eigenvalues[-1] / MAX_CONDITION:
-        raise InputError(
-            f"the Gramian is numerically singular (eigenvalues from {eigenvalues[0]:.3g} to "
-            f"{eigenvalues[-1]:.3g}, condition number above {MAX_CONDITION:.0e}): increase lam or rescale the regressors"
-        )
+def _cholesky_solve(factor: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``(L L^T)^-1 rhs`` by two triangular solves (LAPACK ``trtrs``: little call overhead)."""
+    half, info = dtrtrs(factor, rhs, lower=1)
+    out, info2 = dtrtrs(factor, half, lower=1, trans=1)
+    if info or info2:  # a zero on the diagonal: impossible for the G >= lam I factors used here
+        raise SolverFailure(f"triangular solve failed (LAPACK info {info or info2})")
+    return out
+
+
+def _conditioned_ellipsoid(center: np.ndarray, gramian: np.ndarray, radius: float) -> Ellipsoid:
+    """The fit as an `Ellipsoid`, refused when its Gramian is singular to working precision.
+
+    Beyond cond(G) = `MAX_CONDITION` the smallest axis is lost in rounding (eigenvalue
+    errors are ~1e-16 of the largest eigenvalue).
+    """
+    message = "the Gramian is numerically singular (condition number above {:.0e}{}): increase lam or rescale the regressors"
+    try:
+        ellipsoid = Ellipsoid(center, gramian, radius)
+    except InputError as exc:  # only positive definiteness can fail for a Gramian built here
+        raise InputError(message.format(MAX_CONDITION, f"; {exc}")) from None
+    lengths, _ = ellipsoid.semi_axes()
+    condition = (lengths.max() / lengths.min()) ** 2
+    if not condition <= MAX_CONDITION:
+        raise InputError(message.format(MAX_CONDITION, f"; it is {condition:.3g}"))
+    return ellipsoid
 
 
 def _cholesky_rank_one_update(factor: np.ndarray, row: np.ndarray) -> None:
@@ -244,9 +268,7 @@ class ConfidenceEllipsoidEstimator:
 
     def ellipsoid(self) -> Ellipsoid:
         """The current confidence ellipsoid ``{t : (t - c)^T G (t - c) <= beta^2}``."""
-        gramian = self._gramian.astype(float)
-        _check_conditioning(gramian)
-        return Ellipsoid(self.center(), gramian, self.radius())
+        return _conditioned_ellipsoid(self.center(), self._gramian.astype(float), self.radius())
 
     def __repr__(self) -> str:
         return f"ConfidenceEllipsoidEstimator(nparams={self._d}, nsamples={self._nsamples})"

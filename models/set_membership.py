@@ -51,8 +51,9 @@ class SetMembershipEstimator:
     Attributes
     ----------
     estimate
-        The current point estimate, shape (d,): the ellipsoid centre ``c_k`` projected
-        on `parameter_set`, or the previous estimate when that is better certified.
+        The current point estimate, shape (d,): of the ellipsoid centre ``c_k``
+        projected on `parameter_set`, the centre of `parameter_set` and the previous
+        estimate, the one with the smallest certified error bound (see the notes).
     radius
         A bound on ``||theta* - estimate||_2``; it never grows.
     ellipsoid_center, shape_matrix
@@ -92,9 +93,10 @@ class SetMembershipEstimator:
     * ``c_k`` projected on `parameter_set` (projection on a convex set that holds
       theta* moves no point away from theta*), with bound
       ``min(sqrt(lmax(P_k)), farthest corner of the box from it)``;
+    * the centre of `parameter_set`, with bound its half-diagonal;
     * the previous estimate, with bound ``min(previous radius, its farthest corner)``.
 
-    Each bound is valid for its own point, and the second candidate's is at most the
+    Each bound is valid for its own point, and the last candidate's is at most the
     previous radius, so the radius never grows, by construction and not only up to
     rounding. Bounds are rounded outward by ``OUTWARD_ROUNDING``.
 
@@ -245,19 +247,22 @@ class SetMembershipEstimator:
     def _best_certified_point(self) -> tuple[np.ndarray, float]:
         """The candidate point with the smallest certified bound on its distance to theta*.
 
-        Candidates: the ellipsoid centre projected on the box (bound: the ellipsoid's
-        largest semi-axis, as projecting on a convex set that holds theta* never moves a
-        point away from theta*; or the box's farthest corner), and the previous
-        estimate (bound: the previous radius, or the current box's farthest corner).
+        Candidates, each with a bound valid for it: the ellipsoid centre projected on
+        the box (the ellipsoid's largest semi-axis, as projecting on a convex set that
+        holds theta* never moves a point away from theta*; or the box's farthest
+        corner), the box centre (its half-diagonal) and the previous estimate (the
+        previous radius, or the current box's farthest corner). Ties go to the first.
         """
         box = self._box
         projected = np.clip(self._center, box.low, box.high)
         largest_axis = float(np.linalg.norm(self._factor, 2)) * (1 + OUTWARD_ROUNDING)
-        new_bound = min(largest_axis, _farthest_corner_distance(projected, box))
-        kept_bound = min(self._radius, _farthest_corner_distance(self._estimate, box))
-        if new_bound <= kept_bound:
-            return projected, new_bound
-        return self._estimate, kept_bound
+        candidates = [
+            (min(largest_axis, _farthest_corner_distance(projected, box)), projected),
+            (_farthest_corner_distance(box.center, box), box.center),
+            (min(self._radius, _farthest_corner_distance(self._estimate, box)), self._estimate),
+        ]
+        bound, point = min(candidates, key=lambda candidate: candidate[0])
+        return point, bound
 
     def __repr__(self) -> str:
         return f"SetMembershipEstimator(nparams={self._d}, nsamples={self._nsamples}, radius={self._radius:.6g})"
