@@ -57,6 +57,7 @@ class EpisodeRecord:
     wall_time_s: float
     trajectory: tuple = field(default=(), repr=False)
     suboptimality: tuple = field(default=(), repr=False)
+    extra: dict = field(default_factory=dict, repr=False)
 
     @property
     def success(self) -> bool:
@@ -67,6 +68,7 @@ class EpisodeRecord:
         data = asdict(self)
         data.pop("trajectory")
         data.pop("suboptimality")
+        data.pop("extra")
         data["success"] = self.success
         return data
 

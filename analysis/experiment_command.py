@@ -1,0 +1,65 @@
+"""``minimaxplan experiment``: the paper's Table 3 and Figure 6 experiments."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+
+from .experiment import METHODS, SCENARIOS, markdown_table, run_experiment, write_outputs
+from .plots import plot_suboptimality, plot_trajectories, suboptimality_trend
+
+__all__ = ["register", "run_and_report"]
+
+
+def _csv_list(choices):
+    def parse(text: str) -> list[str]:
+        items = [item.strip() for item in text.split(",") if item.strip()]
+        bad = [item for item in items if item not in choices]
+        if bad or not items:
+            raise argparse.ArgumentTypeError(f"choose from {', '.join(choices)} (comma-separated), got {text!r}")
+        return items
+
+    return parse
+
+
+def run_and_report(scenarios, methods, *, episodes, seed, workers, dask_address, out, progress=True,
+                   plot_seeds: int = 3) -> tuple[str, pathlib.Path]:
+    """Run the experiment, write every output into ``out`` and return the Markdown table."""
+    result = run_experiment(scenarios, methods, episodes=episodes, seed=seed, workers=workers,
+                            dask_address=dask_address, progress=progress)
+    out = write_outputs(result, out)
+    for scenario in scenarios:
+        shown = sorted({r.seed for r in result.records if r.scenario == scenario})[:plot_seeds]
+        records = [r for r in result.records if r.scenario == scenario and r.seed in shown]
+        plot_trajectories(records, out / f"trajectories_{scenario}.png")
+    robust = [r for r in result.records if r.method == "robust"]
+    if robust:
+        plot_suboptimality(robust, out / "suboptimality.png")
+        (out / "suboptimality.json").write_text(json.dumps(suboptimality_trend(robust), indent=2) + "\n")
+    table = markdown_table(result.summary) + f"\nWall time of the run: {result.wall_time_s:.1f} s\n"
+    return table, out
+
+
+def _run(args: argparse.Namespace) -> int:
+    table, out = run_and_report(args.scenario, args.methods, episodes=args.episodes, seed=args.seed,
+                                workers=args.workers, dask_address=args.dask, out=args.out,
+                                progress=not args.no_progress)
+    print(table)
+    print(f"outputs written to {out}/")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("experiment", help="Monte-Carlo episodes per method and world (Table 3, Figure 6)")
+    parser.add_argument("--scenario", type=_csv_list(SCENARIOS), default=list(SCENARIOS),
+                        help="static, pedestrian, or both comma-separated (default: both)")
+    parser.add_argument("--methods", type=_csv_list(METHODS), default=list(METHODS),
+                        help=f"comma-separated subset of {','.join(METHODS)}")
+    parser.add_argument("--episodes", type=int, default=100, help="episodes per method and world")
+    parser.add_argument("--seed", type=int, default=0, help="world seed of the first episode")
+    parser.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
+    parser.add_argument("--dask", metavar="ADDRESS", default=None, help="run on this Dask scheduler instead")
+    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("out/experiment"))
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(func=_run)
