@@ -42,7 +42,7 @@ RHO_WEIGHT = 1e-6
 SOLVER_TOLERANCE = 1e-7
 #: Cache size of built cvxpy problems (one per form, shape, vertex count, Q0 given or not).
 PROBLEM_CACHE_SIZE = 32
-#: Smallest relative shift used to build the preconditioner at a marginally stable matrix.
+#: Smallest shift (relative to 1 + ||A||) of the preconditioner's Lyapunov equation.
 _SHIFT_FLOOR = 1e-3
 #: A preconditioner whose condition number exceeds this is not used (identity instead).
 _MAX_PRECONDITIONER_CONDITION = 1e12
@@ -564,7 +564,7 @@ def check_assumption4(A, *, form, Q0=None, D=None, margin=1e-6, solver="CLARABEL
     if form not in FORMS:
         raise InputError(f"form must be one of {FORMS}, got {form!r}")
     vertices = _as_vertices(A)
-    k, p = vertices.shape[0], vertices.shape[1]
+    p = vertices.shape[1]
     D_mat = np.eye(p) if D is None else as_finite_array("D", D, ndim=2)
     check_shape("D", D_mat, (p, None))
     if D_mat.shape[1] == 0:
@@ -572,7 +572,6 @@ def check_assumption4(A, *, form, Q0=None, D=None, margin=1e-6, solver="CLARABEL
     q0 = _as_q0(Q0, p)
     margin = as_positive_scalar("margin", margin)
     solver = _as_solver(solver)
-    r = D_mat.shape[1]
 
     T, T_inv = _preconditioner(vertices, form)
     preconditioned = not np.array_equal(T, np.eye(p))
