@@ -10,6 +10,7 @@ corrected: see `LMIResult.width_bound`).
 from __future__ import annotations
 
 import dataclasses
+import threading
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -314,6 +315,8 @@ def _build_program(form: str, p: int, r: int, k: int, q0_given: bool) -> _Progra
 
 
 _PROGRAMS: "OrderedDict[tuple, _Program]" = OrderedDict()
+# The cached problems' parameters are set per call: one call at a time per process.
+_LOCK = threading.Lock()
 
 
 def _program(form: str, p: int, r: int, k: int, q0_given: bool) -> _Program:
@@ -573,6 +576,13 @@ def check_assumption4(A, *, form, Q0=None, D=None, margin=1e-6, solver="CLARABEL
     margin = as_positive_scalar("margin", margin)
     solver = _as_solver(solver)
 
+    with _LOCK:
+        return _decide(form, vertices, D_mat, q0, margin, solver)
+
+
+def _decide(form, vertices, D_mat, q0, margin, solver) -> LMIResult:
+    """Decide in preconditioned coordinates; if feasible, also try the caller's (see Notes)."""
+    p = vertices.shape[1]
     T, T_inv = _preconditioner(vertices, form)
     preconditioned = not np.array_equal(T, np.eye(p))
     first = _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, "preconditioned" if preconditioned else "caller")

@@ -458,3 +458,16 @@ def test_returned_certificate_is_the_one_with_smaller_constants():
         decision = lmi._attempt("discrete", A[None], np.eye(3), None, 1e-6, "CLARABEL", T, T_inv, "preconditioned")
         assert_certificate(decision, A, np.eye(3), "discrete")
         assert sum(result.bound_constants()) <= sum(decision.bound_constants()) * (1 + 1e-9)
+
+
+def test_concurrent_calls_share_the_cache_safely():
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(17)
+    cases = [(near_boundary_matrix(rng, 3, "discrete", 0.03, i % 2 == 0, 30.0), i % 2 == 0) for i in range(8)]
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        results = list(pool.map(lambda case: check_assumption4(case[0], form="discrete"), cases))
+    for (A, stable), result in zip(cases, results):
+        assert result.status == ("feasible" if stable else "infeasible")
+        if stable:
+            assert_certificate(result, A, np.eye(3), "discrete")
