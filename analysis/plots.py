@@ -43,9 +43,9 @@ def plot_trajectories(records: Sequence[EpisodeRecord], path: str | pathlib.Path
             ax.plot(*world["start"], "ks", ms=7)
             ax.add_patch(Circle(world["goal"], world["params"]["goal_tolerance"], fill=False, ec="k", ls="--"))
         for r in group:
-            path = np.array(r.trajectory)
-            if path.size:
-                ax.plot(path[:, 0], path[:, 1], color=colors.get(r.method, "k"), lw=1.5, label=f"{r.method} ({r.outcome})")
+            trajectory = np.array(r.trajectory)
+            if trajectory.size:
+                ax.plot(trajectory[:, 0], trajectory[:, 1], color=colors.get(r.method, "k"), lw=1.5, label=f"{r.method} ({r.outcome})")
             for _, lower, upper in r.extra.get("plans", []):
                 for lo, hi in zip(lower[1:], upper[1:]):
                     ax.add_patch(Rectangle(lo, hi[0] - lo[0], hi[1] - lo[1], fill=False, ec=colors["robust"], lw=0.4, alpha=0.6))

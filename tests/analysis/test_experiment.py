@@ -1,0 +1,129 @@
+"""Experiment runner: summaries, determinism, Dask == local pool, the closed loop's outcomes."""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+from minimaxplan.analysis.cli import main
+from minimaxplan.analysis.closed_loop import LoopConfig, planning_system, run_episode
+from minimaxplan.analysis.experiment import EpisodeRecord, run_experiment, summarise
+from minimaxplan.models import Box, InputError
+from minimaxplan.scenarios import robot_hypotheses
+
+# A cheaper planner budget keeps these tests fast; the loop is otherwise the real one.
+FAST = LoopConfig(budget=12, record_suboptimality=False)
+fast_episode = functools.partial(run_episode, config=FAST)
+
+
+def _record(method, seed, outcome, time_s, ret=0.5):
+    return EpisodeRecord("static", method, seed, outcome, time_s, ret, 10, 0.1)
+
+
+def test_summary_counts_failures_and_averages_time_over_successes():
+    records = [_record("robust", 0, "goal", 10.0), _record("robust", 1, "goal", 14.0),
+               _record("robust", 2, "collision", 3.0), _record("robust", 3, "timeout", 60.0)]
+    (summary,) = summarise(records)
+    assert summary["episodes"] == 4 and summary["failures"] == 2
+    assert summary["mean_time_s"] == pytest.approx(12.0)
+    assert summary["median_time_s"] == pytest.approx(12.0)
+    assert summary["max_time_s"] == pytest.approx(14.0)
+    low, high = summary["failure_ci95"]
+    # Clopper-Pearson for 2/4: [0.0676, 0.9324]
+    assert low == pytest.approx(0.06758, abs=1e-4) and high == pytest.approx(0.93242, abs=1e-4)
+    assert summary["outcomes"] == {"collision": 1, "goal": 2, "timeout": 1}
+
+
+def test_summary_with_no_success_has_no_time():
+    (summary,) = summarise([_record("dwa", 0, "collision", 3.0)])
+    assert math.isnan(summary["mean_time_s"]) and summary["failures"] == 1
+
+
+def test_bad_method_and_scenario_are_rejected():
+    with pytest.raises(InputError, match="method must be one of"):
+        run_experiment(["static"], ["magic"], episodes=1)
+    with pytest.raises(InputError, match="scenario must be one of"):
+        run_experiment(["mars"], ["dwa"], episodes=1)
+    with pytest.raises(InputError, match="episodes must be >= 1"):
+        run_experiment(["static"], ["dwa"], episodes=0)
+
+
+def _comparable(result):
+    return [{k: v for k, v in r.row().items() if k != "wall_time_s"} for r in result.records], list(result.summary)
+
+
+def test_same_seed_same_summary_sequential_and_pool():
+    kwargs = dict(episodes=2, seed=7, episode_fn=fast_episode, progress=False)
+    first = run_experiment(["static"], ["robust", "dwa"], workers=1, **kwargs)
+    second = run_experiment(["static"], ["robust", "dwa"], workers=2, **kwargs)
+    assert _comparable(first) == _comparable(second)
+    assert [r.seed for r in first.records] == [7, 8, 7, 8]
+
+
+def test_dask_local_cluster_gives_the_same_summary():
+    if os.environ.get("CI") == "true":
+        from distributed import Client, LocalCluster  # the cluster extra must be installed in CI
+    else:
+        distributed = pytest.importorskip("distributed")
+        Client, LocalCluster = distributed.Client, distributed.LocalCluster
+    kwargs = dict(episodes=2, seed=3, episode_fn=fast_episode, progress=False)
+    local = run_experiment(["pedestrian"], ["robust"], workers=1, **kwargs)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        on_dask = run_experiment(["pedestrian"], ["robust"], dask_address=cluster.scheduler_address, **kwargs)
+    assert _comparable(local) == _comparable(on_dask)
+
+
+def test_every_hypothesis_eliminated_is_a_failure(monkeypatch):
+    import minimaxplan.analysis.closed_loop as loop
+
+    wrong_only = [h for h in robot_hypotheses() if h.name == "wrong input gain"]
+    monkeypatch.setattr(loop, "robot_hypotheses", lambda dt, params: wrong_only)
+    record = run_episode("static", "robust", 0, FAST)
+    assert record.outcome == "no_consistent_model"
+    assert not record.success and record.decisions >= 1
+
+
+def test_planning_system_adds_the_control_error_through_B():
+    system = robot_hypotheses()[0].system
+    augmented = planning_system(system, 0.03)
+    assert augmented.ndisturbances == system.ndisturbances + system.ninputs
+    np.testing.assert_array_equal(augmented.D[:, system.ndisturbances:], system.B)
+    assert augmented.w == Box(np.r_[system.w.low, -0.03, -0.03], np.r_[system.w.high, 0.03, 0.03])
+
+
+def test_robust_episode_record_is_consistent():
+    record = run_episode("static", "robust", 11, LoopConfig(budget=12))
+    assert record.outcome in {"goal", "collision", "timeout", "no_consistent_model"}
+    assert 0.0 <= record.discounted_return <= 1 / (1 - 0.9)
+    assert record.extra["lmi"]["full_model"] == "infeasible"
+    assert record.extra["lmi"]["velocity_subsystem"] == "feasible"
+    ns = [n for n, _ in record.suboptimality]
+    assert ns == sorted(ns) and len(ns) == record.decisions
+    assert len(record.trajectory) >= record.decisions
+
+
+def test_experiment_command_writes_every_output(tmp_path):
+    out = tmp_path / "run"
+    code = main(["experiment", "--scenario", "static", "--methods", "dwa,nominal", "--episodes", "1",
+                 "--workers", "1", "--seed", "2", "--out", str(out), "--no-progress"])
+    assert code == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert {s["method"] for s in summary} == {"dwa", "nominal"}
+    for key in ("scenario", "method", "episodes", "failures", "failure_ci95", "mean_time_s", "median_time_s",
+                "max_time_s", "mean_return"):
+        assert key in summary[0]
+    assert (out / "episodes.csv").read_text().count("\n") == 3
+    assert "| scenario | method |" in (out / "table.md").read_text()
+    assert (out / "trajectories_static.png").stat().st_size > 1000
+
+
+def test_experiment_command_rejects_unknown_method(capsys):
+    with pytest.raises(SystemExit):
+        main(["experiment", "--methods", "robust,magic"])
+    assert "choose from" in capsys.readouterr().err
