@@ -138,18 +138,22 @@ class UncertainLinearSystem:
         Its ``A`` is the nominal matrix and its ``B`` the input matrix. Its ``D`` (the
         feedthrough) and ``C`` are ignored: our ``D`` is the disturbance input matrix. A
         continuous-time ``sys`` needs ``dt`` (forward Euler, see `from_continuous`); a
-        discrete-time one uses its own sampling time and must not be given another.
+        discrete-time one uses its own sampling time and must not be given another (with
+        ``sys.dt = True``, unspecified sampling time, any ``dt`` is accepted). A ``sys``
+        with unspecified timebase (``dt=None``) is refused: it could be either.
         """
         for attr in ("A", "B", "dt"):
             if not hasattr(sys, attr):
                 raise InputError(f"sys must be a python-control StateSpace, got {type(sys).__name__}")
         sys_dt = sys.dt
-        is_continuous = sys_dt is not None and sys_dt is not True and float(sys_dt) == 0.0
+        if sys_dt is None:  # python-control's "unspecified timebase": continuous and discrete at once
+            raise InputError("sys has an unspecified timebase (dt=None): build it with dt=0 (continuous) or its sampling time")
+        is_continuous = sys_dt is not True and float(sys_dt) == 0.0
         if is_continuous:
             if dt is None:
                 raise InputError("sys is continuous-time: give dt= to discretise it")
             return cls.from_continuous(np.asarray(sys.A), phi, np.asarray(sys.B), D=D, w=w, theta=theta, dt=dt)
-        if dt is not None and sys_dt is not True and sys_dt is not None and not np.isclose(float(sys_dt), dt):
+        if dt is not None and sys_dt is not True and not np.isclose(float(sys_dt), dt):
             raise InputError(f"sys is discrete-time with dt={sys_dt}; dt={dt} contradicts it")
         return cls(np.asarray(sys.A), phi, np.asarray(sys.B), D=D, w=w, theta=theta)
 

@@ -110,6 +110,9 @@ def test_from_statespace_discrete_uses_its_own_matrices_and_dt():
         UncertainLinearSystem.from_statespace(sys, phi, D=D, dt=0.2, **boxes)
     unspecified = control.ss(A, B, np.eye(2), np.zeros((2, 1)), dt=True)
     np.testing.assert_array_equal(UncertainLinearSystem.from_statespace(unspecified, phi, D=D, **boxes).A0, A)
+    ambiguous = control.ss(A, B, np.eye(2), np.zeros((2, 1)), dt=None)
+    with pytest.raises(InputError, match=r"sys has an unspecified timebase \(dt=None\)"):
+        UncertainLinearSystem.from_statespace(ambiguous, phi, D=D, dt=0.1, **boxes)
     with pytest.raises(InputError, match=r"sys must be a python-control StateSpace, got ndarray"):
         UncertainLinearSystem.from_statespace(A, phi, **boxes)
 
