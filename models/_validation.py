@@ -39,6 +39,8 @@ def as_finite_array(
     ndim
         Expected number of dimensions, when the lengths are free.
     """
+    if np.iscomplexobj(value):  # a float cast would silently drop the imaginary part
+        raise InputError(f"{name} must be a real numeric array, got complex values")
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -61,6 +63,8 @@ def frozen_copy(array: np.ndarray) -> np.ndarray:
 
 def as_positive_scalar(name: str, value, *, allow_zero: bool = False) -> float:
     """Check that ``value`` is a finite real scalar > 0 (or >= 0)."""
+    if np.iscomplexobj(value) or isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name} must be a real scalar, got {value!r}")
     try:
         x = float(value)
     except (TypeError, ValueError):

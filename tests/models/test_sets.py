@@ -128,6 +128,12 @@ def test_box_errors():
         Box([0.0], [np.inf])
     with pytest.raises(InputError, match=r"low must be a real numeric array"):
         Box(["a"], [1.0])
+    with pytest.raises(InputError, match=r"high must be a real numeric array, got complex values"):
+        Box([0.0], np.array([1.0 + 2.0j]))
+    with pytest.raises(InputError, match=r"radius must be a real scalar, got np.complex128"):
+        Ellipsoid([0.0], [[1.0]], np.complex128(1.0 + 1.0j))
+    with pytest.raises(InputError, match=r"radius must be a real scalar, got True"):
+        Ellipsoid([0.0], [[1.0]], True)
     with pytest.raises(EmptySetError, match=r"radius must be >= 0"):
         Box.from_center([0.0, 0.0], [1.0, -1.0])
     with pytest.raises(DimensionError, match=r"radius must have shape \(2,\), got shape \(3,\)"):
