@@ -361,6 +361,12 @@ class IntervalModel:
     because the closed-loop matrices differ per action and the reward reads the
     boxes in plant coordinates at every sub-step.
 
+    The batched arithmetic computes, per action and hypothesis, the same one-step box
+    as `IntervalPredictor.step` (its vertex-wise exact bound), in round-to-nearest:
+    it skips the predictor's outward rounding, so inclusion holds up to
+    `minimaxplan.models.prediction.ROUNDING_TOL` relative (the tolerance DESIGN.md
+    allows and the tests use), which saves the error-bound product of every sub-step.
+
     Several hypotheses for one planner: `IntervalModel.linked` builds one model per
     hypothesis that compute their transitions together (the planner sees M ordinary
     models; states then hold one box per hypothesis).

@@ -11,9 +11,14 @@ Two implementations answer the same questions:
 Everything is planar. fcl works in 3-D, so a planar box becomes an ``fcl.Box`` of unit
 height centred on the plane z = 0 and a disc becomes an ``fcl.Sphere`` centred on that
 plane: the closest points of two such shapes can always be taken in the plane, so the
-3-D distance equals the planar one. (``fcl.Cylinder`` would model a disc more literally,
-but fcl's box-cylinder distance is computed by GJK and is off by up to ~0.2 on random
-cases, while box-sphere, sphere-sphere and box-box distances are exact to rounding.)
+3-D distance equals the planar one. Only fcl queries that are exact are used:
+box-sphere and sphere-sphere distances and collisions, and box-box collisions. Not
+used: ``fcl.Cylinder`` (its box distance comes from GJK and is off by up to ~0.2 on
+random cases) and box-box DISTANCES, which GJK gets wrong when faces are aligned
+(``[0, 1]^2`` against ``[0, 1] x [2, 4]`` gives sqrt(2) instead of 1, with either GJK
+solver of python-fcl 0.7). "Does box B meet box A grown by a disc of radius rho" is
+instead answered exactly by the rounded-rectangle decomposition: A grown by rho in x,
+A grown by rho in y, and the four discs of radius rho at A's corners.
 
 Closed sets throughout: touching counts as meeting.
 """
@@ -35,7 +40,6 @@ __all__ = [
     "boxes_meet_circles",
     "boxes_meet_boxes",
     "fcl_box_circle_distance",
-    "fcl_box_box_distance",
     "fcl_boxes_meet_circles",
     "fcl_boxes_meet_boxes",
     "fcl_disc_collisions",
@@ -342,11 +346,6 @@ def fcl_box_circle_distance(lower, upper, center, radius) -> float:
     return _fcl_distance(_fcl_box(lower, upper), _fcl_disc(center, radius))
 
 
-def fcl_box_box_distance(lower, upper, other_lower, other_upper) -> float:
-    """Distance between two planar boxes, by fcl (0 if they meet)."""
-    return _fcl_distance(_fcl_box(lower, upper), _fcl_box(other_lower, other_upper))
-
-
 def fcl_boxes_meet_circles(lower, upper, centers, radii, margin: float = 0.0, *, tol: float = 0.0) -> np.ndarray:
     """`boxes_meet_circles` computed with fcl, one box-sphere distance query per pair (slow, authoritative).
 
@@ -364,15 +363,41 @@ def fcl_boxes_meet_circles(lower, upper, centers, radii, margin: float = 0.0, *,
     return out.reshape(lower.shape[:-1])
 
 
+def _fcl_collide(a, b) -> bool:
+    fcl = _fcl()
+    return fcl.collide(a, b, fcl.CollisionRequest(), fcl.CollisionResult()) > 0
+
+
+def fcl_box_meets_grown_box(lower, upper, other_lower, other_upper, reach: float) -> bool:
+    """Whether the box [other_lower, other_upper] meets [lower, upper] grown by a disc of radius ``reach``, by fcl.
+
+    Exact decomposition of the grown box (a rounded rectangle) into the box grown by
+    ``reach`` along x, along y, and the four discs at its corners; each part is tested
+    with fcl's exact box-box or box-sphere collision (touching counts).
+    """
+    lower = np.asarray(lower, dtype=float)
+    upper = np.asarray(upper, dtype=float)
+    other = _fcl_box(other_lower, other_upper)
+    along_x = _fcl_box(lower - [reach, 0.0], upper + [reach, 0.0])
+    along_y = _fcl_box(lower - [0.0, reach], upper + [0.0, reach])
+    if _fcl_collide(other, along_x) or _fcl_collide(other, along_y):
+        return True
+    corners = [(lower[0], lower[1]), (lower[0], upper[1]), (upper[0], lower[1]), (upper[0], upper[1])]
+    return any(_fcl_collide(other, _fcl_disc(c, reach)) for c in corners)
+
+
 def fcl_boxes_meet_boxes(lower, upper, other_lower, other_upper, radii, margin: float = 0.0, *, tol: float = 0.0) -> np.ndarray:
-    """`boxes_meet_boxes` computed with fcl for boxes (k, 2) against other boxes (n, 2) (slow, authoritative)."""
+    """`boxes_meet_boxes` computed with fcl for boxes (k, 2) against other boxes (n, 2) (slow, authoritative).
+
+    Uses `fcl_box_meets_grown_box` with ``reach = radii[j] + margin + tol``.
+    """
     lower = np.asarray(lower, dtype=float).reshape(-1, 2)
     upper = np.asarray(upper, dtype=float).reshape(-1, 2)
     out = np.zeros(lower.shape[0], dtype=bool)
     for i in range(lower.shape[0]):
-        box = _fcl_box(lower[i], upper[i])
         out[i] = any(
-            _fcl_distance(box, _fcl_box(ol, oh)) <= r + margin + tol for ol, oh, r in zip(other_lower, other_upper, radii)
+            fcl_box_meets_grown_box(lower[i], upper[i], ol, oh, r + margin + tol)
+            for ol, oh, r in zip(other_lower, other_upper, radii)
         )
     return out
 

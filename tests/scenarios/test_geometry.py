@@ -13,8 +13,8 @@ from minimaxplan.scenarios.geometry import (
     box_point_sq_distance,
     boxes_meet_boxes,
     boxes_meet_circles,
-    fcl_box_box_distance,
     fcl_box_circle_distance,
+    fcl_box_meets_grown_box,
     fcl_boxes_meet_boxes,
     fcl_boxes_meet_circles,
     fcl_disc_collisions,
@@ -25,12 +25,13 @@ side = st.floats(0, 3, allow_nan=False)
 
 
 @st.composite
-def boxes(draw, n=None):
+def boxes(draw, n=None, degenerate=True):
     k = draw(st.integers(1, 4)) if n is None else n
     lo = np.array(draw(st.lists(st.tuples(coord, coord), min_size=k, max_size=k)))
-    size = np.array(draw(st.lists(st.tuples(side, side), min_size=k, max_size=k)))
-    # some boxes degenerate to segments or points
-    size[np.array(draw(st.lists(st.booleans(), min_size=k, max_size=k)))] *= 0.0
+    sides = side if degenerate else st.floats(0.01, 3, allow_nan=False)
+    size = np.array(draw(st.lists(st.tuples(sides, sides), min_size=k, max_size=k)))
+    if degenerate:  # some boxes degenerate to segments or points
+        size[np.array(draw(st.lists(st.booleans(), min_size=k, max_size=k)))] *= 0.0
     return lo, lo + size
 
 
@@ -55,12 +56,17 @@ def test_box_circle_distance_matches_fcl(box, center, radius):
     assert numpy_distance == pytest.approx(fcl_box_circle_distance(lo, hi, c, radius), abs=1e-9)
 
 
-@given(boxes(n=1), boxes(n=1))
-def test_box_box_distance_matches_fcl(box, other):
+@given(boxes(n=1), boxes(n=1), st.floats(0, 2))
+def test_box_box_meets_match_fcl(box, other, reach):
+    """Box-box distance <= reach exactly when fcl says the other box meets the grown box."""
     lo, hi = box[0][0], box[1][0]
     olo, ohi = other[0], other[1]
-    numpy_distance = np.sqrt(box_box_sq_distance(lo, hi, olo, ohi)[0])
-    assert numpy_distance == pytest.approx(fcl_box_box_distance(lo, hi, olo[0], ohi[0]), abs=1e-9)
+    distance = np.sqrt(box_box_sq_distance(lo, hi, olo, ohi)[0])
+    if abs(distance - reach) > 1e-9:
+        assert (distance <= reach) == fcl_box_meets_grown_box(lo, hi, olo[0], ohi[0], reach)
+    assert fcl_box_meets_grown_box(lo, hi, olo[0], ohi[0], distance + 1e-9)
+    if distance > 1e-6:
+        assert not fcl_box_meets_grown_box(lo, hi, olo[0], ohi[0], distance - 1e-6)
 
 
 # ------------------------------------------------------- meet tests, many at once
@@ -98,6 +104,39 @@ def test_boxes_meet_boxes_matches_fcl(box, others, margin):
             assert fast[i] == fcl_boxes_meet_boxes(lo[i], hi[i], olo, ohi, radii, margin)[0]
 
 
+def test_fcl_box_box_distance_is_not_used_because_it_fails_on_aligned_boxes():
+    """Why box-box cross-checks go through fcl collisions: fcl's GJK distance, not the closed form, is wrong here."""
+    from minimaxplan.scenarios.geometry import _fcl_box, _fcl_distance
+
+    assert _fcl_distance(_fcl_box([0.0, 0.0], [1.0, 1.0]), _fcl_box([0.0, 2.0], [1.0, 4.0])) == pytest.approx(np.sqrt(2.0))
+    assert np.sqrt(box_box_sq_distance(np.array([0.0, 0.0]), np.array([1.0, 1.0]), np.array([[0.0, 2.0]]), np.array([[1.0, 4.0]])))[0] == 1.0
+    assert fcl_box_meets_grown_box([0.0, 0.0], [1.0, 1.0], [0.0, 2.0], [1.0, 4.0], 1.0)
+    assert not fcl_box_meets_grown_box([0.0, 0.0], [1.0, 1.0], [0.0, 2.0], [1.0, 4.0], 1.0 - 1e-9)
+
+
+@given(boxes(), boxes(n=1))
+def test_flat_and_point_boxes_against_the_closed_form(box, other):
+    """Box-box distance against a brute-force minimum over points of both boxes (corners and edges)."""
+    lo, hi = box
+    olo, ohi = other[0][0], other[1][0]
+    fast = np.sqrt(box_box_sq_distance(lo, hi, olo[None], ohi[None])[:, 0])
+    t = np.linspace(0.0, 1.0, 41)
+    for i in range(lo.shape[0]):
+        # the distance between boxes is the smaller of point-box distances from the
+        # boundary points of either box; sample both boundaries finely
+        ring = np.concatenate([
+            np.stack([lo[i][0] + t * (hi[i][0] - lo[i][0]), np.full_like(t, y)], axis=1) for y in (lo[i][1], hi[i][1])
+        ] + [
+            np.stack([np.full_like(t, x), lo[i][1] + t * (hi[i][1] - lo[i][1])], axis=1) for x in (lo[i][0], hi[i][0])
+        ])
+        to_other = np.sqrt(box_point_sq_distance(olo, ohi, ring)).min()
+        other_ring = olo + np.stack(np.meshgrid(t, t), axis=-1).reshape(-1, 2) * (ohi - olo)
+        to_box = np.sqrt(box_point_sq_distance(lo[i], hi[i], other_ring)).min()
+        brute = min(to_other, to_box)
+        assert fast[i] <= brute + 1e-12
+        assert fast[i] >= brute - 0.05 * np.max(np.concatenate([hi[i] - lo[i], ohi - olo])) - 1e-12
+
+
 def test_tangent_cases_count_as_meeting():
     lo, hi = np.array([0.0, 0.0]), np.array([1.0, 1.0])
     # disc of radius 0.75 centred 1 to the right of the box: touches when grown by 0.25
@@ -113,7 +152,7 @@ def test_tangent_cases_count_as_meeting():
     assert fcl_box_circle_distance(lo, hi, corner[0], reach - 1e-6) == pytest.approx(1e-6, abs=1e-12)
     # two boxes sharing an edge meet; one a hair apart with zero radii do not
     assert boxes_meet_boxes(lo, hi, np.array([[1.0, 0.2]]), np.array([[2.0, 0.4]]), np.array([1e-300]))
-    assert fcl_box_box_distance(lo, hi, [1.0, 0.2], [2.0, 0.4]) == 0.0
+    assert fcl_box_meets_grown_box(lo, hi, [1.0, 0.2], [2.0, 0.4], 0.0)
     assert not boxes_meet_boxes(lo, hi, np.array([[1.5, 0.2]]), np.array([[2.0, 0.4]]), np.array([0.4999]))
     assert boxes_meet_boxes(lo, hi, np.array([[1.5, 0.2]]), np.array([[2.0, 0.4]]), np.array([0.5]))
 
