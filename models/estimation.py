@@ -275,5 +275,9 @@ class ConfidenceEllipsoidEstimator:
         """The current confidence ellipsoid ``{t : (t - c)^T G (t - c) <= beta^2}``."""
         return _conditioned_ellipsoid(self.center(), self._gramian.astype(float), self.radius())
 
+    def to_dict(self) -> dict:
+        """The current state as plain data (for reports): sample count and ellipsoid."""
+        return {"nsamples": self._nsamples, "ellipsoid": self.ellipsoid().to_dict()}
+
     def __repr__(self) -> str:
         return f"ConfidenceEllipsoidEstimator(nparams={self._d}, nsamples={self._nsamples})"

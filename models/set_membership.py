@@ -264,6 +264,17 @@ class SetMembershipEstimator:
         bound, point = min(candidates, key=lambda candidate: candidate[0])
         return point, bound
 
+    def to_dict(self) -> dict:
+        """The current state as plain data (for reports)."""
+        return {
+            "nsamples": self._nsamples,
+            "estimate": self._estimate.tolist(),
+            "radius": self._radius,
+            "parameter_set": self._box.to_dict(),
+            "ellipsoid_center": self._center.tolist(),
+            "shape_matrix": self.shape_matrix.tolist(),
+        }
+
     def __repr__(self) -> str:
         return f"SetMembershipEstimator(nparams={self._d}, nsamples={self._nsamples}, radius={self._radius:.6g})"
 

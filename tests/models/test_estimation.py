@@ -172,6 +172,13 @@ def test_online_estimator_accepts_single_rows_and_scalar_targets():
     assert online.nsamples == 10 and online.nparams == 2
 
 
+def test_to_dict_reports_the_state():
+    online = ConfidenceEllipsoidEstimator(2, **OPTIONS)
+    online.update(np.eye(2), [0.1, 0.2])
+    assert online.to_dict() == {"nsamples": 1, "ellipsoid": online.ellipsoid().to_dict()}
+    assert repr(online) == "ConfidenceEllipsoidEstimator(nparams=2, nsamples=1)"
+
+
 def test_online_update_does_not_alias_or_modify_callers_arrays():
     E = np.array([[1.0, 2.0], [0.5, -1.0]])
     y = np.array([0.3, 0.1])

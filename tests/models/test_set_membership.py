@@ -143,6 +143,16 @@ def test_inconsistent_data_raise_and_keep_the_state():
     assert estimator.nsamples == 1
 
 
+def test_to_dict_reports_the_state():
+    estimator = SetMembershipEstimator(2, noise_bound=0.1, prior=Box([-1.0, -1.0], [1.0, 1.0]))
+    estimator.update(np.eye(2), [0.5, -0.5])
+    state = estimator.to_dict()
+    assert state["nsamples"] == 1
+    assert state["estimate"] == estimator.estimate.tolist() and state["radius"] == estimator.radius
+    assert state["parameter_set"] == estimator.parameter_set().to_dict()
+    assert np.allclose(state["shape_matrix"], estimator.shape_matrix)
+
+
 def test_returned_arrays_are_copies():
     gamma = np.array([0.1, 0.2])
     estimator = SetMembershipEstimator(2, noise_bound=gamma, prior=Box([-1.0, -1.0], [1.0, 1.0]))
