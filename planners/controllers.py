@@ -137,8 +137,8 @@ class LinearFeedback:
             "K": self.K.tolist(),
             "x_ref": self.x_ref.tolist(),
             "u_ff": self.u_ff.tolist(),
-            "u_low": self.u_low.tolist(),
-            "u_high": self.u_high.tolist(),
+            "u_low": [None if np.isinf(v) else float(v) for v in self.u_low],
+            "u_high": [None if np.isinf(v) else float(v) for v in self.u_high],
         }
 
 

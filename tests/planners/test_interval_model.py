@@ -392,3 +392,16 @@ def test_linked_validation():
     bad = BoxState(np.zeros((3, 4)), np.ones((3, 4)), 0)
     with pytest.raises(DimensionError, match=r"state holds 3 boxes, expected 2"):
         models[0].expand(bad, models[0].actions)
+
+
+def test_controllers_to_dict_and_box_state():
+    import json
+
+    feedback = LinearFeedback(np.eye(2), [1.0, -1.0], u_low=-0.5)
+    data = json.loads(json.dumps(feedback.to_dict(), allow_nan=False))
+    assert data["u_low"] == [-0.5, -0.5] and data["u_high"] == [None, None] and data["kind"] == "linear_feedback"
+    assert json.loads(json.dumps(OpenLoop([1.0, 0.0]).to_dict(), allow_nan=False)) == {"kind": "open_loop", "u": [1.0, 0.0]}
+    state = BoxState(np.zeros(2), np.ones(2), 3)
+    lower, upper, time = state
+    np.testing.assert_array_equal(state.z, [0.0, 0.0, 1.0, 1.0])
+    assert time == 3 and "time=3" in repr(state)

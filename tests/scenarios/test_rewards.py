@@ -202,3 +202,17 @@ def test_reward_validation():
         GoalReward([0.0, 0.0], moving_obstacles=MovingObstacles([[0, 0]], [[0, 0]], [1.0])).value(
             [1.0, 1.0], moving_positions=np.zeros((2, 2))
         )
+
+
+def test_with_obstacles_and_to_dict():
+    import json
+
+    base = GoalReward([1.0, 2.0], obstacles=CircularObstacles([[0.0, 0.0]], [0.5]), robot_radius=0.3)
+    moving = MovingObstacles([[3.0, 3.0]], [[0.0, -1.0]], [0.3], velocity_uncertainty=0.2, dt=0.1, time0=4)
+    with_moving = base.with_obstacles(moving_obstacles=moving)
+    assert len(with_moving.moving_obstacles) == 1 and with_moving.obstacles is base.obstacles
+    assert with_moving.robot_radius == 0.3 and with_moving.position_indices == (0, 1)
+    # the pedestrian's box at t = 14 (1 s later) reaches y in [1.8, 2.2]: a robot at (3, 2) may collide
+    assert with_moving.evaluate([3.0, 2.0], 14)[1] and not base.evaluate([3.0, 2.0], 14)[1]
+    for value in (base, with_moving, SpeedLaneReward(1.0, 2.0)):
+        assert json.loads(json.dumps(value.to_dict()))["family"] in ("goal", "speed_lane")
