@@ -5,7 +5,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from minimaxplan.models import Box, DimensionError, EmptySetError, InputError, NonFiniteError, SetMembershipEstimator
+from minimaxplan.models import (
+    Box,
+    DimensionError,
+    EmptySetError,
+    InputError,
+    NonFiniteError,
+    SetMembershipEstimator,
+    UncertainLinearSystem,
+)
 from minimaxplan.models.set_membership import OUTWARD_ROUNDING
 
 
@@ -78,6 +86,32 @@ def test_long_runs_stay_sound_while_the_set_collapses(seed, d, p, extreme):
         assert estimator.radius <= radius
         assert np.linalg.norm(theta - estimator.estimate) <= estimator.radius
         radius = estimator.radius
+
+
+@settings(max_examples=30)
+@given(seed=st.integers(0, 2**32 - 1), log_dt=st.floats(-2, -0.3))
+def test_documented_use_with_a_simulated_system(seed, log_dt):
+    """targets = x+ - A0 x - B u, noise bound per row = max |D w| over the box w (at its corners)."""
+    rng = np.random.default_rng(seed)
+    p, d = 3, 2
+    A = rng.normal(size=(p, p))  # neither Metzler nor stable
+    phi = rng.normal(size=(d, p, p))
+    D = rng.normal(size=(p, 2))
+    w_box = Box.from_center(np.zeros(2), rng.uniform(0.01, 0.2, size=2))
+    prior = Box([-1.0, -1.0], [1.0, 1.0])
+    system = UncertainLinearSystem.from_continuous(A, phi, rng.normal(size=(p, 1)), D=D, w=w_box, theta=prior, dt=10.0**log_dt)
+    theta = rng.uniform(prior.low, prior.high)
+    noise_bound = np.abs(system.D) @ w_box.high  # per row, for a box centred at 0
+    estimator = SetMembershipEstimator(d, noise_bound=noise_bound, prior=prior)
+    x = rng.normal(size=p)
+    for _ in range(40):
+        u = rng.uniform(-1, 1, size=1)
+        w = w_box.vertices()[rng.integers(4)]  # disturbances at the corners of their box
+        x_next = system.step(x, u, theta, w)
+        estimator.update(system.regressor(x), x_next - system.A0 @ x - system.B @ u)
+        assert estimator.parameter_set().contains(theta)
+        assert np.linalg.norm(theta - estimator.estimate) <= estimator.radius
+        x = x_next / max(1.0, np.linalg.norm(x_next))  # keep the state bounded; any x is a valid sample
 
 
 def test_the_estimator_learns_under_uniform_noise():
