@@ -405,3 +405,24 @@ def test_controllers_to_dict_and_box_state():
     lower, upper, time = state
     np.testing.assert_array_equal(state.z, [0.0, 0.0, 1.0, 1.0])
     assert time == 3 and "time=3" in repr(state)
+
+
+def test_ellipsoid_parameter_set_contains_true_trajectories():
+    from minimaxplan.models import Ellipsoid
+
+    system = robot_system()
+    ellipsoid = Ellipsoid([0.5, 0.4], np.array([[40.0, 10.0], [10.0, 30.0]]), 1.0)
+    model = IntervalModel(system, ellipsoid, UnboundedReward(), ROBOT_ACTIONS, substeps=5)
+    lo0, hi0 = np.array([0.0, 0.0, 0.1, -0.1]), np.array([0.05, 0.05, 0.2, 0.0])
+    sequence = [3, 0, 2, 1]
+    lower, upper, _, _ = model.rollout(model.initial_state(lo0, hi0), sequence)
+    rng = np.random.default_rng(2)
+    # parameters on the ellipsoid's boundary and inside it
+    directions = rng.normal(size=(40, 2))
+    directions /= np.sqrt(np.einsum("ni,ij,nj->n", directions, ellipsoid.gramian, directions))[:, None]
+    scale = np.where(np.arange(40) < 20, 1.0, rng.uniform(0.0, 1.0, 40))[:, None]
+    thetas = ellipsoid.center + directions * ellipsoid.radius * scale
+    assert ellipsoid.contains(thetas, tol=1e-9)
+    x0 = systems.initial_samples(rng, lo0, hi0, len(thetas))
+    states = systems.simulate(rng, system, thetas, x0, [ROBOT_ACTIONS[a] for a in sequence], 5)
+    assert systems.inside(states, lower, upper)
