@@ -12,3 +12,5 @@ from .comparison import (
     oracle_planner,
     root_state,
 )
+from .dwa import DWAParameters, DynamicWindowPlanner, NavigationScene
+from .teb import TEBParameters, TimedElasticBand

@@ -1,0 +1,134 @@
+"""Gymnasium interface to the robot navigation worlds (the ``gym`` extra).
+
+`RobotNavigationEnv` wraps `minimaxplan.scenarios.worlds.RobotWorld`:
+
+* action: ``Box(-1, 1, (2,), float32)``, the control ``u``, held for one decision
+  period (``substeps`` = 5 sub-steps of 0.1 s). A continuous action keeps the env
+  useful to any agent; the discrete controller sets of the tree planners live in
+  ``minimaxplan.planners`` and wrap around this env if needed.
+* observation: a flat ``Box`` (float32) of
+  ``[measured state (4), goal - measured position (2),
+  nearest K obstacles: (dx, dy, radius, present) * K,
+  pedestrians: (dx, dy, announced vx, announced vy, present) * 3]``; positions are
+  relative to the measured robot position, obstacles sorted by clearance; absent
+  entries are zeros with ``present = 0``. Measurement noise is the world's (uniform,
+  bounded by default).
+* reward: the mean over the held sub-steps of the true goal reward
+  ``J = beta(x) / (1 + ||pos - goal||)`` in [0, 1] (0 after a collision).
+* ``terminated`` on goal or collision, ``truncated`` at the 60 s time limit;
+  ``info`` holds ``outcome``, ``time``, ``true_theta``.
+
+``reset(seed=s)`` builds the world of seed ``s``; without a seed, the env draws the
+next world seed from its own generator (seeded by the first seeded reset).
+Importing this module needs gymnasium; the rest of ``minimaxplan.scenarios`` does not.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+try:
+    import gymnasium as gym
+    from gymnasium import spaces
+except ImportError as exc:  # pragma: no cover - exercised only without the extra
+    raise ImportError("minimaxplan.scenarios.gym_env needs gymnasium: pip install 'minimaxplan[gym]'") from exc
+
+from minimaxplan.models.errors import InputError
+
+from .robot import DEFAULT_ROBOT, RobotParameters
+from .worlds import PEDESTRIAN_COUNT, WORLD_KINDS, RobotWorld
+
+__all__ = ["RobotNavigationEnv", "ENV_ID"]
+
+ENV_ID = "minimaxplan/RobotNavigation-v0"
+#: Obstacles reported in the observation (the nearest ones).
+OBSERVED_OBSTACLES = 8
+OBSERVED_PEDESTRIANS = PEDESTRIAN_COUNT[1]
+#: Bound of every observation entry. Speeds stay below (1 + 0.1) / 0.2 = 5.5 m/s (input
+#: plus disturbance against the smallest friction), so in 60 s positions move less than
+#: 330 m from the 20 m arena; pedestrians walk below 2 m/s.
+OBSERVATION_BOUND = 1000.0
+
+
+class RobotNavigationEnv(gym.Env):
+    """Robot navigation among static obstacles or pedestrians (see the module docstring).
+
+    Parameters
+    ----------
+    kind
+        "static" or "pedestrian".
+    measurement
+        "uniform" (bounded noise, inside the guarantees) or "gaussian".
+    params
+        `RobotParameters`.
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, kind: str = "static", *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT):
+        if kind not in WORLD_KINDS:
+            raise InputError(f"kind must be one of {WORLD_KINDS}, got {kind!r}")
+        if measurement not in ("uniform", "gaussian"):
+            raise InputError(f"measurement must be 'uniform' or 'gaussian', got {measurement!r}")
+        self.kind = kind
+        self.measurement = measurement
+        self.params = params
+        bound = params.control_bound
+        self.action_space = spaces.Box(-bound, bound, shape=(2,), dtype=np.float32)
+        size = 4 + 2 + 4 * OBSERVED_OBSTACLES + 5 * OBSERVED_PEDESTRIANS
+        self.observation_space = spaces.Box(-OBSERVATION_BOUND, OBSERVATION_BOUND, shape=(size,), dtype=np.float32)
+        self.world: RobotWorld | None = None
+
+    def _observation(self) -> np.ndarray:
+        world = self.world
+        x = world.measure()
+        obs = [x, world.goal - x[:2]]
+        obstacles = np.zeros((OBSERVED_OBSTACLES, 4))
+        rel = world.obstacles.centers - x[:2]
+        order = np.argsort(np.linalg.norm(rel, axis=1) - world.obstacles.radii)[:OBSERVED_OBSTACLES]
+        obstacles[: order.size] = np.column_stack([rel[order], world.obstacles.radii[order], np.ones(order.size)])
+        pedestrians = np.zeros((OBSERVED_PEDESTRIANS, 5))
+        m = len(world.crowd)
+        pedestrians[:m] = np.column_stack([world.crowd.positions - x[:2], world.crowd.announced, np.ones(m)])
+        obs += [obstacles.ravel(), pedestrians.ravel()]
+        return np.concatenate(obs).astype(np.float32)
+
+    def _info(self) -> dict:
+        world = self.world
+        return {"outcome": world.outcome, "time": world.time, "true_theta": world.true_theta.copy()}
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        world_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
+        self.world = RobotWorld(self.kind, world_seed, measurement=self.measurement, params=self.params)
+        return self._observation(), self._info()
+
+    def step(self, action):
+        if self.world is None:
+            raise InputError("call reset() before step()")
+        u = np.asarray(action, dtype=float)
+        if u.shape != (2,):
+            raise InputError(f"action must have shape (2,), got shape {u.shape}")
+        # float32 actions at the bound may exceed it by rounding: clip only that.
+        bound = self.params.control_bound
+        if np.any(np.abs(u) > bound * (1 + 1e-6)) or not np.all(np.isfinite(u)):
+            raise InputError(f"action must lie in [-{bound}, {bound}]^2, got {u.tolist()}")
+        u = np.clip(u, -bound, bound)
+        rewards = []
+        for _ in range(self.params.substeps):
+            self.world.apply(u)
+            rewards.append(self.world.reward())
+            if self.world.done:
+                break
+        outcome = self.world.outcome
+        terminated = outcome in ("goal", "collision")
+        truncated = outcome == "timeout"
+        return self._observation(), float(np.mean(rewards)), terminated, truncated, self._info()
+
+
+def _register() -> None:
+    if ENV_ID not in gym.registry:
+        gym.register(ENV_ID, entry_point="minimaxplan.scenarios.gym_env:RobotNavigationEnv")
+
+
+_register()
