@@ -138,7 +138,6 @@ class SetMembershipEstimator:
             raise InputError(f"noise_bound must be > 0 in every row, got {bound.tolist()}")
         self._d = d
         self._noise_bound = frozen_copy(bound)
-        self._prior = prior
         self._center = prior.center.copy()
         self._factor = np.diag(np.sqrt(d) * prior.radius)
         self._estimate = prior.center.copy()
@@ -178,7 +177,10 @@ class SetMembershipEstimator:
         return self._factor @ self._factor.T
 
     def parameter_set(self) -> Box:
-        """The prior box intersected with the bounding boxes of all ellipsoids so far (eq. (5))."""
+        """The box of eq. (5): the prior, cut by every ellipsoid's bounding box and every row's strip.
+
+        It holds theta* (given the prior and the noise bound) and never grows.
+        """
         return self._box
 
     def ellipsoid(self) -> Ellipsoid:
