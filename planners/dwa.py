@@ -24,6 +24,8 @@ from minimaxplan.models._validation import as_finite_array, as_positive_scalar, 
 from minimaxplan.models.errors import InputError
 from minimaxplan.models.system import UncertainLinearSystem
 
+from .navigation import NavigationFunction
+
 __all__ = ["NavigationScene", "DWAParameters", "DWAEvaluation", "DynamicWindowPlanner"]
 
 
@@ -129,6 +131,13 @@ class DWAParameters:
         Clearances above this count as "free" in the clearance score, m.
     progress_weight, heading_weight, clearance_weight, velocity_weight
         Weights of the normalised terms of the objective.
+    navigation_function
+        Measure progress and heading with a grid `NavigationFunction` around the static
+        discs (the global DWA of Brock & Khatib 1999, as a global planner does in ROS)
+        instead of the straight-line distance to the goal (Fox et al.'s purely local
+        DWA, which stalls in front of obstacles between robot and goal).
+    grid_resolution
+        Cell size of that navigation function, m.
     """
 
     samples_per_axis: int = 9
@@ -142,11 +151,13 @@ class DWAParameters:
     heading_weight: float = 0.3
     clearance_weight: float = 0.4
     velocity_weight: float = 0.1
+    navigation_function: bool = True
+    grid_resolution: float = 0.2
 
     def __post_init__(self) -> None:
         if int(self.samples_per_axis) != self.samples_per_axis or self.samples_per_axis < 2:
             raise InputError(f"samples_per_axis must be an integer >= 2, got {self.samples_per_axis!r}")
-        for name in ("horizon", "brake_time", "max_speed", "clearance_cap"):
+        for name in ("horizon", "brake_time", "max_speed", "clearance_cap", "grid_resolution"):
             as_positive_scalar(name, getattr(self, name))
         for name in ("safety_margin", "pedestrian_margin", "progress_weight", "heading_weight",
                      "clearance_weight", "velocity_weight"):
@@ -195,12 +206,15 @@ class DynamicWindowPlanner:
 
     Notes
     -----
-    Score of an admissible sample (all terms in [0, 1] except progress, in [-1, 1]):
+    Score of an admissible sample (all terms in [0, 1] except progress, about [-1, 1]):
     ``progress_weight * (d0 - d_end) / (max_speed * horizon)
-    + heading_weight * (1 + cos(angle(v_end, goal - p_end))) / 2
+    + heading_weight * (1 + cos(angle(v_end, way))) / 2
     + clearance_weight * min(clearance, cap) / cap
     + velocity_weight * |v_end| / max_speed``, with ``clearance`` the smallest distance
-    from the footprint to a disc along the held rollout (0 if it would collide).
+    from the footprint to a disc along the held rollout (0 if it would collide), ``d``
+    the cost-to-go of the navigation function (or the distance to the goal without it)
+    at the robot and at the rollout's end, and ``way`` the direction of steepest descent
+    of that cost-to-go at the end (or the direction to the goal).
     """
 
     def __init__(self, system: UncertainLinearSystem, *, theta=None, substeps: int = 5, robot_radius: float = 0.3,
@@ -293,11 +307,18 @@ class DynamicWindowPlanner:
         else:
             clearance = np.full(k, np.inf)
         end = held[:, -1]
-        d0 = np.linalg.norm(scene.goal - x[:2])
-        to_goal = scene.goal - end[:, :2]
-        d_end = np.linalg.norm(to_goal, axis=-1)
         speed_end = np.linalg.norm(end[:, 2:], axis=-1)
-        cosine = np.einsum("ki,ki->k", end[:, 2:], to_goal) / np.maximum(speed_end * d_end, 1e-9)
+        if p.navigation_function:
+            nav = self._navigation(scene, np.concatenate([x[None, :2], end[:, :2]]))
+            d0 = float(nav.cost_to_go(x[:2]))
+            d_end = nav.cost_to_go(end[:, :2])
+            way = nav.descent(end[:, :2])
+            cosine = np.einsum("ki,ki->k", end[:, 2:], way) / np.maximum(speed_end, 1e-9)
+        else:
+            d0 = np.linalg.norm(scene.goal - x[:2])
+            to_goal = scene.goal - end[:, :2]
+            d_end = np.linalg.norm(to_goal, axis=-1)
+            cosine = np.einsum("ki,ki->k", end[:, 2:], to_goal) / np.maximum(speed_end * d_end, 1e-9)
         progress = (d0 - d_end) / (p.max_speed * p.horizon)
         score = (
             p.progress_weight * progress
@@ -315,6 +336,18 @@ class DynamicWindowPlanner:
             control = self.controls[int(np.argmin(violation))].copy()
             fallback = True
         return DWAEvaluation(self.controls.copy(), scores, admissible, clearance, control, fallback)
+
+    def _navigation(self, scene: NavigationScene, points: np.ndarray) -> NavigationFunction:
+        """The navigation function of this scene's goal and static discs (cached; rebuilt
+        when they change or the points leave its grid)."""
+        key = (scene.goal.tobytes(), scene.obstacle_centers.tobytes(), scene.obstacle_radii.tobytes())
+        nav = getattr(self, "_nav", None)
+        if nav is None or self._nav_key != key or not nav.covers(points):
+            nav = NavigationFunction(scene.goal, scene.obstacle_centers, scene.obstacle_radii,
+                                     clearance=self.robot_radius + self.params.safety_margin, region=points,
+                                     resolution=self.params.grid_resolution)
+            self._nav, self._nav_key = nav, key
+        return nav
 
     @staticmethod
     def _gaps(positions: np.ndarray, times: np.ndarray, scene: NavigationScene) -> np.ndarray:

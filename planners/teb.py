@@ -20,9 +20,11 @@ weighted sum of soft penalties, minimised by L-BFGS-B with an analytic gradient:
 The band is warm-started between calls (poses already passed are dropped, the first
 pose moves to the measured position) and resized so that every ``dT`` stays near
 ``dt_ref`` (within ``resize_hysteresis``). As a stand-in for TEB's exploration of
-homotopy classes, a fresh band is also tried around each side of the route (a lateral
-bump) whenever the band is (re)initialised or the warm band still violates a
-clearance by more than ``reinit_violation``; the cheapest band wins. The control for the next decision period makes the
+homotopy classes, fresh bands are tried whenever the band is (re)initialised or the
+warm band still violates a clearance by more than ``reinit_violation``: first along
+the shortest grid path of a `NavigationFunction` around the static discs (the global
+plan TEB follows in ROS), then, if that one still violates a clearance, bent to either
+side (a lateral bump); the cheapest band wins. The control for the next decision period makes the
 nominal model reach the band's velocity at the end of the period.
 """
 
@@ -38,6 +40,7 @@ from minimaxplan.models.errors import InputError, SolverFailure
 from minimaxplan.models.system import UncertainLinearSystem
 
 from .dwa import NavigationScene
+from .navigation import NavigationFunction
 
 __all__ = ["TEBParameters", "TEBPlan", "TimedElasticBand", "band_cost"]
 
@@ -69,6 +72,12 @@ class TEBParameters:
         (the penalties are soft, so tiny shortfalls inside the margin are normal).
     max_iterations
         L-BFGS-B iterations per optimisation.
+    navigation_function
+        Initialise fresh bands along the shortest grid path of a `NavigationFunction`
+        around the static discs (TEB follows a global plan in ROS); otherwise along the
+        straight line to the goal.
+    grid_resolution
+        Cell size of that navigation function, m.
     """
 
     dt_ref: float = 0.5
@@ -87,10 +96,12 @@ class TEBParameters:
     detour_amplitude: float = 2.5
     reinit_violation: float = 0.05
     max_iterations: int = 40
+    navigation_function: bool = True
+    grid_resolution: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("dt_ref", "dt_min", "dt_max", "max_speed", "time_weight", "velocity_weight",
-                     "input_weight", "obstacle_weight"):
+                     "input_weight", "obstacle_weight", "grid_resolution"):
             as_positive_scalar(name, getattr(self, name))
         for name in ("resize_hysteresis", "obstacle_margin", "pedestrian_margin", "detour_amplitude", "reinit_violation"):
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
@@ -251,17 +262,42 @@ class TimedElasticBand:
         self._goal: np.ndarray | None = None
 
     # ------------------------------------------------------------- bands
-    def _fresh_band(self, start, goal, bump: float) -> tuple[np.ndarray, np.ndarray]:
+    def _fresh_band(self, start, goal, bump: float, guide: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """A band along ``guide`` (a polyline from start to goal) or the straight line,
+        bent sideways by ``bump`` (m) in the middle."""
         p = self.params
         route = goal - start
-        length = float(np.linalg.norm(route))
+        if guide is None:
+            guide = np.stack([start, goal])
+        guide = np.concatenate([start[None], guide[1:-1], goal[None]]) if len(guide) > 2 else np.stack([start, goal])
+        pieces = np.linalg.norm(np.diff(guide, axis=0), axis=1)
+        arc = np.concatenate([[0.0], np.cumsum(pieces)])
+        length = float(arc[-1])
         speed = 0.8 * p.max_speed
         n = int(np.clip(np.ceil(length / (speed * p.dt_ref)), p.min_poses, p.max_poses))
         s = np.linspace(0.0, 1.0, n + 1)
-        normal = np.array([-route[1], route[0]]) / max(length, 1e-12)
-        X = start + s[:, None] * route + (bump * np.sin(np.pi * s))[:, None] * normal
+        at = s * length
+        X = np.stack([np.interp(at, arc, guide[:, 0]), np.interp(at, arc, guide[:, 1])], axis=1)
+        normal = np.array([-route[1], route[0]]) / max(float(np.linalg.norm(route)), 1e-12)
+        X = X + (bump * np.sin(np.pi * s))[:, None] * normal
         dT = np.full(n, max(length / n / speed, p.dt_min * 2))
         return X, dT
+
+    def _guide(self, start, scene: NavigationScene) -> np.ndarray | None:
+        """The navigation function's grid path from ``start`` to the goal (cached per scene), or None."""
+        if not self.params.navigation_function:
+            return None
+        key = (scene.goal.tobytes(), scene.obstacle_centers.tobytes(), scene.obstacle_radii.tobytes())
+        nav = getattr(self, "_nav", None)
+        if nav is None or self._nav_key != key or not nav.covers(start):
+            nav = NavigationFunction(scene.goal, scene.obstacle_centers, scene.obstacle_radii,
+                                     clearance=self.robot_radius + self.params.obstacle_margin, region=start[None],
+                                     resolution=self.params.grid_resolution)
+            self._nav, self._nav_key = nav, key
+        try:
+            return nav.path(start)
+        except InputError:
+            return None  # boxed in on the grid: fall back to the straight line
 
     def _warm_band(self, start) -> tuple[np.ndarray, np.ndarray]:
         X, dT = self._band
@@ -363,11 +399,14 @@ class TimedElasticBand:
         for X, dT in candidates:
             best = self._optimise(X, dT, velocity, discs)
         if best is None or self._violation(best[0], best[1], discs) > self.params.reinit_violation:
+            guide = self._guide(start, scene)
             amplitude = self.params.detour_amplitude
             for bump in (0.0, amplitude, -amplitude):
-                trial = self._optimise(*self._fresh_band(start, scene.goal, bump), velocity, discs)
+                trial = self._optimise(*self._fresh_band(start, scene.goal, bump, guide), velocity, discs)
                 if best is None or self._score(trial, discs) < self._score(best, discs):
                     best = trial
+                if bump == 0.0 and guide is not None and self._violation(trial[0], trial[1], discs) <= self.params.reinit_violation:
+                    break  # the band along the global path is clear: no need for side bumps
         X, dT, cost, iterations = best
         self._band = (X, dT)
         return TEBPlan(X, dT, cost, self._violation(X, dT, discs), iterations, self._control(X, dT, velocity))

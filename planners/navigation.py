@@ -1,0 +1,156 @@
+"""A grid navigation function: the cost-to-go to the goal around static discs.
+
+The global layer that local planners such as DWA and TEB run under (as in the ROS
+navigation stack the paper's baselines come from, and Brock & Khatib's global dynamic
+window): Dijkstra's shortest path lengths from every cell of a grid to the goal, over
+the 8-connected free cells, where a cell is free when its centre keeps
+``clearance`` from every static disc. Steps into cells within ``soft_clearance`` of a
+disc cost more (``1 + near_cost`` times their length at the disc's edge, decreasing
+linearly to 1 at ``soft_clearance``), so that paths keep some distance when they can.
+Pedestrians are not part of it: local planners handle them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from minimaxplan.models._validation import as_finite_array, as_positive_scalar, check_shape
+from minimaxplan.models.errors import InputError
+
+__all__ = ["NavigationFunction"]
+
+_MOVES = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)])
+
+
+class NavigationFunction:
+    """Cost-to-go to ``goal`` on a grid covering ``region`` (and the goal and discs).
+
+    Parameters
+    ----------
+    goal
+        Shape (2,).
+    centers, radii
+        Static discs, shapes (n, 2) and (n,).
+    clearance
+        Cells whose centre is closer than this to a disc's edge are blocked, m.
+    region
+        Points (k, 2) the grid must cover besides the goal and the discs (e.g. the robot).
+    resolution, padding
+        Cell size and margin around the covered points, m.
+    soft_clearance, near_cost
+        Cost shaping near discs (see the module docstring).
+    """
+
+    def __init__(self, goal, centers, radii, *, clearance: float, region=None, resolution: float = 0.2,
+                 padding: float = 3.0, soft_clearance: float = 1.0, near_cost: float = 2.0):
+        self.goal = as_finite_array("goal", goal, (2,))
+        self.centers = as_finite_array("centers", centers).reshape(-1, 2) if np.size(centers) else np.zeros((0, 2))
+        self.radii = as_finite_array("radii", radii).reshape(-1) if np.size(radii) else np.zeros(0)
+        check_shape("radii", self.radii, (self.centers.shape[0],))
+        self.clearance = as_positive_scalar("clearance", clearance, allow_zero=True)
+        self.resolution = as_positive_scalar("resolution", resolution)
+        padding = as_positive_scalar("padding", padding, allow_zero=True)
+        soft = as_positive_scalar("soft_clearance", soft_clearance, allow_zero=True)
+        near = as_positive_scalar("near_cost", near_cost, allow_zero=True)
+        cover = [self.goal[None], self.centers]
+        if region is not None:
+            cover.append(as_finite_array("region", region).reshape(-1, 2))
+        points = np.concatenate(cover)
+        self.origin = points.min(axis=0) - padding
+        top = points.max(axis=0) + padding
+        self.shape = tuple(int(s) for s in np.ceil((top - self.origin) / self.resolution).astype(int) + 1)
+        self.extent_high = self.origin + (np.array(self.shape) - 1) * self.resolution
+        gx = self.origin[0] + self.resolution * np.arange(self.shape[0])
+        gy = self.origin[1] + self.resolution * np.arange(self.shape[1])
+        cells = np.stack(np.meshgrid(gx, gy, indexing="ij"), axis=-1)
+        if self.centers.shape[0]:
+            edge = (np.linalg.norm(cells[..., None, :] - self.centers, axis=-1) - self.radii).min(axis=-1)
+        else:
+            edge = np.full(self.shape, np.inf)
+        free = edge >= self.clearance
+        goal_cell = self._cell(self.goal)
+        free[goal_cell] = True  # the goal is always a target, even when it sits in a margin
+        shaping = 1.0 + near * np.clip((soft + self.clearance - edge) / max(soft, 1e-12), 0.0, 1.0) if soft > 0 else np.ones(self.shape)
+        self.free = free
+        self.values = self._dijkstra(free, shaping, goal_cell)
+        finite = np.isfinite(self.values)
+        # Blocked or unreachable cells: worse than every reachable one, so descent leaves them.
+        self._filled = np.where(finite, self.values, (self.values[finite].max() if finite.any() else 0.0) + 10.0)
+        self._grad_x, self._grad_y = np.gradient(self._filled, self.resolution)
+
+    def _cell(self, point) -> tuple[int, int]:
+        index = np.rint((np.asarray(point) - self.origin) / self.resolution).astype(int)
+        return tuple(np.clip(index, 0, np.array(self.shape) - 1))
+
+    def _dijkstra(self, free, shaping, goal_cell) -> np.ndarray:
+        nx, ny = self.shape
+        index = np.arange(nx * ny).reshape(nx, ny)
+        rows, cols, weights = [], [], []
+        for dx, dy in _MOVES:
+            src = (slice(max(0, -dx), nx - max(0, dx)), slice(max(0, -dy), ny - max(0, dy)))
+            dst = (slice(max(0, dx), nx - max(0, -dx)), slice(max(0, dy), ny - max(0, -dy)))
+            ok = free[src] & free[dst]
+            length = self.resolution * np.hypot(dx, dy)
+            rows.append(index[src][ok])
+            cols.append(index[dst][ok])
+            weights.append(length * 0.5 * (shaping[src][ok] + shaping[dst][ok]))
+        graph = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(nx * ny,) * 2)
+        # The graph is symmetric, so distances from the goal are distances to it.
+        distances = dijkstra(graph.tocsr(), directed=True, indices=index[goal_cell])
+        return distances.reshape(nx, ny)
+
+    def covers(self, points) -> bool:
+        """Whether every point (..., 2) lies on the grid."""
+        p = np.asarray(points, dtype=float)
+        return bool(np.all(p >= self.origin) and np.all(p <= self.extent_high))
+
+    def _bilinear(self, field: np.ndarray, points: np.ndarray) -> np.ndarray:
+        g = np.clip((points - self.origin) / self.resolution, 0.0, np.array(self.shape) - 1.000001)
+        i0 = np.floor(g).astype(int)
+        f = g - i0
+        i, j = i0[..., 0], i0[..., 1]
+        fx, fy = f[..., 0], f[..., 1]
+        return ((1 - fx) * (1 - fy) * field[i, j] + fx * (1 - fy) * field[i + 1, j]
+                + (1 - fx) * fy * field[i, j + 1] + fx * fy * field[i + 1, j + 1])
+
+    def cost_to_go(self, points) -> np.ndarray:
+        """Interpolated cost-to-go at points (..., 2) (blocked cells count as worse than any reachable one)."""
+        return self._bilinear(self._filled, np.asarray(points, dtype=float))
+
+    def descent(self, points) -> np.ndarray:
+        """Unit direction of steepest descent of the cost-to-go at points (..., 2) (0 where flat)."""
+        p = np.asarray(points, dtype=float)
+        g = np.stack([self._bilinear(self._grad_x, p), self._bilinear(self._grad_y, p)], axis=-1)
+        norm = np.linalg.norm(g, axis=-1, keepdims=True)
+        return np.where(norm > 0, -g / np.maximum(norm, 1e-12), 0.0)
+
+    def path(self, start) -> np.ndarray:
+        """Cell centres (k, 2) from ``start`` to the goal, each the neighbour of lowest cost-to-go.
+
+        Raises `InputError` when the goal cannot be reached from the start's cell.
+        """
+        cell = self._cell(as_finite_array("start", start, (2,)))
+        values = self._filled
+        if not np.isfinite(self.values[cell]):
+            # Start inside a margin: step to the best reachable neighbourhood first.
+            window = 5
+            i0, j0 = max(cell[0] - window, 0), max(cell[1] - window, 0)
+            block = self.values[i0:cell[0] + window + 1, j0:cell[1] + window + 1]
+            if not np.isfinite(block).any():
+                raise InputError("the goal cannot be reached from start on the navigation grid")
+            k = np.unravel_index(np.argmin(block), block.shape)
+            cell = (i0 + k[0], j0 + k[1])
+        goal_cell = self._cell(self.goal)
+        cells = [cell]
+        limit = self.shape[0] * self.shape[1]
+        while cell != goal_cell and len(cells) < limit:
+            candidates = [(cell[0] + dx, cell[1] + dy) for dx, dy in _MOVES
+                          if 0 <= cell[0] + dx < self.shape[0] and 0 <= cell[1] + dy < self.shape[1]]
+            nxt = min(candidates, key=lambda c: values[c])
+            if values[nxt] >= values[cell]:
+                break
+            cell = nxt
+            cells.append(cell)
+        return self.origin + self.resolution * np.array(cells, dtype=float)

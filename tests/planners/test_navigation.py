@@ -1,0 +1,64 @@
+"""The grid navigation function under the DWA and TEB baselines."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from minimaxplan.models import InputError
+from minimaxplan.planners.navigation import NavigationFunction
+
+finite = dict(allow_nan=False, allow_infinity=False)
+points = st.tuples(st.floats(0, 20, **finite), st.floats(0, 20, **finite))
+
+
+@given(goal=points, start=points)
+@settings(max_examples=30)
+def test_cost_to_go_without_discs_is_the_octile_grid_distance(goal, start):
+    goal, start = np.array(goal), np.array(start)
+    nav = NavigationFunction(goal, np.zeros((0, 2)), np.zeros(0), clearance=0.4, region=start[None])
+    d = np.linalg.norm(start - goal)
+    cost = float(nav.cost_to_go(start))
+    # 8-connected grid paths are at most 1.0824 times longer than straight ones; snapping
+    # the goal to its cell and interpolating cost up to one cell diagonal.
+    slack = 2 * nav.resolution * np.sqrt(2)
+    assert d - slack <= cost <= 1.0824 * d + slack
+    if d > 1.0:
+        assert nav.descent(start) @ (goal - start) / d > 0.9
+
+
+@given(seed=st.integers(0, 2**31 - 1))
+@settings(max_examples=20)
+def test_path_keeps_the_clearance_and_descends_to_the_goal(seed):
+    rng = np.random.default_rng(seed)
+    centers = rng.uniform(3, 17, size=(8, 2))
+    radii = rng.uniform(0.4, 1.2, size=8)
+    start, goal = np.array([1.0, 1.0]), np.array([19.0, 19.0])
+    nav = NavigationFunction(goal, centers, radii, clearance=0.45, region=start[None])
+    try:
+        path = nav.path(start)
+    except InputError:
+        return  # a random layout may close the way; the test below checks that case
+    edge = (np.linalg.norm(path[:, None] - centers, axis=-1) - radii).min(axis=1)
+    assert edge.min() >= 0.45 - 1e-9
+    assert np.linalg.norm(path[-1] - goal) <= nav.resolution
+    assert np.linalg.norm(path[0] - start) <= nav.resolution
+    values = nav.cost_to_go(path)
+    assert np.all(np.diff(values) < 1e-9)
+
+
+def test_detour_around_a_wall_costs_more_than_the_straight_line():
+    ys = np.arange(2.0, 18.5, 0.5)
+    wall = np.stack([np.full_like(ys, 10.0), ys], axis=1)
+    start, goal = np.array([5.0, 10.0]), np.array([15.0, 10.0])
+    nav = NavigationFunction(goal, wall, np.full(ys.size, 0.4), clearance=0.4, region=start[None])
+    assert float(nav.cost_to_go(start)) > 1.5 * 10.0  # must go around an end of the wall
+    path = nav.path(start)
+    assert np.abs(path[:, 1] - 10.0).max() > 8.0
+
+
+def test_unreachable_goal_raises():
+    ring = 5.0 + 2.0 * np.stack([np.cos(np.linspace(0, 2 * np.pi, 60)), np.sin(np.linspace(0, 2 * np.pi, 60))], axis=1)
+    nav = NavigationFunction([5.0, 5.0], ring, np.full(60, 0.4), clearance=0.3, region=[[15.0, 15.0]])
+    with pytest.raises(InputError, match="goal cannot be reached"):
+        nav.path([15.0, 15.0])
