@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 import time
+import warnings
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
@@ -37,11 +38,9 @@ SOLVERS = ("CLARABEL", "SCS")
 EIGENVALUE_ROUNDING = 64.0
 #: The returned rho is this factor times the smallest rho that the returned (P, Q0) allow.
 RHO_FACTOR = 1.01
-#: Weight of rho in the solver's objective ``t - RHO_WEIGHT * rho``: keeps rho finite.
-RHO_WEIGHT = 1e-6
 #: Solver feasibility/gap tolerance (at most margin / 10, so that ``t* > margin`` decides).
 SOLVER_TOLERANCE = 1e-7
-#: Cache size of built cvxpy problems (one per form, shape, vertex count, Q0 given or not).
+#: Cache size of built cvxpy problems (one per form, p, vertex count, Q0 given or not).
 PROBLEM_CACHE_SIZE = 32
 #: Smallest shift (relative to 1 + ||A||) of the preconditioner's Lyapunov equation.
 _SHIFT_FLOOR = 1e-3
@@ -89,6 +88,9 @@ class LMIResult:
     coordinates
         Where the SDP that produced the outcome was solved: ``"preconditioned"`` or
         ``"caller"`` (see `check_assumption4`, *Scaling*).
+    slack
+        The optimal normalised slack ``t*`` of the solve that decided (compared with
+        ``margin``), or None when the solver gave no optimum.
     """
 
     status: str
@@ -106,6 +108,7 @@ class LMIResult:
     nvertices: int
     reason: str = ""
     coordinates: str = "caller"
+    slack: float | None = None
 
     def bound_constants(self) -> tuple[float, float]:
         """The constants ``(c0, cw)`` of the error bound that this certificate buys.
@@ -218,6 +221,7 @@ class LMIResult:
             "nvertices": self.nvertices,
             "reason": self.reason,
             "coordinates": self.coordinates,
+            "slack": self.slack,
         }
         if self.status == "feasible" and self.certified:
             out["bound_constants"] = list(self.bound_constants())
@@ -228,8 +232,12 @@ class LMIResult:
 
 
 def _as_vertices(A) -> np.ndarray:
-    if isinstance(A, (list, tuple)) and len(A) == 0:
-        raise DimensionError("A must hold at least one matrix, got an empty sequence")
+    if isinstance(A, (list, tuple)):
+        if len(A) == 0:
+            raise DimensionError("A must hold at least one matrix, got an empty sequence")
+        shapes = [np.shape(matrix) for matrix in A]
+        if len(set(shapes)) > 1:
+            raise DimensionError(f"A's matrices must all have one shape (p, p), got shapes {shapes}")
     given = as_finite_array("A", A)
     stack = given[None] if given.ndim == 2 else given
     if stack.ndim != 3 or stack.shape[0] == 0 or stack.shape[1] != stack.shape[2] or stack.shape[1] == 0:
@@ -266,35 +274,26 @@ def _as_solver(solver) -> str:
 class _Program:
     problem: cp.Problem
     A: tuple
-    D: cp.Parameter
     Q0: cp.Parameter | None
     P: cp.Variable
     Q: Any
-    rho: cp.Variable
     slack: cp.Variable
     sigma: cp.Variable | None
 
 
-def _lmi_expression(form: str, A, D, P, Q, rho, p: int, r: int):
+def _lyapunov_block(form: str, A, P, Q):
+    """The LMI without its disturbance row and column (see check_assumption4, Notes)."""
     if form == "continuous":
-        M = cp.bmat([[A.T @ P + P @ A + Q, P @ D], [D.T @ P, -rho * np.eye(r)]])
+        M = A.T @ P + P @ A + Q
     else:
-        M = cp.bmat(
-            [
-                [Q - P, np.zeros((p, r)), A.T @ P],
-                [np.zeros((r, p)), -rho * np.eye(r), D.T @ P],
-                [P @ A, P @ D, -P],
-            ]
-        )
+        M = cp.bmat([[Q - P, A.T @ P], [P @ A, -P]])
     return (M + M.T) / 2
 
 
-def _build_program(form: str, p: int, r: int, k: int, q0_given: bool) -> _Program:
-    """maximise t - RHO_WEIGHT rho  s.t.  t I <= P <= I, Q0 >= t I, LMI_k <= -t I."""
+def _build_program(form: str, p: int, k: int, q0_given: bool) -> _Program:
+    """maximise t  s.t.  t I <= P <= I,  Q0 >= t I,  Lyapunov block_k <= -t I."""
     A = tuple(cp.Parameter((p, p), name=f"A{i}") for i in range(k))
-    D = cp.Parameter((p, r), name="D")
     P = cp.Variable((p, p), symmetric=True, name="P")
-    rho = cp.Variable(name="rho")
     slack = cp.Variable(name="t")
     eye = np.eye(p)
     constraints = [P << eye, P >> slack * eye]
@@ -307,11 +306,11 @@ def _build_program(form: str, p: int, r: int, k: int, q0_given: bool) -> _Progra
         q0_param = sigma = None
         Q = cp.Variable((p, p), symmetric=True, name="Q0")
         constraints.append(Q >> slack * eye)
-    size = 2 * p + r if form == "discrete" else p + r
+    size = 2 * p if form == "discrete" else p
     for Ai in A:
-        constraints.append(_lmi_expression(form, Ai, D, P, Q, rho, p, r) << -slack * np.eye(size))
-    problem = cp.Problem(cp.Maximize(slack - RHO_WEIGHT * rho), constraints)
-    return _Program(problem, A, D, q0_param, P, Q, rho, slack, sigma)
+        constraints.append(_lyapunov_block(form, Ai, P, Q) << -slack * np.eye(size))
+    problem = cp.Problem(cp.Maximize(slack), constraints)
+    return _Program(problem, A, q0_param, P, Q, slack, sigma)
 
 
 _PROGRAMS: "OrderedDict[tuple, _Program]" = OrderedDict()
@@ -319,13 +318,13 @@ _PROGRAMS: "OrderedDict[tuple, _Program]" = OrderedDict()
 _LOCK = threading.Lock()
 
 
-def _program(form: str, p: int, r: int, k: int, q0_given: bool) -> _Program:
+def _program(form: str, p: int, k: int, q0_given: bool) -> _Program:
     """The cached DPP problem for this structure (least recently used evicted)."""
-    key = (form, p, r, k, q0_given)
+    key = (form, p, k, q0_given)
     if key in _PROGRAMS:
         _PROGRAMS.move_to_end(key)
         return _PROGRAMS[key]
-    program = _build_program(form, p, r, k, q0_given)
+    program = _build_program(form, p, k, q0_given)
     _PROGRAMS[key] = program
     while len(_PROGRAMS) > PROBLEM_CACHE_SIZE:
         _PROGRAMS.popitem(last=False)
@@ -342,7 +341,10 @@ def _solver_options(solver: str, margin: float) -> dict:
 
 def _run_solver(problem: cp.Problem, solver: str, margin: float) -> str:
     try:
-        problem.solve(solver=solver, **_solver_options(solver, margin))
+        with warnings.catch_warnings():
+            # cvxpy warns on inaccurate statuses; they are mapped to a flagged result instead.
+            warnings.filterwarnings("ignore", message="Solution may be inaccurate", category=UserWarning)
+            problem.solve(solver=solver, **_solver_options(solver, margin))
     except cp.error.SolverError as exc:
         raise SolverFailure(f"{solver} failed on the Assumption 4 LMI: {exc}") from exc
     return str(problem.status)
@@ -519,14 +521,25 @@ def check_assumption4(A, *, form, Q0=None, D=None, margin=1e-6, solver="CLARABEL
     is ``[[Q0 - P, 0], [0, -rho I]] + [A^T P; D^T P] P^-1 [P A, P D]
     = [[A^T P A - P + Q0, A^T P D], [D^T P A, D^T P D - rho I]]``, so ``L < 0`` iff
     ``P > 0`` and the discrete LMI holds. ``L`` is affine in ``(P, Q0, rho)`` and in ``A``,
-    hence the cvxpy problem is DPP: it is built once per (form, p, r, k, Q0 given?) with
-    ``A``, ``D``, ``Q0`` as parameters, cached (LRU, `PROBLEM_CACHE_SIZE`), and re-solved.
+    hence the cvxpy problem is DPP: it is built once per (form, p, k, Q0 given?) with
+    ``A`` (and ``Q0``) as parameters, cached (LRU, `PROBLEM_CACHE_SIZE`), and re-solved.
+
+    *rho in closed form.* ``rho`` is a free scalar: for fixed ``(P, Q0)`` the LMI holds
+    iff its disturbance-free principal block ``N`` (``A^T P + P A + Q0``, or
+    ``[[Q0 - P, A^T P], [P A, -P]]`` in the linear form) is negative definite and
+    ``rho I > H + G^T (-N)^-1 G`` (Schur complement; ``G`` the coupling block, ``H = 0``
+    or ``D^T P D``). So the LMI is feasible iff its block ``N < 0`` is, and the SDP
+    solves that block for ``(P, Q0)``; ``rho`` is then ``RHO_FACTOR`` times its infimum
+    (which also makes ``cw`` smallest for that ``(P, Q0)``). Keeping ``rho`` in the SDP
+    would either leave it unbounded under the objective below or need a penalty on it
+    that trades against ``t`` and could turn a feasible LMI into a reported infeasible
+    one. The full LMI, with ``D`` and ``rho``, is what the numpy re-check verifies.
 
     *Normalisation and objective.* The LMI is homogeneous in ``(P, Q0, rho)``. The solver
     maximises the common slack ``t`` of all the strict inequalities, with the scale fixed
     by ``P <= I``:
 
-    ``max t - RHO_WEIGHT rho  s.t.  t I <= P <= I,  Q0 >= t I,  LMI_k <= -t I  (all k)``
+    ``max t  s.t.  t I <= P <= I,  Q0 >= t I,  N_k <= -t I  (all vertices k)``
 
     (a given ``Q0`` enters as ``sigma Q0`` with ``sigma lmin(Q0) >= t``, and the
     certificate is rescaled by ``1 / sigma`` at the end). The problem is always feasible
@@ -538,15 +551,13 @@ def check_assumption4(A, *, form, Q0=None, D=None, margin=1e-6, solver="CLARABEL
     makes them infeasible only by about ``margin``, which Clarabel often reports as
     "infeasible_inaccurate". Maximising ``t`` also makes the bound constants
     meaningful: in the solver's units ``cond(P) <= 1 / t`` and the decay rate
-    ``mu = lmin(Q0) / lmax(P) >= t``; the tiny weight on ``rho`` only keeps it finite.
-    A free ``Q0`` is then re-chosen for the solver's ``P`` to make ``cw`` small (see
-    `_tuned_q0`), and the returned ``rho`` is ``RHO_FACTOR`` times the smallest value
-    that the returned ``(P, Q0)`` allow (closed form, Schur complement).
+    ``mu = lmin(Q0) / lmax(P) >= t``. A free ``Q0`` is then re-chosen for the solver's
+    ``P`` to make ``cw`` small (see `_tuned_q0`).
 
     *Scaling.* A stable matrix near the stability boundary with an ill-conditioned
     eigenbasis needs a ``P`` whose condition number is about ``cond(V)^2 / distance``,
     beyond a solver's relative tolerance. The SDP is therefore solved in coordinates
-    ``x = T z`` (``A -> T^-1 A T``, ``D -> T^-1 D / s``, a congruence that preserves
+    ``x = T z`` (``A -> T^-1 A T``, ``P -> T^T P T``, a congruence that preserves
     feasibility) chosen by a shifted Lyapunov equation of the mean vertex; the
     certificate is mapped back and re-checked in the caller's coordinates. That solve
     makes the decision. When it is "feasible", the SDP is solved once more in the
@@ -598,19 +609,15 @@ def _decide(form, vertices, D_mat, q0, margin, solver) -> LMIResult:
     best = first
     if second is not None and second.status == "feasible" and sum(second.bound_constants()) < sum(first.bound_constants()):
         best = second
-    return dataclasses.replace(best, solve_time=total_time)
+    return dataclasses.replace(best, solve_time=total_time, slack=first.slack)
 
 
 def _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, coordinates) -> LMIResult:
     """Solve the cached SDP in the coordinates ``x = T z`` and turn its answer into a result."""
     k, p = vertices.shape[0], vertices.shape[1]
-    r = D_mat.shape[1]
-    scaled_D = T_inv @ D_mat
-    d_scale = float(np.linalg.norm(scaled_D, 2)) or 1.0
-    program = _program(form, p, r, k, q0 is not None)
+    program = _program(form, p, k, q0 is not None)
     for param, vertex in zip(program.A, vertices):
         param.value = T_inv @ vertex @ T
-    program.D.value = scaled_D / d_scale
     if q0 is not None:
         scaled_q0 = T.T @ q0 @ T
         scaled_q0 = (scaled_q0 + scaled_q0.T) / 2
@@ -621,7 +628,7 @@ def _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, coordinates) -
     status = _run_solver(program.problem, solver, margin)
     elapsed = time.perf_counter() - start
 
-    def outcome(kind, *, reason, inaccurate=False, P=None, Q=None, rho=None, max_eig=None, certified=False):
+    def outcome(kind, *, reason, inaccurate=False, P=None, Q=None, rho=None, max_eig=None, certified=False, slack=None):
         return LMIResult(
             status=kind,
             form=form,
@@ -638,6 +645,7 @@ def _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, coordinates) -
             nvertices=k,
             reason=reason,
             coordinates=coordinates,
+            slack=slack,
         )
 
     if status in _INACCURATE:
@@ -648,6 +656,7 @@ def _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, coordinates) -
     if not best_slack > margin:
         return outcome(
             "infeasible",
+            slack=best_slack,
             reason=f"the largest normalised LMI slack is {best_slack:.3g} <= margin {margin:.3g}: no certificate exists",
         )
 
@@ -667,11 +676,12 @@ def _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, coordinates) -
             "inconclusive",
             P=P_cert,
             Q=Q_cert,
+            slack=best_slack,
             reason="numpy re-check failed: the Lyapunov block is not negative definite at the solver's P",
         )
-    rho_min, slack = smallest
+    rho_min, block_slack = smallest
     # With D = 0 any rho > 0 serves; the top-left block's slack gives it a sensible scale.
-    rho = RHO_FACTOR * rho_min if rho_min > 0 else slack
+    rho = RHO_FACTOR * rho_min if rho_min > 0 else block_slack
     eig_p = np.linalg.eigvalsh(P_cert)
     max_eig = -np.inf
     lmi_ok = True
@@ -682,7 +692,9 @@ def _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, coordinates) -
         lmi_ok &= top < -_rounding(M)
     p_ok = eig_p[0] > _rounding(P_cert)
     if lmi_ok and p_ok:
-        return outcome("feasible", P=P_cert, Q=Q_cert, rho=rho, max_eig=max_eig, certified=True, reason="")
+        return outcome(
+            "feasible", P=P_cert, Q=Q_cert, rho=rho, max_eig=max_eig, certified=True, slack=best_slack, reason=""
+        )
     failed = "P is not positive definite" if not p_ok else "an LMI matrix is not negative definite"
     return outcome(
         "inconclusive",
@@ -690,5 +702,6 @@ def _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, coordinates) -
         Q=Q_cert,
         rho=rho,
         max_eig=max_eig,
+        slack=best_slack,
         reason=f"numpy re-check failed: {failed} beyond rounding error",
     )

@@ -327,7 +327,7 @@ def test_scs_is_selectable():
 def test_problem_is_dpp_built_once_and_reused():
     A = np.array([[0.5, 1.0], [0.0, 0.6]])
     check_assumption4(A, form="discrete")
-    key = ("discrete", 2, 2, 1, False)
+    key = ("discrete", 2, 1, False)
     program = lmi._PROGRAMS[key]
     assert program.problem.is_dpp()
     check_assumption4(0.9 * A.T, form="discrete")
@@ -339,7 +339,7 @@ def test_program_cache_evicts_the_least_recently_used(monkeypatch):
     monkeypatch.setattr(lmi, "PROBLEM_CACHE_SIZE", 2)
     for p in (2, 3, 4):
         check_assumption4(-np.eye(p), form="continuous")
-    assert list(lmi._PROGRAMS) == [("continuous", 3, 3, 1, False), ("continuous", 4, 4, 1, False)]
+    assert list(lmi._PROGRAMS) == [("continuous", 3, 1, False), ("continuous", 4, 1, False)]
 
 
 # ----------------------------------------------------------------- solver statuses
@@ -394,7 +394,9 @@ def test_failed_numpy_recheck_is_inconclusive(monkeypatch):
         (np.ones((2, 2, 3)), DimensionError, r"got shape \(2, 2, 3\)"),
         (np.ones((0, 2, 2)), DimensionError, r"got shape \(0, 2, 2\)"),
         ([], DimensionError, "at least one matrix"),
-        ([np.eye(2), np.eye(3)], InputError, "A must be a real numeric array"),
+        ([np.eye(2), np.eye(3)], DimensionError, r"A's matrices must all have one shape \(p, p\), got shapes \[\(2, 2\), \(3, 3\)\]"),
+        ([[1.0, "x"], [0.0, 1.0]], InputError, "A must be a real numeric array"),
+        (np.array([[1j, 0.0], [0.0, -1.0]]), InputError, "A must be a real numeric array"),
         (np.array([[np.nan, 0.0], [0.0, -1.0]]), NonFiniteError, "A contains NaN"),
         (np.array([[np.inf, 0.0], [0.0, -1.0]]), NonFiniteError, "A contains NaN or infinite"),
     ],
