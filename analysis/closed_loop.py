@@ -44,7 +44,8 @@ from minimaxplan.planners.comparison import multi_model_robust_planner, nominal_
 from minimaxplan.planners.controllers import LinearFeedback
 from minimaxplan.planners.dwa import DynamicWindowPlanner, NavigationScene
 from minimaxplan.planners.teb import TimedElasticBand
-from minimaxplan.scenarios import MovingObstacles, make_world, robot_hypotheses
+from minimaxplan.scenarios import GoalReward, MovingObstacles, make_world, robot_hypotheses
+from minimaxplan.scenarios.global_path import GlobalPath
 from minimaxplan.verify.lmi import check_assumption4
 from minimaxplan.verify.selection import ModelSelector, feasible_parameter_box
 
@@ -69,6 +70,9 @@ class LoopConfig:
         Also run the oracle planner at every decision of the robust method (Figure 6).
     measurement
         "uniform" (bounded, inside the guarantees) or "gaussian" (outside).
+    lookahead, path_clearance
+        The waypoint chased is ``lookahead`` m along the global path, which keeps
+        ``robot_radius + path_clearance`` m from the static discs.
     """
 
     budget: int = 100
@@ -78,6 +82,8 @@ class LoopConfig:
     record_suboptimality: bool = True
     measurement: str = "uniform"
     lsq_regularisation: float = 1e-3
+    lookahead: float = 3.0
+    path_clearance: float = 0.3
     directions: tuple = field(default=((1, 1), (1, -1), (-1, 1), (-1, -1), (0, 0)))
 
 
@@ -156,21 +162,21 @@ class _LeastSquares:
         return np.clip(self.estimator.ellipsoid().center, prior.low, prior.high)
 
 
-def _truncated_return(rewards: list[float], start: int, horizon: int, gamma: float, outcome: str) -> float:
-    """``sum_{n < horizon} gamma^n r_{start + n}``; past the end of the episode the robot
-    stays where it ended and keeps its last reward (0 after a collision)."""
-    last = 0.0 if outcome == "collision" or not rewards else rewards[-1]
-    padded = [rewards[start + n] if start + n < len(rewards) else last for n in range(horizon)]
-    return float(sum(gamma**n * r for n, r in enumerate(padded)))
+def _objective(world, waypoint, uncertain: bool) -> GoalReward:
+    """The reward a planner maximises at this decision: reach ``waypoint`` without touching
+    the static discs or the pedestrians (predicted boxes if ``uncertain``, else points
+    moving at their announced velocities)."""
+    return GoalReward(waypoint, obstacles=world.obstacles, robot_radius=world.params.robot_radius,
+                      moving_obstacles=_pedestrian_prediction(world, uncertain) if len(world.crowd) else None)
 
 
 def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFAULT_CONFIG) -> EpisodeRecord:
     """Run one episode of ``method`` in the world ``make_world(scenario, seed)``.
 
     A failure is a collision, a timeout, or `NoConsistentModel` (robust method: every
-    hypothesis eliminated). Returns an `EpisodeRecord` whose ``discounted_return`` is
-    ``sum_i gamma^i r_i`` over the decisions, ``r_i`` the smallest true reward over the
-    sub-steps of decision i (the quantity the surrogate bounds, Theorem 1).
+    hypothesis eliminated). Every method chases the same waypoints of a `GlobalPath` on
+    the static map. ``discounted_return`` is ``sum_i gamma^i r_i`` over the decisions,
+    ``r_i`` the smallest true goal reward over the sub-steps of decision i.
     """
     started = wallclock.perf_counter()
     world = make_world(scenario, seed, measurement=config.measurement)
@@ -181,58 +187,59 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
     selector = ModelSelector([h.system for h in hypotheses], measurement_noise=noise) if method == "robust" else None
     lsq = _LeastSquares(world.system, config.lsq_regularisation)
     planning = [planning_system(h.system, config.gain * noise) for h in hypotheses]
-    oracle_needed = method == "oracle" or (method == "robust" and config.record_suboptimality)
+    global_path = GlobalPath(world.obstacles, world.goal, clearance=params.robot_radius + config.path_clearance)
     baseline = _make_baseline(method, world) if method in ("dwa", "teb") else None
+    record_subopt = method == "robust" and config.record_suboptimality
     states, controls = [world.measure()], []
-    rewards, positions, plans, subopt_points = [], [world.state[:2].copy()], [], []
+    rewards, positions, plans = [], [world.state[:2].copy()], []
+    # Per decision: (N, oracle value, oracle depth, the oracle's objective, first sub-step index)
+    oracle_points = []
+    realised = []  # per sub-step: (index, true state, true pedestrian positions)
     outcome = None
     lmi = None
     while not world.done:
         x = states[-1]
         t = world.step_index
-        n_obs = len(controls)
-        oracle_value = None
-        if oracle_needed:
-            reward = world.goal_reward.with_obstacles(moving_obstacles=_pedestrian_prediction(world, uncertain=False))
-            oracle = nominal_planner(world.system, world.true_theta, reward, controllers,
+        waypoint = global_path.waypoint(x[:2], config.lookahead)
+        if record_subopt:
+            objective = _objective(world, waypoint, uncertain=False)
+            oracle = nominal_planner(world.system, world.true_theta, objective, controllers,
                                      gamma=config.gamma, budget=config.budget, substeps=params.substeps)
-            oracle_decision = oracle.plan(root_state(oracle, x, time=t))
-            oracle_value = (oracle_decision.lower, len(oracle_decision.sequence))
+            found = oracle.plan(root_state(oracle, x, time=t))
+            oracle_points.append((len(controls), found.lower, len(found.sequence), objective, len(realised)))
         if method == "robust":
             survivors = selector.survivors
             if not survivors:
                 outcome = "no_consistent_model"
                 break
             X, U = np.array(states), np.array(controls).reshape(-1, 2)
-            pairs = []
-            for i in survivors:
-                box = feasible_parameter_box(hypotheses[i].system, X, U, measurement_noise=noise) if U.shape[0] else hypotheses[i].system.theta
-                pairs.append((planning[i], box))
+            pairs = [
+                (planning[i], feasible_parameter_box(hypotheses[i].system, X, U, measurement_noise=noise)
+                 if U.shape[0] else hypotheses[i].system.theta)
+                for i in survivors
+            ]
             if lmi is None:
                 lmi = assumption4_report(world.system, pairs[0][1])
-            reward = world.goal_reward.with_obstacles(moving_obstacles=_pedestrian_prediction(world, uncertain=True))
-            planner = multi_model_robust_planner(pairs, reward, controllers, gamma=config.gamma,
-                                                 budget=config.budget, substeps=params.substeps)
-            decision = planner.plan(root_state(planner, x - noise, x + noise, time=t))
+            planner = multi_model_robust_planner(pairs, _objective(world, waypoint, uncertain=True), controllers,
+                                                 gamma=config.gamma, budget=config.budget, substeps=params.substeps)
+            root = root_state(planner, x - noise, x + noise, time=t)
+            decision = planner.plan(root)
             controller = controllers[decision.action]
-            lower, upper, _, _ = planner.models[0].rollout(root_state(planner, x - noise, x + noise, time=t), decision.sequence)
+            lower, upper, _, _ = planner.models[0].rollout(root, decision.sequence)
             plans.append((t, lower[:, :2].tolist(), upper[:, :2].tolist()))
         elif method in ("nominal", "oracle"):
             theta = world.true_theta if method == "oracle" else lsq.estimate()
-            reward = world.goal_reward.with_obstacles(moving_obstacles=_pedestrian_prediction(world, uncertain=False))
-            planner = nominal_planner(world.system, theta, reward, controllers, gamma=config.gamma,
-                                      budget=config.budget, substeps=params.substeps)
-            decision = planner.plan(root_state(planner, x, time=t))
-            controller = controllers[decision.action]
+            planner = nominal_planner(world.system, theta, _objective(world, waypoint, uncertain=False), controllers,
+                                      gamma=config.gamma, budget=config.budget, substeps=params.substeps)
+            controller = controllers[planner.plan(root_state(planner, x, time=t)).action]
         else:
-            controller = _HeldControl(baseline.plan(x, _scene(world)))
-        if oracle_value is not None and method == "robust":
-            subopt_points.append((n_obs, oracle_value))
+            controller = _HeldControl(baseline.plan(x, _scene(world, waypoint)))
         worst = 1.0
         for _ in range(params.substeps):
             u = np.clip(controller.control(x), -params.control_bound, params.control_bound)
             world.apply(u)
             positions.append(world.state[:2].copy())
+            realised.append((world.step_index, world.state.copy(), world.crowd.positions.copy()))
             worst = min(worst, world.reward())
             x_next = world.measure()
             controls.append(u)
@@ -245,13 +252,9 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
                 break
         rewards.append(worst)
     outcome = outcome or world.outcome
-    # Figure 6: the oracle's value over its look-ahead depth d (its lower bound: the
-    # discounted sum along its best d-step sequence, w = 0) minus the return the robust
-    # planner actually collected over the same d decisions from that state.
     suboptimality = tuple(
-        (n, value - _truncated_return(rewards, i, depth, config.gamma, outcome))
-        for i, (n, (value, depth)) in enumerate(subopt_points)
-        if i < len(rewards)
+        (n, value - _realised_value(objective, realised, first, depth, params.substeps, config.gamma, outcome))
+        for n, value, depth, objective, first in oracle_points
     )
     discounted = float(sum(config.gamma**i * r for i, r in enumerate(rewards)))
     return EpisodeRecord(
@@ -267,6 +270,25 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
         suboptimality=suboptimality,
         extra={"lmi": lmi, "plans": plans[:: max(1, len(plans) // 8)] if plans else [], "world": world.to_dict()},
     )
+
+
+def _realised_value(objective, realised, first, depth, substeps, gamma, outcome) -> float:
+    """``sum_{n < depth} gamma^n min_s J(x_s)`` of the true states of the ``depth``
+    decisions after sub-step ``first``, under the decision's own objective (true
+    pedestrian positions). Past the end of the episode the robot keeps its last state
+    (reward 0 after a collision), as the oracle's model would see a stopped robot."""
+    total = 0.0
+    last = None
+    for n in range(depth):
+        chunk = realised[first + n * substeps: first + (n + 1) * substeps]
+        if chunk:
+            values = [float(objective.value(state, index, moving_positions=peds) if len(peds) else
+                            objective.value(state, index)) for index, state, peds in chunk]
+            last = min(values)
+        elif outcome == "collision":
+            last = 0.0
+        total += gamma**n * (last if last is not None else 0.0)
+    return total
 
 
 class _HeldControl:
@@ -285,10 +307,10 @@ def _make_baseline(method: str, world):
                robot_radius=world.params.robot_radius, control_bound=world.params.control_bound)
 
 
-def _scene(world) -> NavigationScene:
+def _scene(world, waypoint) -> NavigationScene:
     peds = world.pedestrians
     return NavigationScene(
-        goal=world.goal,
+        goal=waypoint,
         obstacle_centers=world.obstacles.centers,
         obstacle_radii=world.obstacles.radii,
         pedestrian_positions=peds.positions,
