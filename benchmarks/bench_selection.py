@@ -123,7 +123,8 @@ def dense_margin(system: UncertainLinearSystem, states, controls) -> float:
     z = (Xn - X @ system.A0.T - U @ system.B.T).reshape(-1)
     E = np.einsum("ipq,nq->npi", system.phi, X).reshape(n * p, d)
     beta = np.abs(system.D) @ system.w.radius
-    beta = np.tile(np.where(beta > 0, beta, 1.0), n)
+    beta = np.where(beta > 0, beta, 1.0)
+    beta = np.tile(np.maximum(beta, 1e-6 * beta.max()), n)
     Dr = system.D[:, system.w.radius > 0]
     box_shaped = np.all(np.count_nonzero(Dr, axis=0) <= 1)
     bounds = [(lo, hi) for lo, hi in zip(system.theta.low, system.theta.high)] + [(0, None)]

@@ -38,6 +38,7 @@ __all__ = [
     "ROUNDING_ALLOWANCE",
     "GENERATION_TOLERANCE",
     "MAX_GENERATION_ROUNDS",
+    "PARAMETER_BOX_ALLOWANCE",
     "EliminationCertificate",
     "SelectionResult",
     "ModelSelector",
@@ -57,6 +58,11 @@ ROUNDING_ALLOWANCE = 1e-9
 GENERATION_TOLERANCE = 1e-9
 #: Constraint-generation rounds before the last round, which takes every row.
 MAX_GENERATION_ROUNDS = 30
+#: `feasible_parameter_box` bounds the parameters consistent with every row relaxed by
+#: this much relative to the row's magnitude (a superset, so sound): a consistent set
+#: that is nearly a point (w at its extremes) is otherwise thinner than HiGHS's
+#: tolerances, and its presolve may declare it empty.
+PARAMETER_BOX_ALLOWANCE = 1e-7
 
 _HIGHS_OPTIONS = {"primal_feasibility_tolerance": 1e-9, "dual_feasibility_tolerance": 1e-9}
 _LINPROG_STATUS = {
@@ -66,6 +72,11 @@ _LINPROG_STATUS = {
     4: "numerical difficulties",
 }
 _EPS = np.finfo(float).eps
+# Radii below this count as 0 (their reciprocal would overflow), and beta spans at most
+# six orders of magnitude, so that HiGHS (which drops coefficients below 1e-9) keeps
+# every coefficient of the margin column.
+_NEGLIGIBLE_RADIUS = 1e-150
+_BETA_SPREAD = 1e-6
 
 
 # ----------------------------------------------------------------------------- inputs
@@ -108,6 +119,18 @@ def _check_trajectory(states, controls, p: int, q: int) -> tuple[np.ndarray, np.
     return x[:-1], u, x[1:]
 
 
+def _noise_vector(measurement_noise, p: int) -> np.ndarray:
+    if measurement_noise is None:
+        return np.zeros(p)
+    v = as_finite_array("measurement_noise", measurement_noise)
+    if v.ndim == 0:
+        v = np.full(p, float(v))
+    check_shape("measurement_noise", v, (p,))
+    if np.any(v < 0):
+        raise InputError(f"measurement_noise must be >= 0 in every coordinate, got {v.tolist()}")
+    return v
+
+
 def measurement_noise_bound(hypothesis: UncertainLinearSystem, measurement_noise) -> np.ndarray:
     """The bound ``v_bar + max_theta |A(theta)| v_bar`` on ``v_{n+1} - A(theta) v_n``.
 
@@ -131,22 +154,18 @@ def measurement_noise_bound(hypothesis: UncertainLinearSystem, measurement_noise
     ``A(theta)`` is affine in theta, so its largest modulus over the prior box is
     attained at an end of its range; this interval bound is exact entrywise.
     """
-    p = hypothesis.nstates
-    if measurement_noise is None:
-        return np.zeros(p)
-    v = as_finite_array("measurement_noise", measurement_noise)
-    if v.ndim == 0:
-        v = np.full(p, float(v))
-    check_shape("measurement_noise", v, (p,))
-    if np.any(v < 0):
-        raise InputError(f"measurement_noise must be >= 0 in every coordinate, got {v.tolist()}")
+    v = _noise_vector(measurement_noise, hypothesis.nstates)
+    if not np.any(v):
+        return v
     lo, hi = hypothesis.theta.low, hypothesis.theta.high
     phi = hypothesis.phi
     a_low = hypothesis.A0 + np.tensordot(lo, np.maximum(phi, 0), 1) + np.tensordot(hi, np.minimum(phi, 0), 1)
     a_high = hypothesis.A0 + np.tensordot(hi, np.maximum(phi, 0), 1) + np.tensordot(lo, np.minimum(phi, 0), 1)
-    a_abs = np.maximum(np.abs(a_low), np.abs(a_high))
-    bound = v + a_abs @ v
-    return bound * (1 + 8 * _EPS)
+    # Entrywise rounding of those sums is at most (d + 2) eps times the sum of moduli.
+    theta_max = np.maximum(np.abs(lo), np.abs(hi))
+    rounding = (phi.shape[0] + 3) * _EPS * (np.abs(hypothesis.A0) + np.tensordot(theta_max, np.abs(phi), 1))
+    a_abs = np.maximum(np.abs(a_low), np.abs(a_high)) + rounding
+    return (v + a_abs @ v) * (1 + 4 * (v.size + 2) * _EPS)
 
 
 def _disturbance_set_is_box(D: np.ndarray, radius: np.ndarray) -> bool:
@@ -159,7 +178,8 @@ class _Structure:
     """Everything about one hypothesis that does not depend on the data (computed once).
 
     The inflation unit ``beta`` (per state coordinate) is the radius of the interval
-    hull of ``D W + [-ebar, ebar]``, or 1 where that radius is 0.
+    hull of ``D W + [-ebar, ebar]``, or 1 where that radius is 0, raised to at least
+    `_BETA_SPREAD` times its largest entry.
     """
 
     def __init__(self, hyp: UncertainLinearSystem, noise_bound: np.ndarray, allowance: float) -> None:
@@ -178,8 +198,9 @@ class _Structure:
         self.constant_magnitude = np.abs(hyp.D) @ w_max + noise_bound
         self.hull_center = self.D @ self.w_center
         self.hull_radius = np.abs(self.D) @ self.w_radius
-        beta = self.hull_radius + noise_bound
-        self.beta = np.where(beta > 0, beta, 1.0)
+        unit = self.hull_radius + noise_bound
+        beta = np.where(unit > _NEGLIGIBLE_RADIUS, unit, 1.0)
+        self.beta = np.maximum(beta, _BETA_SPREAD * np.max(beta))
         self.is_box = _disturbance_set_is_box(self.D, self.w_radius)
         self.d_pinv = None if self.is_box else np.linalg.pinv(self.D)
 
@@ -269,9 +290,11 @@ def _solve_lp(data: _HypothesisData, idx: np.ndarray, objective: np.ndarray, s_f
     columns_lo = [sp.csr_matrix(-E)]
     cost = [objective]
     bounds = [np.column_stack([data.theta_low, data.theta_high])]
+    # the margin variable is s * sigma, so that its column's largest entry is 1
+    sigma = float(np.max(data.beta))
     if free_s:
-        columns_up.append(sp.csr_matrix(-beta[:, None]))
-        columns_lo.append(sp.csr_matrix(-beta[:, None]))
+        columns_up.append(sp.csr_matrix(-beta[:, None] / sigma))
+        columns_lo.append(sp.csr_matrix(-beta[:, None] / sigma))
         cost.append([1.0])
         bounds.append(np.array([[0.0, np.inf]]))
     if data.is_box:
@@ -305,7 +328,9 @@ def _solve_lp(data: _HypothesisData, idx: np.ndarray, objective: np.ndarray, s_f
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         raise SolverFailure(f"HiGHS returned non-finite values on the LP over {k} transitions")
     theta = x[:d]
-    s = float(x[d]) if free_s else float(s_fixed)
+    if free_s:
+        y = y / sigma  # multipliers of min s (= min (s sigma) / sigma)
+    s = float(x[d]) / sigma if free_s else float(s_fixed)
     offset = d + (1 if free_s else 0)
     w = None if data.is_box else x[offset:].reshape(k, -1)
     return _LPSolution(theta, s, w, y[: k * p].reshape(k, p), y[k * p :].reshape(k, p))
@@ -598,18 +623,6 @@ def _check_options(tolerance, rounding_allowance, max_rounds) -> tuple[float, fl
     return tol, allowance, int(max_rounds)
 
 
-def _noise_vector(measurement_noise, p: int) -> np.ndarray:
-    if measurement_noise is None:
-        return np.zeros(p)
-    v = as_finite_array("measurement_noise", measurement_noise)
-    if v.ndim == 0:
-        v = np.full(p, float(v))
-    check_shape("measurement_noise", v, (p,))
-    if np.any(v < 0):
-        raise InputError(f"measurement_noise must be >= 0 in every coordinate, got {v.tolist()}")
-    return v
-
-
 # --------------------------------------------------------------------------- API
 def eliminate_models(
     hypotheses: Sequence[UncertainLinearSystem],
@@ -662,12 +675,16 @@ def eliminate_models(
     added to each row, both erring towards keeping: bounded measurement noise
     ``|e_n| <= v_bar + max_theta |A(theta)| v_bar`` (see `measurement_noise_bound`,
     DESIGN errata) and rounding, ``rounding_allowance`` times the magnitude of the
-    terms of the row. The *margin* is the least ``s >= 0`` such that
+    terms of the row. When ``D W`` is a box the noise term gives exactly the errata's
+    inflated bound ``|D| w_bar + v_bar + max_theta |A(theta)| v_bar`` (about the centre
+    of ``D W``); otherwise ``D w_n`` is kept exact and only the noise is a box, which is
+    tighter and still sound. The *margin* is the least ``s >= 0`` such that
 
     ``-(e_n + s beta) <= z_n - E_n theta - D w_n <= e_n + s beta``  for all n,
 
     with ``beta`` the radius of the interval hull of ``D W + [-v, v]`` (``|D| r_w`` plus
-    the noise bound), or 1 where that is 0. For D = I without noise this is the
+    the noise bound), or 1 where that is 0, and at least 1e-6 times its largest entry
+    (to keep the LP well scaled). For D = I without noise this is the
     inflation of W to ``[w_lo - s r_w, w_hi + s r_w]``. When ``D W`` is a box (every
     column of D with a nonzero disturbance radius has one nonzero entry, e.g. D = I or
     ``dt I``), w is eliminated exactly and the LP has d + 1 variables and 2 p N rows;
@@ -736,7 +753,10 @@ def feasible_parameter_box(
     2d LPs, minimising and maximising each theta_i over the consistent set (by
     constraint generation). Each side is the weak-duality bound recomputed with numpy,
     so it is on the safe side of the LP optimum whatever HiGHS's accuracy, then rounded
-    outward by one ulp and intersected with the prior. If the data is consistent only
+    outward by one ulp and intersected with the prior. The rows are relaxed by
+    `PARAMETER_BOX_ALLOWANCE` (relative) instead of ``rounding_allowance`` if that is
+    larger, so that a nearly degenerate consistent set stays thicker than HiGHS's
+    tolerances. If the data is consistent only
     up to the margin tolerance (margin ``s`` in (0, tolerance]), the set of
     ``theta`` consistent with the disturbance set inflated by ``s`` is bounded instead:
     a superset, hence still sound.
@@ -756,6 +776,9 @@ def feasible_parameter_box(
             f"(certified >= {verdict.certificate.lower_bound:.6g} > tolerance {tol:g})"
         )
     s_box = verdict.upper + GENERATION_TOLERANCE
+    # A larger allowance only enlarges the feasible set, so s_box stays feasible.
+    box_allowance = max(allowance, PARAMETER_BOX_ALLOWANCE)
+    data = _HypothesisData(_Structure(hypothesis, measurement_noise_bound(hypothesis, noise), box_allowance), X, U, Xn)
     d = data.nparams
     low, high = np.empty(d), np.empty(d)
     for i in range(d):

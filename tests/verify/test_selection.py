@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import linprog
 
-from minimaxplan.models import Box, UncertainLinearSystem
+from minimaxplan.models import Box, UncertainLinearSystem, predict_tube
 from minimaxplan.models.errors import (
     DimensionError,
     InputError,
@@ -20,7 +20,7 @@ from minimaxplan.models.errors import (
 )
 from minimaxplan.verify import ModelSelector, eliminate_models, feasible_parameter_box
 from minimaxplan.verify import selection
-from minimaxplan.verify.selection import ELIMINATION_MARGIN, measurement_noise_bound
+from minimaxplan.verify.selection import ELIMINATION_MARGIN, PARAMETER_BOX_ALLOWANCE, measurement_noise_bound
 
 D_KINDS = ("identity", "scaled", "square", "tall", "wide")
 
@@ -161,6 +161,7 @@ def dense_reference_margin(system, states, controls):
     E = np.stack([system.regressor(x) for x in X]) if n else np.zeros((0, p, d))
     beta = np.abs(system.D) @ system.w.radius
     beta[beta == 0] = 1.0
+    beta = np.maximum(beta, 1e-6 * beta.max())
     nvar = d + 1 + n * r
     rows, rhs = [], []
     for k in range(n):
@@ -235,8 +236,10 @@ def test_scalar_margin_and_box_by_hand():
     assert certificate.transitions.tolist() == [0]
     # x1 = 0.5: theta in [0.4, 0.6]
     box = feasible_parameter_box(system, [[1.0], [0.5]], [[0.0]])
-    assert box.low[0] <= 0.4 <= box.low[0] + 1e-7
-    assert box.high[0] - 1e-7 <= 0.6 <= box.high[0]
+    # documented widening: PARAMETER_BOX_ALLOWANCE times the row's magnitude |x1| + max|theta| |x0| + max|w| = 1.6
+    widening = PARAMETER_BOX_ALLOWANCE * 1.6 + 1e-9
+    assert box.low[0] <= 0.4 <= box.low[0] + widening
+    assert box.high[0] - widening <= 0.6 <= box.high[0]
 
 
 def test_scalar_box_of_two_transitions():
@@ -249,8 +252,9 @@ def test_scalar_box_of_two_transitions():
     # trajectory form of the same two transitions through an exact intermediate: x 1 -> 0.5, then 0.5 -> 0.275
     box = feasible_parameter_box(system, [[1.0], [0.5], [0.275]], [[0.0], [0.0]])
     # 0.5 = theta + w, 0.275 = 0.5 theta + w: theta in [0.4, 0.6] and [0.35, 0.75]
-    assert box.low[0] == pytest.approx(0.4, abs=1e-7) and box.low[0] <= 0.4
-    assert box.high[0] == pytest.approx(0.6, abs=1e-7) and box.high[0] >= 0.6
+    widening = PARAMETER_BOX_ALLOWANCE * 1.6 + 1e-9  # the first transition's row magnitude is 1.6
+    assert 0.4 - widening <= box.low[0] <= 0.4
+    assert 0.6 <= box.high[0] <= 0.6 + widening
 
 
 def test_measurement_noise_bound_by_interval_arithmetic():
@@ -275,6 +279,27 @@ def test_without_the_noise_allowance_noisy_data_eliminates_the_true_model():
     measured = states + 0.3 * rng.choice((-1.0, 1.0), states.shape)
     assert eliminate_models([system], measured, controls).survivors == []
     assert eliminate_models([system], measured, controls, measurement_noise=0.3).survivors == [0]
+
+
+@pytest.mark.parametrize("radius", [0.0, 1e-12, 1e-10, 5e-324])
+def test_tiny_and_zero_disturbance_radii_and_subnormal_noise(radius):
+    rng = np.random.default_rng(5)
+    system = random_system(rng, 3, 2, 1, "identity", False)
+    system = UncertainLinearSystem(
+        system.A0, system.phi, system.B, w=Box.from_center(np.zeros(3), [0.1, radius, radius]), theta=system.theta
+    )
+    theta = true_parameter(system, rng, True)
+    states, controls = simulate(system, theta, 100, rng)
+    hypotheses = [system, wrong_variant(system, rng)]
+    for noise in (None, 5e-324, 1e-12):
+        result = eliminate_models(hypotheses, states, controls, measurement_noise=noise)
+        assert result.survivors == [0], (radius, noise, result.margins)
+        assert feasible_parameter_box(system, states, controls, measurement_noise=noise).contains(theta)
+    tiny = UncertainLinearSystem(
+        system.A0, system.phi, system.B, w=Box.from_center(np.zeros(3), max(radius, 1e-12)), theta=system.theta
+    )
+    # all radii tiny: the data (w up to 0.1) contradicts it, whatever the scale of the margin column
+    assert eliminate_models([tiny], states, controls).survivors == []
 
 
 # ----------------------------------------------------------------------- power
@@ -315,6 +340,19 @@ def test_wrong_friction_structure_and_input_gain_are_eliminated():
     print(f"transitions to elimination: isotropic friction {fell.get(1)}, input gain x1.5 {fell.get(2)}")
     assert selector.survivors == [0]
     assert fell[1] <= 100 and fell[2] <= 20
+
+
+def test_parameter_box_shrinks_with_data_and_feeds_predict_tube():
+    truth, theta = robot(anisotropic=True), np.array([0.5, 2.0])
+    states, controls = simulate(truth, theta, 300, np.random.default_rng(1), w_mode="uniform", x0=np.zeros(4))
+    boxes = [feasible_parameter_box(truth, states[: n + 1], controls[:n]) for n in (10, 50, 300)]
+    for box in boxes:
+        assert box.contains(theta)
+    for wide, narrow in zip(boxes, boxes[1:]):  # more data, more constraints: nested up to LP accuracy
+        assert wide.contains(narrow.low, tol=1e-7) and wide.contains(narrow.high, tol=1e-7)
+    assert np.all(boxes[-1].radius < 0.01 * truth.theta.radius)
+    tube = predict_tube(truth, Box(states[50], states[50]), controls[50:80], parameters=boxes[1])
+    assert tube.contains(states[50:81])
 
 
 # ------------------------------------------------------------------ bad input
