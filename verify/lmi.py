@@ -58,7 +58,8 @@ class LMIResult:
     ----------
     status
         ``"feasible"`` (a certificate was found and passed the numpy re-check),
-        ``"infeasible"`` (the solver proved that no certificate exists) or
+        ``"infeasible"`` (the solver's largest normalised slack ``t*`` is at most
+        ``margin``: no certificate exists with that margin) or
         ``"inconclusive"`` (an inaccurate solver answer, or a certificate that failed the
         re-check; `reason` says which).
     form
@@ -75,7 +76,8 @@ class LMIResult:
     solver, solver_status
         The solver used and its raw cvxpy status.
     solve_time
-        Wall-clock seconds of the cvxpy solve call (canonicalisation included).
+        Wall-clock seconds of the cvxpy solve calls (parameter update and
+        canonicalisation included; both solves when a second one was made).
     max_eigenvalue
         Largest eigenvalue over the vertices of the LMI matrix at the certificate
         (< 0 when certified), or None.
