@@ -1,0 +1,119 @@
+"""Tune the DWA and TEB baselines on tuning seeds (10000+), never on evaluation seeds (0-999).
+
+Each candidate parameter set runs the same seeded episodes of both worlds in the closed
+loop (measured state in, control held for one decision period out); candidates are
+ranked by failures (collisions + timeouts), then collisions, then mean time to goal.
+Prints a Markdown table per planner; docs/baselines.md records the outcome.
+
+    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py dwa 40
+    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py teb 20
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from minimaxplan.planners.dwa import DWAParameters, DynamicWindowPlanner, NavigationScene
+from minimaxplan.planners.teb import TEBParameters, TimedElasticBand
+from minimaxplan.scenarios.worlds import make_world
+
+TUNING_SEED0 = 10_000
+
+DWA_CANDIDATES = [
+    {},
+    {"clearance_weight": 0.8},
+    {"clearance_weight": 0.8, "heading_weight": 0.6},
+    {"clearance_weight": 0.8, "max_speed": 1.2},
+    {"clearance_weight": 0.8, "safety_margin": 0.2},
+    {"clearance_weight": 0.8, "horizon": 3.0},
+    {"clearance_weight": 0.8, "horizon": 1.0},
+    {"clearance_weight": 1.5},
+    {"clearance_weight": 0.8, "pedestrian_margin": 0.5},
+    {"clearance_weight": 0.8, "samples_per_axis": 11},
+]
+
+TEB_CANDIDATES = [
+    {},
+    {"obstacle_margin": 0.3},
+    {"pedestrian_margin": 0.6},
+    {"max_speed": 1.2},
+    {"obstacle_weight": 500.0},
+    {"max_iterations": 25},
+]
+
+
+def scene_of(world) -> NavigationScene:
+    crowd = world.crowd
+    return NavigationScene(world.goal, world.obstacles.centers, world.obstacles.radii,
+                           crowd.positions, crowd.announced, crowd.radii)
+
+
+def run_episode(planner, kind: str, seed: int) -> tuple[str, float, list[float]]:
+    world = make_world(kind, seed)
+    if hasattr(planner, "reset"):
+        planner.reset()
+    latencies = []
+    while not world.done:
+        state = world.measure()
+        started = time.perf_counter()
+        u = planner.plan(state, scene_of(world))
+        latencies.append(time.perf_counter() - started)
+        world.apply_held(u)
+    return world.outcome, world.time, latencies
+
+
+def evaluate(make_planner, seeds) -> dict:
+    row = {}
+    for kind in ("static", "pedestrian"):
+        outcomes, times, latencies = {}, [], []
+        for seed in seeds:
+            world_outcome, t, lat = run_episode(make_planner(), kind, seed)
+            outcomes[world_outcome] = outcomes.get(world_outcome, 0) + 1
+            latencies += lat
+            if world_outcome == "goal":
+                times.append(t)
+        row[kind] = {
+            "collision": outcomes.get("collision", 0),
+            "timeout": outcomes.get("timeout", 0),
+            "goal": outcomes.get("goal", 0),
+            "mean_time": float(np.mean(times)) if times else float("nan"),
+            "median_ms": 1e3 * float(np.median(latencies)),
+        }
+    return row
+
+
+def rank_key(row: dict) -> tuple:
+    failures = sum(row[k]["collision"] + row[k]["timeout"] for k in row)
+    collisions = sum(row[k]["collision"] for k in row)
+    time_sum = sum(row[k]["mean_time"] for k in row)
+    return (failures, collisions, time_sum)
+
+
+def main(which: str, episodes: int) -> None:
+    seeds = range(TUNING_SEED0, TUNING_SEED0 + episodes)
+    if which == "dwa":
+        candidates = [(c, lambda c=c: DynamicWindowPlanner(make_world("static", 0).system, params=DWAParameters(**c)))
+                      for c in DWA_CANDIDATES]
+    else:
+        candidates = [(c, lambda c=c: TimedElasticBand(make_world("static", 0).system, params=TEBParameters(**c)))
+                      for c in TEB_CANDIDATES]
+    rows = []
+    print(f"| {which} change from defaults | static coll/timeout/goal | static time (s) | "
+          "pedestrian coll/timeout/goal | pedestrian time (s) | median call (ms) |")
+    print("|---|---|---|---|---|---|")
+    for change, make in candidates:
+        row = evaluate(make, seeds)
+        rows.append((change, row))
+        s, p = row["static"], row["pedestrian"]
+        print(f"| {change or 'defaults'} | {s['collision']}/{s['timeout']}/{s['goal']} | {s['mean_time']:.1f} | "
+              f"{p['collision']}/{p['timeout']}/{p['goal']} | {p['mean_time']:.1f} | "
+              f"{max(s['median_ms'], p['median_ms']):.1f} |", flush=True)
+    best = min(rows, key=lambda r: rank_key(r[1]))
+    print(f"\nbest on {episodes} tuning seeds per world ({TUNING_SEED0}..{TUNING_SEED0 + episodes - 1}): {best[0] or 'defaults'}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1] if len(sys.argv) > 1 else "dwa", int(sys.argv[2]) if len(sys.argv) > 2 else 40)
