@@ -82,3 +82,34 @@ def test_bound_is_not_vacuous_on_a_tight_example():
     assert steady == np.float64(steady) and abs(steady - dw / (1 - a)) < 1e-6
     bound = certificate.width_bound(0.0, dw)
     assert steady <= bound < 20 * steady
+
+
+@given(
+    p=st.integers(2, 4),
+    dt=st.floats(0.01, 1.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_bound_holds_for_forward_euler_plants_at_any_dt(p, dt, seed):
+    # dx/dt = (-a I + E) x + B u + D w with rho(|E|) < a, a dt <= 1: then
+    # |I + dt A| <= (1 - a dt) I + dt |E| is Schur for every such dt (non-Metzler E).
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(0.2, 1.0 / dt)  # dt <= 1, so 0.2 < 1 / dt
+    E = rng.standard_normal((p, p))
+    E *= rng.uniform(0.1, 0.9) * a / np.abs(np.linalg.eigvals(np.abs(E))).max()
+    theta = np.array([0.3])
+    phi = rng.standard_normal((1, p, p))
+    A_c = -a * np.eye(p) + E - theta[0] * phi[0]  # A(theta) = -a I + E
+    D = rng.standard_normal((p, 2))
+    system = UncertainLinearSystem.from_continuous(
+        A_c, phi, np.ones((p, 1)), D=D, w=Box.from_center(np.zeros(2), rng.uniform(0.01, 1, 2)), theta=Box(theta, theta), dt=dt
+    )
+    A_N = system.A(theta)
+    certificate = check_assumption4(np.abs(A_N), form="discrete", D=np.abs(system.D))
+    assert certificate.status == "feasible" and certificate.certified, certificate.reason
+    x0 = Box.from_center(rng.standard_normal(p), rng.uniform(0, 1, p))
+    tube = predict_tube(system, x0, np.zeros((HORIZON, 1)), parameters=Box(theta, theta))
+    width_norms = np.linalg.norm(tube.upper - tube.lower, axis=1)
+    w_width = float(np.linalg.norm(system.w.high - system.w.low))
+    bound = certificate.width_bound(width_norms[0], w_width, steps=np.arange(HORIZON + 1))
+    tol = 1e-9 * (1 + np.abs(tube.upper).max() + np.abs(tube.lower).max())
+    assert np.all(width_norms <= bound + tol)
