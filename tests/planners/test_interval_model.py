@@ -190,6 +190,7 @@ def test_point_model_matches_system_step(with_feedback):
     model = PointModel(system, theta, reward, controllers, substeps=3)
     x0 = np.array([0.0, 0.0, 0.2, -0.1])
     state = model.initial_state(x0, time=2)
+    assert isinstance(state, PointState) and state.time == 2
     next_states, rewards, terminals = model.expand(state, model.actions)
     for a, controller in enumerate(controllers):
         x = x0
