@@ -39,11 +39,14 @@ def as_finite_array(
     ndim
         Expected number of dimensions, when the lengths are free.
     """
-    if np.iscomplexobj(value):  # a float cast would silently drop the imaginary part
-        raise InputError(f"{name} must be a real numeric array, got complex values")
     try:
-        array = np.asarray(value, dtype=float)
+        raw = np.asarray(value)
+        if np.iscomplexobj(raw):  # a float cast would silently drop the imaginary part
+            raise InputError(f"{name} must be a real numeric array, got complex values")
+        array = raw.astype(float, copy=False)
     except (TypeError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
         raise InputError(f"{name} must be a real numeric array: {exc}") from None
     if shape is not None:
         check_shape(name, array, shape)

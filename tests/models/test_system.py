@@ -179,3 +179,13 @@ def test_bad_input_is_rejected():
         UncertainLinearSystem.from_continuous(np.eye(2), np.zeros((1, 2, 2)), np.ones((2, 1)), dt=0.0, **ok)
     with pytest.raises(DimensionError, match=r"A must have shape \(2, 2\), got shape \(2, 1\)"):
         UncertainLinearSystem.from_continuous(np.ones((2, 1)), np.zeros((1, 2, 2)), np.ones((2, 1)), dt=0.1, **ok)
+
+
+def test_ragged_and_complex_arrays_are_input_errors():
+    from minimaxplan.models import InputError
+    from minimaxplan.models._validation import as_finite_array
+
+    with pytest.raises(InputError, match="x must be a real numeric array"):
+        as_finite_array("x", [[1.0, 2.0], [3.0]])
+    with pytest.raises(InputError, match="x must be a real numeric array, got complex"):
+        as_finite_array("x", [1.0 + 2.0j])
