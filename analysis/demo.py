@@ -1,58 +1,39 @@
 """``minimaxplan demo``: a short end-to-end run of the library on its embedded default.
 
-Simulates an uncertain 2D robot (a double integrator with unknown anisotropic
-friction), learns a confidence set for the friction from the observed transitions,
-discards the structural hypotheses that the data contradicts, checks Assumption 4 on
-the velocity subsystem, and predicts an interval tube that contains every possible
-future trajectory; then prints what happened.
+Part 1 walks through the pipeline once: it simulates an uncertain 2D robot (a double
+integrator with unknown anisotropic friction), learns a confidence set for the
+friction, discards the structural hypotheses that the data contradicts, checks
+Assumption 4 on the velocity subsystem, and predicts an interval tube that contains
+every possible future trajectory. Part 2 is a short version of the paper's experiment:
+a few episodes per method in both worlds, the Table 3 layout printed and the plots
+written to ``out/demo``.
 """
 
 from __future__ import annotations
 
 import argparse
+import pathlib
 import time
 
 import numpy as np
 
-from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, UncertainLinearSystem, predict_tube
+from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, predict_tube
+from minimaxplan.scenarios import robot_hypotheses
 from minimaxplan.verify import check_assumption4, eliminate_models, feasible_parameter_box
 
 DT = 0.1
-FRICTION_PRIOR = Box([0.2, 0.2], [0.8, 0.8])
-DISTURBANCE = Box([-0.1, -0.1], [0.1, 0.1])
-
-
-def robot_system(input_gain: float = 1.0, isotropic: bool = False) -> UncertainLinearSystem:
-    """The point-mass robot ``dpos = vel, dvel = -diag(theta) vel + g u + w`` (Euler, dt=0.1)."""
-    A = np.zeros((4, 4))
-    A[0, 2] = A[1, 3] = 1.0
-    if isotropic:
-        phi = np.zeros((1, 4, 4))
-        phi[0, 2, 2] = phi[0, 3, 3] = -1.0
-        theta = Box([0.2], [0.8])
-    else:
-        phi = np.zeros((2, 4, 4))
-        phi[0, 2, 2] = phi[1, 3, 3] = -1.0
-        theta = FRICTION_PRIOR
-    B = np.vstack([np.zeros((2, 2)), input_gain * np.eye(2)])
-    D = np.vstack([np.zeros((2, 2)), np.eye(2)])
-    return UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=DISTURBANCE, theta=theta, dt=DT)
 
 
 def run(seed: int = 0, steps: int = 200, horizon: int = 20) -> dict:
     rng = np.random.default_rng(seed)
-    truth = robot_system()
+    hypotheses = {name: system for name, system in robot_hypotheses(DT)}
+    truth = hypotheses["anisotropic friction"]
     theta_true = np.array([0.3, 0.7])
-    hypotheses = {
-        "anisotropic friction": truth,
-        "isotropic friction": robot_system(isotropic=True),
-        "wrong input gain (x0.6)": robot_system(input_gain=0.6),
-    }
-    # Simulate with persistently exciting random controls and disturbances at their extremes.
+    # Simulate with persistently exciting random controls and uniform disturbances.
     states = np.zeros((steps + 1, 4))
     controls = rng.uniform(-1, 1, size=(steps, 2))
     for n in range(steps):
-        w = rng.choice([-0.1, 0.1], size=2)
+        w = rng.uniform(truth.w.low, truth.w.high)
         states[n + 1] = truth.step(states[n], controls[n], theta_true, w)
 
     started = time.perf_counter()
@@ -74,7 +55,7 @@ def run(seed: int = 0, steps: int = 200, horizon: int = 20) -> dict:
         x = states[-1].copy()
         path = [x]
         for u in plan:
-            x = truth.step(x, u, corner, rng.choice([-0.1, 0.1], size=2))
+            x = truth.step(x, u, corner, rng.choice([-1.0, 1.0], size=2) * truth.w.high)
             path.append(x)
         contained &= tube.contains(np.array(path))
     names = list(hypotheses)
@@ -113,7 +94,25 @@ def report(result: dict) -> str:
     return "\n".join(lines)
 
 
+def _run(args: argparse.Namespace) -> int:
+    from .experiment import METHODS, SCENARIOS
+    from .experiment_command import run_and_report
+
+    print(report(run(seed=args.seed)), flush=True)
+    if args.episodes == 0:
+        return 0
+    print(f"\nShort experiment: {args.episodes} episodes per method in each world (paper: 100)", flush=True)
+    table, out = run_and_report(list(SCENARIOS), list(METHODS), episodes=args.episodes, seed=args.seed,
+                                workers=args.workers, dask_address=None, out=args.out)
+    print(table)
+    print(f"plots and per-episode data written to {out}/")
+    return 0
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("demo", help="a short end-to-end run on the embedded default")
     parser.add_argument("--seed", type=int, default=0)
-    parser.set_defaults(func=lambda args: print(report(run(seed=args.seed))) or 0)
+    parser.add_argument("--episodes", type=int, default=3, help="episodes per method and world (0: part 1 only)")
+    parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("out/demo"))
+    parser.set_defaults(func=_run)
