@@ -125,6 +125,19 @@ class _SubstepTimes:
         return value
 
 
+def _z_matrix(matrices: np.ndarray) -> np.ndarray:
+    """For matrices (..., m, n): ``[[M+^T, M-^T], [M-^T, M+^T]]`` of shape (..., 2n, 2m).
+
+    With a box written ``z = [-lower | upper]`` (..., 2n), ``z @ result`` is the exact
+    box of ``M x`` in the same form.
+    """
+    pos_t = np.swapaxes(np.maximum(matrices, 0.0), -1, -2)
+    neg_t = np.swapaxes(np.maximum(-matrices, 0.0), -1, -2)
+    top = np.concatenate([pos_t, neg_t], axis=-1)
+    bottom = np.concatenate([neg_t, pos_t], axis=-1)
+    return np.ascontiguousarray(np.concatenate([top, bottom], axis=-2))
+
+
 class _IntervalCore:
     """The batched arithmetic of one or several hypotheses under every controller.
 
@@ -168,29 +181,20 @@ class _IntervalCore:
         self.w_z = np.concatenate([-self.w_lo, self.w_hi], axis=-1)  # (M, 1, 2p)
         drift = np.einsum("mpq,aq->map", B, bank.offsets)  # (M, A, p): B_m c_a
         self.drift_z = np.concatenate([-drift, drift], axis=-1) + self.w_z  # (M, A, 2p)
-        self.B_pos = np.maximum(B, 0.0)
-        self.B_neg = np.maximum(-B, 0.0)
-        self.K_pos = np.maximum(bank.gains, 0.0)
-        self.K_neg = np.maximum(-bank.gains, 0.0)
+        self.q = B.shape[2]
+        self.B_z = _z_matrix(B)  # (M, 2q, 2p)
+        self.K_z = _z_matrix(bank.gains)  # (A, 2p, 2q)
 
     def _product(self, matrices):
-        """``[[M+^T, M-^T], [M-^T, M+^T]]`` for each of the k matrices, side by side: (..., 2p, 2kp).
+        """`_z_matrix` of each of the k matrices, side by side: (..., 2p, 2kp).
 
-        The columns are ordered (bound, vertex, coordinate), so that the product's
-        result reshapes to (..., 2, k, p).
+        The columns are ordered (vertex, bound, coordinate), so that the product's
+        result reshapes to (..., k, 2p), each row a z-box, and one max over the
+        vertex axis gives the bound over all k (numpy reduces that axis fastest).
         """
         p, k = self.p, matrices.shape[-3]
-        pos = np.maximum(matrices, 0.0)
-        neg = np.maximum(-matrices, 0.0)
-        # rows i of z (for -lower, then upper), columns (bound b, vertex j, coordinate r)
-        product = np.empty(matrices.shape[:-3] + (2, p, 2, k, p))
-        pos_t = np.swapaxes(pos, -1, -2)  # (..., k, i, r)
-        neg_t = np.swapaxes(neg, -1, -2)
-        product[..., 0, :, 0, :, :] = np.moveaxis(pos_t, -3, -2)  # -lower -> -(new lower): M+
-        product[..., 0, :, 1, :, :] = np.moveaxis(neg_t, -3, -2)  # -lower -> new upper: M-
-        product[..., 1, :, 0, :, :] = np.moveaxis(neg_t, -3, -2)  # upper -> -(new lower): M-
-        product[..., 1, :, 1, :, :] = np.moveaxis(pos_t, -3, -2)  # upper -> new upper: M+
-        return np.ascontiguousarray(product.reshape(matrices.shape[:-3] + (2 * p, 2 * k * p)))
+        per_vertex = _z_matrix(matrices)  # (..., k, 2p, 2p)
+        return np.ascontiguousarray(np.moveaxis(per_vertex, -3, -2).reshape(matrices.shape[:-3] + (2 * p, 2 * k * p)))
 
     def substep(self, z, index):
         """One sub-step of boxes z = [-lower | upper] under the actions ``index`` (None = all).
@@ -204,42 +208,36 @@ class _IntervalCore:
             candidates = np.matmul(z[..., None, :], product)[..., 0, :]
         else:
             candidates = np.matmul(z, self.open_product)
-        lead = candidates.shape[:-1]
-        bounds = candidates.reshape(lead + (2, k, p)).max(axis=-2).reshape(lead + (2 * p,)) if k > 1 else candidates
+        bounds = candidates.reshape(candidates.shape[:-1] + (k, 2 * p)).max(axis=-2) if k > 1 else candidates
         new_z = bounds + (self.drift_z if index is None else self.drift_z[:, index])
         if self.bank.saturating:
             new_z = self._saturation(z, new_z, index)
         return new_z
 
     def _saturation(self, z, closed_z, index):
-        """Closed loop plus the bounded correction s(v), intersected with the open-loop bound."""
-        p = self.p
-        z = np.broadcast_to(z, closed_z.shape)
-        lower, upper = -z[..., :p], z[..., p:]
-        sel = slice(None) if index is None else index
-        bank = self.bank
-        k_pos, k_neg = self.K_pos[sel], self.K_neg[sel]
-        # v = c - K x over the box: [c - (K+ hi - K- lo), c - (K+ lo - K- hi)]
-        kx_lo = np.einsum("aqp,map->maq", k_pos, lower) - np.einsum("aqp,map->maq", k_neg, upper)
-        kx_hi = np.einsum("aqp,map->maq", k_pos, upper) - np.einsum("aqp,map->maq", k_neg, lower)
-        offsets, low, high = bank.offsets[sel], bank.low[sel], bank.high[sel]
-        v_lo, v_hi = offsets - kx_hi, offsets - kx_lo
-        u_lo, u_hi = np.clip(v_lo, low, high), np.clip(v_hi, low, high)
-        # s(v) = sat(v) - v is nonincreasing: s in [s(v_hi), s(v_lo)], entered through B
-        closed_z = closed_z + self._input_z(u_hi - v_hi, u_lo - v_lo)
-        # open loop with the interval input [sat(v_lo), sat(v_hi)]
-        k = self.k
-        candidates = np.matmul(z, self.open_product)
-        lead = candidates.shape[:-1]
-        open_z = candidates.reshape(lead + (2, k, p)).max(axis=-2).reshape(lead + (2 * p,)) + self.w_z + self._input_z(u_lo, u_hi)
-        # intersection of the two boxes: max of -lower and min of upper
-        return np.concatenate([np.minimum(closed_z[..., :p], open_z[..., :p]), np.minimum(closed_z[..., p:], open_z[..., p:])], axis=-1)
+        """Closed loop plus the bounded correction s(v), intersected with the open-loop bound.
 
-    def _input_z(self, u_lo, u_hi):
-        """``[-lower | upper]`` of ``B u`` for u in the box [u_lo, u_hi] (M, A', q)."""
-        lower = np.einsum("mpq,maq->map", self.B_pos, u_lo) - np.einsum("mpq,maq->map", self.B_neg, u_hi)
-        upper = np.einsum("mpq,maq->map", self.B_pos, u_hi) - np.einsum("mpq,maq->map", self.B_neg, u_lo)
-        return np.concatenate([-lower, upper], axis=-1)
+        All in z-form: ``[-(K x)_lo | (K x)_hi]`` over the box is one product with
+        ``K_z``; the input boxes of the correction and of the open loop go through
+        ``B_z`` in one product; the intersection of two z-boxes is their elementwise min.
+        """
+        sel = slice(None) if index is None else index
+        q, k, p = self.q, self.k, self.p
+        bank = self.bank
+        kx = np.matmul(z[..., None, :], self.K_z[sel])[..., 0, :]  # (M, A', 2q)
+        offsets = bank.offsets[sel]
+        # v = c - K x over the box: [c - (K x)_hi, c - (K x)_lo]
+        v_lo = offsets - kx[..., q:]
+        v_hi = offsets + kx[..., :q]
+        low, high = bank.low[sel], bank.high[sel]
+        u_lo = np.minimum(np.maximum(v_lo, low), high)
+        u_hi = np.minimum(np.maximum(v_hi, low), high)
+        # s(v) = sat(v) - v is nonincreasing: s in [u_hi - v_hi, u_lo - v_lo]; u in [u_lo, u_hi]
+        inputs = np.concatenate([v_hi - u_hi, u_lo - v_lo, -u_lo, u_hi], axis=-1)
+        through_B = np.matmul(inputs.reshape(inputs.shape[:-1] + (2, 2 * q)), self.B_z[:, None])  # (M, A', 2, 2p)
+        candidates = np.matmul(z, self.open_product)
+        open_z = (candidates.reshape(candidates.shape[:-1] + (k, 2 * p)).max(axis=-2) if k > 1 else candidates) + self.w_z
+        return np.minimum(closed_z + through_B[..., 0, :], open_z + through_B[..., 1, :])
 
     def state_z(self, state: BoxState) -> np.ndarray:
         """The boxes of a state as z of shape (M or 1, 1, 2p)."""
