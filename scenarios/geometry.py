@@ -41,6 +41,7 @@ __all__ = [
     "boxes_meet_boxes",
     "fcl_box_circle_distance",
     "fcl_boxes_meet_circles",
+    "fcl_box_meets_grown_box",
     "fcl_boxes_meet_boxes",
     "fcl_disc_collisions",
 ]
