@@ -358,7 +358,7 @@ def _lagrangian_bound(
     nu = y_upper + y_lower
     if s_fixed is None:
         total = float(np.sum(nu @ data.beta))
-        if total > 1.0:
+        if total > 1.0 - 1e-12:  # keep the s coefficient 1 - total > 0 despite rounding in total
             scale = (1.0 - 1e-12) / total
             mu, nu = mu * scale, nu * scale
         slack = data.e[idx]
@@ -401,7 +401,11 @@ def _generate(
     *,
     max_rounds: int,
 ) -> _Generated:
-    """Constraint generation: solve on a subset, add the most violated transitions, repeat."""
+    """Constraint generation: solve on a subset, add the most violated transitions, repeat.
+
+    The number added per round doubles, so that even when many transitions are
+    undecided (general D, see `_HypothesisData.needed_margin`) the rounds stay few.
+    """
     n, d = data.ntransitions, data.nparams
     batch = max(8, 4 * (d + 1))
     active = np.unique(np.asarray(initial, dtype=int))
@@ -421,6 +425,7 @@ def _generate(
         candidates = np.flatnonzero(violated)
         worst = candidates[np.argsort(-needed[candidates], kind="stable")[:batch]]
         active = np.union1d(active, worst)
+        batch *= 2
     if data.is_box:
         upper = float(np.max(needed_all, initial=0.0))
     else:
