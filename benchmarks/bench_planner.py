@@ -14,7 +14,8 @@ per-step Python interval code, as rl-agents' planners with highway-env's interva
 models do (`benchmarks/reference_planner.py`). Both must reach the same decision:
 same action and the same root bounds to 1e-9 (asserted for every measured root).
 
-Writes benchmarks/results/planner.md and .json.
+Writes benchmarks/results/planner.md and .json (environment variables: BENCH_ROOTS,
+the number of roots per row, default 6; BENCH_RESULTS, another output directory).
 """
 
 from __future__ import annotations
