@@ -5,8 +5,10 @@ loop (measured state in, control held for one decision period out); candidates a
 ranked by failures (collisions + timeouts), then collisions, then mean time to goal.
 Prints a Markdown table per planner; docs/baselines.md records the outcome.
 
-    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py dwa 40
-    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py teb 20
+    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py dwa 40 1    # round 1
+    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py dwa 100 2   # round 2
+    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py teb 20 1
+    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py teb 40 2
 """
 
 from __future__ import annotations
@@ -22,7 +24,8 @@ from minimaxplan.scenarios.worlds import make_world
 
 TUNING_SEED0 = 10_000
 
-DWA_CANDIDATES = [
+# Round 1 screens single changes; round 2 compares the leaders on more seeds.
+DWA_ROUND1 = [
     {},
     {"clearance_weight": 0.8},
     {"clearance_weight": 0.8, "heading_weight": 0.6},
@@ -35,7 +38,14 @@ DWA_CANDIDATES = [
     {"clearance_weight": 0.8, "samples_per_axis": 11},
 ]
 
-TEB_CANDIDATES = [
+DWA_ROUND2 = [
+    {},
+    {"horizon": 1.0},
+    {"clearance_weight": 0.8, "horizon": 1.0},
+    {"clearance_weight": 0.8, "horizon": 1.5},
+]
+
+TEB_ROUND1 = [
     {},
     {"obstacle_margin": 0.3},
     {"pedestrian_margin": 0.6},
@@ -43,6 +53,15 @@ TEB_CANDIDATES = [
     {"obstacle_weight": 500.0},
     {"max_iterations": 25},
 ]
+
+TEB_ROUND2 = [
+    {},
+    {"max_iterations": 25},
+    {"max_iterations": 25, "obstacle_margin": 0.3},
+    {"max_iterations": 25, "pedestrian_margin": 0.6},
+]
+
+ROUNDS = {("dwa", 1): DWA_ROUND1, ("dwa", 2): DWA_ROUND2, ("teb", 1): TEB_ROUND1, ("teb", 2): TEB_ROUND2}
 
 
 def scene_of(world) -> NavigationScene:
@@ -92,14 +111,13 @@ def rank_key(row: dict) -> tuple:
     return (failures, collisions, time_sum)
 
 
-def main(which: str, episodes: int) -> None:
+def main(which: str, episodes: int, round_: int) -> None:
     seeds = range(TUNING_SEED0, TUNING_SEED0 + episodes)
+    system = make_world("static", TUNING_SEED0).system  # the same model structure in every world
     if which == "dwa":
-        candidates = [(c, lambda c=c: DynamicWindowPlanner(make_world("static", 0).system, params=DWAParameters(**c)))
-                      for c in DWA_CANDIDATES]
+        candidates = [(c, lambda c=c: DynamicWindowPlanner(system, params=DWAParameters(**c))) for c in ROUNDS["dwa", round_]]
     else:
-        candidates = [(c, lambda c=c: TimedElasticBand(make_world("static", 0).system, params=TEBParameters(**c)))
-                      for c in TEB_CANDIDATES]
+        candidates = [(c, lambda c=c: TimedElasticBand(system, params=TEBParameters(**c))) for c in ROUNDS["teb", round_]]
     rows = []
     print(f"| {which} change from defaults | static coll/timeout/goal | static time (s) | "
           "pedestrian coll/timeout/goal | pedestrian time (s) | median call (ms) |")
@@ -116,4 +134,5 @@ def main(which: str, episodes: int) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "dwa", int(sys.argv[2]) if len(sys.argv) > 2 else 40)
+    main(sys.argv[1] if len(sys.argv) > 1 else "dwa", int(sys.argv[2]) if len(sys.argv) > 2 else 40,
+         int(sys.argv[3]) if len(sys.argv) > 3 else 1)

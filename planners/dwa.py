@@ -141,7 +141,7 @@ class DWAParameters:
     """
 
     samples_per_axis: int = 9
-    horizon: float = 2.0
+    horizon: float = 1.0
     brake_time: float = 2.0
     max_speed: float = 1.5
     safety_margin: float = 0.1

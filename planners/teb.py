@@ -95,7 +95,7 @@ class TEBParameters:
     obstacle_weight: float = 200.0
     detour_amplitude: float = 2.5
     reinit_violation: float = 0.05
-    max_iterations: int = 40
+    max_iterations: int = 25
     navigation_function: bool = True
     grid_resolution: float = 0.2
 
