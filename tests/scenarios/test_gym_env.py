@@ -92,3 +92,15 @@ def test_step_rejects_bad_actions_and_step_before_reset():
         env.step(np.array([2.0, 0.0]))
     with pytest.raises(InputError, match="kind must be one of"):
         RobotNavigationEnv("maze")
+
+
+def test_scenarios_import_gymnasium_only_when_the_env_is_asked_for():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, minimaxplan.scenarios as s; assert 'gymnasium' not in sys.modules; "
+        "env = s.RobotNavigationEnv; assert 'gymnasium' in sys.modules; print(env.__name__)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "RobotNavigationEnv"
