@@ -11,7 +11,7 @@ import importlib
 import sys
 
 # Modules of minimaxplan.analysis that provide a subcommand, in help order.
-SUBCOMMAND_MODULES = ["demo", "lmi_command", "select_command", "experiment_command"]
+SUBCOMMAND_MODULES = ["demo", "lmi_command", "select_command", "experiment_command", "suboptimality"]
 
 
 def build_parser() -> argparse.ArgumentParser:

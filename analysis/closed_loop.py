@@ -16,7 +16,8 @@ nominal
     Certainty equivalence: OPD on the least-squares friction estimate (w = 0), the
     pedestrians at their announced velocities.
 oracle
-    OPD on the true friction (w = 0): the reference of the suboptimality study.
+    OPD on the true friction (w = 0): the reference of the suboptimality study
+    (`minimaxplan.analysis.suboptimality`).
 dwa, teb
     The baselines of `minimaxplan.planners`, given the same noisy measurements and the
     pedestrians' current positions and announced velocities. Like the ROS local
@@ -66,8 +67,12 @@ class LoopConfig:
         Speed of the diagonal velocity references, m/s.
     gain
         Velocity feedback gain k of the low-level controllers, 1/s.
-    record_suboptimality
-        Also run the oracle planner at every decision of the robust method (Figure 6).
+    prior_samples
+        None: learn online from the episode's own transitions. N: learn only from N
+        transitions of excitation data recorded beforehand (same robot, random
+        controls from rest), then keep the parameter sets fixed: the Figure 6 study.
+    max_decisions
+        Stop after this many decisions (outcome "horizon" if still running).
     measurement
         "uniform" (bounded, inside the guarantees) or "gaussian" (outside).
     lookahead, path_clearance
@@ -79,7 +84,8 @@ class LoopConfig:
     gamma: float = 0.9
     speed: float = 1.5
     gain: float = 3.0
-    record_suboptimality: bool = True
+    prior_samples: int | None = None
+    max_decisions: int | None = None
     measurement: str = "uniform"
     lsq_regularisation: float = 1e-3
     lookahead: float = 3.0
@@ -170,6 +176,67 @@ def _objective(world, waypoint, uncertain: bool) -> GoalReward:
                       moving_obstacles=_pedestrian_prediction(world, uncertain) if len(world.crowd) else None)
 
 
+def excitation_data(world, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` measured transitions of the episode's robot under random controls from rest,
+    recorded before the episode (seeded by the world's seed; same noise model).
+
+    Returns measured states (n + 1, 4) and controls (n, 2).
+    """
+    rng = np.random.default_rng(np.random.SeedSequence([world.seed, 0x5EED]))
+    params = world.params
+    x = np.zeros(4)
+    states, controls = [x + rng.uniform(-params.measurement_noise, params.measurement_noise, 4)], []
+    for _ in range(n):
+        u = rng.uniform(-params.control_bound, params.control_bound, 2)
+        w = rng.uniform(-params.disturbance_bound, params.disturbance_bound, 2)
+        x = world.system.step(x, u, world.true_theta, w)
+        controls.append(u)
+        states.append(x + rng.uniform(-params.measurement_noise, params.measurement_noise, 4))
+    return np.array(states), np.array(controls).reshape(n, 2)
+
+
+class _Learner:
+    """What the robust planner knows: surviving hypotheses and their parameter boxes.
+
+    Online (``frozen`` False) it is fed every measured transition; frozen, it is fitted
+    once on prior data and never changes.
+    """
+
+    def __init__(self, hypotheses, noise: float, prior: tuple | None):
+        self.hypotheses = hypotheses
+        self.noise = noise
+        self.selector = ModelSelector([h.system for h in hypotheses], measurement_noise=noise)
+        self.states: list = []
+        self.controls: list = []
+        self.frozen = prior is not None
+        if prior is not None:
+            X, U = prior
+            self.states, self.controls = list(X), list(U)
+            for n in range(U.shape[0]):
+                self.selector.add(X[n], U[n], X[n + 1])
+        self._boxes = None
+
+    def add(self, x, u, x_next) -> None:
+        if self.frozen:
+            return
+        if not self.states:
+            self.states.append(x)
+        self.controls.append(u)
+        self.states.append(x_next)
+        self.selector.add(x, u, x_next)
+        self._boxes = None
+
+    def survivors_with_boxes(self) -> list[tuple[int, Box]]:
+        if self._boxes is None:
+            X, U = np.array(self.states).reshape(-1, 4), np.array(self.controls).reshape(-1, 2)
+            self._boxes = [
+                (i, feasible_parameter_box(self.hypotheses[i].system, X, U, measurement_noise=self.noise)
+                 if U.shape[0] else self.hypotheses[i].system.theta)
+                for i in self.selector.survivors
+            ]
+        return self._boxes
+
+
 def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFAULT_CONFIG) -> EpisodeRecord:
     """Run one episode of ``method`` in the world ``make_world(scenario, seed)``.
 
@@ -184,40 +251,31 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
     controllers = velocity_controllers(config, params.control_bound)
     hypotheses = robot_hypotheses(params.dt, params)
     noise = params.measurement_noise
-    selector = ModelSelector([h.system for h in hypotheses], measurement_noise=noise) if method == "robust" else None
+    prior = None if config.prior_samples is None else excitation_data(world, config.prior_samples)
+    learner = _Learner(hypotheses, noise, prior) if method == "robust" else None
     lsq = _LeastSquares(world.system, config.lsq_regularisation)
+    if prior is not None:
+        for n in range(prior[1].shape[0]):
+            lsq.add(prior[0][n], prior[1][n], prior[0][n + 1])
     planning = [planning_system(h.system, config.gain * noise) for h in hypotheses]
     global_path = GlobalPath(world.obstacles, world.goal, clearance=params.robot_radius + config.path_clearance)
     baseline = _make_baseline(method, world) if method in ("dwa", "teb") else None
-    record_subopt = method == "robust" and config.record_suboptimality
-    states, controls = [world.measure()], []
+    x = world.measure()
     rewards, positions, plans = [], [world.state[:2].copy()], []
-    # Per decision: (N, oracle value, oracle depth, the oracle's objective, first sub-step index)
-    oracle_points = []
-    realised = []  # per sub-step: (index, true state, true pedestrian positions)
     outcome = None
     lmi = None
     while not world.done:
-        x = states[-1]
+        if config.max_decisions is not None and len(rewards) >= config.max_decisions:
+            outcome = "horizon"
+            break
         t = world.step_index
         waypoint = global_path.waypoint(x[:2], config.lookahead)
-        if record_subopt:
-            objective = _objective(world, waypoint, uncertain=False)
-            oracle = nominal_planner(world.system, world.true_theta, objective, controllers,
-                                     gamma=config.gamma, budget=config.budget, substeps=params.substeps)
-            found = oracle.plan(root_state(oracle, x, time=t))
-            oracle_points.append((len(controls), found.lower, len(found.sequence), objective, len(realised)))
         if method == "robust":
-            survivors = selector.survivors
+            survivors = learner.survivors_with_boxes()
             if not survivors:
                 outcome = "no_consistent_model"
                 break
-            X, U = np.array(states), np.array(controls).reshape(-1, 2)
-            pairs = [
-                (planning[i], feasible_parameter_box(hypotheses[i].system, X, U, measurement_noise=noise)
-                 if U.shape[0] else hypotheses[i].system.theta)
-                for i in survivors
-            ]
+            pairs = [(planning[i], box) for i, box in survivors]
             if lmi is None:
                 lmi = assumption4_report(world.system, pairs[0][1])
             planner = multi_model_robust_planner(pairs, _objective(world, waypoint, uncertain=True), controllers,
@@ -239,23 +297,17 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
             u = np.clip(controller.control(x), -params.control_bound, params.control_bound)
             world.apply(u)
             positions.append(world.state[:2].copy())
-            realised.append((world.step_index, world.state.copy(), world.crowd.positions.copy()))
             worst = min(worst, world.reward())
             x_next = world.measure()
-            controls.append(u)
-            states.append(x_next)
-            if selector is not None:
-                selector.add(x, u, x_next)
-            lsq.add(x, u, x_next)
+            if learner is not None:
+                learner.add(x, u, x_next)
+            if prior is None:
+                lsq.add(x, u, x_next)
             x = x_next
             if world.done:
                 break
         rewards.append(worst)
     outcome = outcome or world.outcome
-    suboptimality = tuple(
-        (n, value - _realised_value(objective, realised, first, depth, params.substeps, config.gamma, outcome))
-        for n, value, depth, objective, first in oracle_points
-    )
     discounted = float(sum(config.gamma**i * r for i, r in enumerate(rewards)))
     return EpisodeRecord(
         scenario=scenario,
@@ -267,28 +319,8 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
         decisions=len(rewards),
         wall_time_s=wallclock.perf_counter() - started,
         trajectory=tuple(map(tuple, np.round(positions, 4).tolist())),
-        suboptimality=suboptimality,
         extra={"lmi": lmi, "plans": plans[:: max(1, len(plans) // 8)] if plans else [], "world": world.to_dict()},
     )
-
-
-def _realised_value(objective, realised, first, depth, substeps, gamma, outcome) -> float:
-    """``sum_{n < depth} gamma^n min_s J(x_s)`` of the true states of the ``depth``
-    decisions after sub-step ``first``, under the decision's own objective (true
-    pedestrian positions). Past the end of the episode the robot keeps its last state
-    (reward 0 after a collision), as the oracle's model would see a stopped robot."""
-    total = 0.0
-    last = None
-    for n in range(depth):
-        chunk = realised[first + n * substeps: first + (n + 1) * substeps]
-        if chunk:
-            values = [float(objective.value(state, index, moving_positions=peds) if len(peds) else
-                            objective.value(state, index)) for index, state, peds in chunk]
-            last = min(values)
-        elif outcome == "collision":
-            last = 0.0
-        total += gamma**n * (last if last is not None else 0.0)
-    return total
 
 
 class _HeldControl:

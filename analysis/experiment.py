@@ -41,10 +41,9 @@ SCENARIOS = ("static", "pedestrian")
 class EpisodeRecord:
     """The outcome of one episode.
 
-    ``outcome`` is "goal", "collision", "timeout" or "no_consistent_model"; only "goal"
-    is a success. ``time_s`` is the simulated time at the end of the episode.
-    ``suboptimality`` holds ``(N, oracle value - discounted return from there)`` per
-    decision (robust method only), the data of the Figure 6 analogue.
+    ``outcome`` is "goal", "collision", "timeout", "no_consistent_model", or "horizon"
+    (stopped after ``LoopConfig.max_decisions``); only "goal" is a success.
+    ``time_s`` is the simulated time at the end of the episode.
     """
 
     scenario: str
@@ -56,7 +55,6 @@ class EpisodeRecord:
     decisions: int
     wall_time_s: float
     trajectory: tuple = field(default=(), repr=False)
-    suboptimality: tuple = field(default=(), repr=False)
     extra: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -67,7 +65,6 @@ class EpisodeRecord:
         """The flat CSV row (no trajectory)."""
         data = asdict(self)
         data.pop("trajectory")
-        data.pop("suboptimality")
         data.pop("extra")
         data["success"] = self.success
         return data

@@ -1,13 +1,12 @@
-"""``minimaxplan experiment``: the paper's Table 3 and Figure 6 experiments."""
+"""``minimaxplan experiment``: the paper's Table 3 experiment."""
 
 from __future__ import annotations
 
 import argparse
-import json
 import pathlib
 
 from .experiment import METHODS, SCENARIOS, markdown_table, run_experiment, write_outputs
-from .plots import plot_suboptimality, plot_trajectories, suboptimality_trend
+from .plots import plot_trajectories
 
 __all__ = ["register", "run_and_report"]
 
@@ -33,10 +32,6 @@ def run_and_report(scenarios, methods, *, episodes, seed, workers, dask_address,
         shown = sorted({r.seed for r in result.records if r.scenario == scenario})[:plot_seeds]
         records = [r for r in result.records if r.scenario == scenario and r.seed in shown]
         plot_trajectories(records, out / f"trajectories_{scenario}.png")
-    robust = [r for r in result.records if r.method == "robust"]
-    if robust:
-        plot_suboptimality(robust, out / "suboptimality.png")
-        (out / "suboptimality.json").write_text(json.dumps(suboptimality_trend(robust), indent=2) + "\n")
     table = markdown_table(result.summary) + f"\nWall time of the run: {result.wall_time_s:.1f} s\n"
     return table, out
 
@@ -51,7 +46,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("experiment", help="Monte-Carlo episodes per method and world (Table 3, Figure 6)")
+    parser = subparsers.add_parser("experiment", help="Monte-Carlo episodes per method and world (Table 3)")
     parser.add_argument("--scenario", type=_csv_list(SCENARIOS), default=list(SCENARIOS),
                         help="static, pedestrian, or both comma-separated (default: both)")
     parser.add_argument("--methods", type=_csv_list(METHODS), default=list(METHODS),

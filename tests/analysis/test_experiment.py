@@ -17,7 +17,7 @@ from minimaxplan.models import Box, InputError
 from minimaxplan.scenarios import robot_hypotheses
 
 # A cheaper planner budget keeps these tests fast; the loop is otherwise the real one.
-FAST = LoopConfig(budget=12, record_suboptimality=False)
+FAST = LoopConfig(budget=12)
 fast_episode = functools.partial(run_episode, config=FAST)
 
 
@@ -103,8 +103,6 @@ def test_robust_episode_record_is_consistent():
     assert 0.0 <= record.discounted_return <= 1 / (1 - 0.9)
     assert record.extra["lmi"]["full_model"] == "infeasible"
     assert record.extra["lmi"]["velocity_subsystem"] == "feasible"
-    ns = [n for n, _ in record.suboptimality]
-    assert ns == sorted(ns) and len(ns) == record.decisions
     assert len(record.trajectory) >= record.decisions
 
 
@@ -127,3 +125,29 @@ def test_experiment_command_rejects_unknown_method(capsys):
     with pytest.raises(SystemExit):
         main(["experiment", "--methods", "robust,magic"])
     assert "choose from" in capsys.readouterr().err
+
+
+def test_frozen_prior_data_and_decision_horizon():
+    from minimaxplan.analysis.closed_loop import excitation_data
+    from minimaxplan.scenarios import make_world
+
+    world = make_world("static", 5)
+    X, U = excitation_data(world, 30)
+    X2, U2 = excitation_data(make_world("static", 5), 30)
+    np.testing.assert_array_equal(X, X2)
+    assert X.shape == (31, 4) and U.shape == (30, 2) and np.all(np.abs(U) <= 1)
+    record = run_episode("static", "robust", 5, LoopConfig(budget=12, prior_samples=30, max_decisions=3))
+    assert record.outcome == "horizon" and record.decisions == 3
+
+
+def test_suboptimality_study_shape_and_trend_fit():
+    from minimaxplan.analysis.suboptimality import fit_trend, markdown, suboptimality_study
+
+    study = suboptimality_study((3, 60), episodes=1, seed=4, horizon=3, workers=1, progress=False,
+                                config=LoopConfig(budget=8))
+    assert [row["n"] for row in study["rows"]] == [3, 60]
+    for row in study["rows"]:
+        assert row["min"] <= row["mean"] <= row["max"] and len(row["per_episode"]) == 1
+    assert "| 60 |" in markdown(study)
+    fit = fit_trend([1, 2, 4, 8], [2 + 3 * np.log(n) / n for n in (1, 2, 4, 8)])
+    assert fit["a"] == pytest.approx(2.0) and fit["b"] == pytest.approx(3.0)
