@@ -42,7 +42,10 @@ from minimaxplan.models.system import UncertainLinearSystem
 from .dwa import NavigationScene
 from .navigation import NavigationFunction
 
-__all__ = ["TEBParameters", "TEBPlan", "TimedElasticBand", "band_cost"]
+__all__ = ["TEBParameters", "TEBPlan", "TimedElasticBand", "band_cost", "LBFGSB_STATUS"]
+
+#: scipy's L-BFGS-B statuses and what they mean for a band; any other status raises.
+LBFGSB_STATUS = {0: "converged", 1: "iteration_limit", 2: "line_search_stopped"}
 
 
 @dataclass(frozen=True)
@@ -122,13 +125,15 @@ class TEBParameters:
 class TEBPlan:
     """One TEB call: the optimised band ``positions`` (n + 1, 2), ``intervals`` (n,),
     its ``cost``, the worst clearance shortfall ``violation`` (m, 0 if none), the
-    optimiser's ``iterations`` and the ``control`` (2,) for the next period."""
+    optimiser's ``iterations`` and ``status`` (a value of `LBFGSB_STATUS`) and the
+    ``control`` (2,) for the next period."""
 
     positions: np.ndarray
     intervals: np.ndarray
     cost: float
     violation: float
     iterations: int
+    status: str
     control: np.ndarray
 
     def to_dict(self) -> dict:
@@ -348,14 +353,14 @@ class TimedElasticBand:
         bounds = [(None, None)] * (2 * (n - 1)) + [(p.dt_min, p.dt_max)] * n
         result = minimize(band_cost, z0, args=(start, velocity, goal, n, self.friction, discs, p, self.control_bound),
                           jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": p.max_iterations})
-        if not np.all(np.isfinite(result.x)) or not np.isfinite(result.fun):
-            raise SolverFailure(f"L-BFGS-B returned a non-finite band (status {result.status}: {result.message})")
-        # Statuses 0 (converged) and 1 (iteration limit) both give a usable band: the
-        # penalties are soft and the band is re-optimised at the next call; status 2
-        # (ABNORMAL line search) also returns its best iterate, which is kept.
+        status = LBFGSB_STATUS.get(int(result.status))
+        if status is None or not np.all(np.isfinite(result.x)) or not np.isfinite(result.fun):
+            raise SolverFailure(f"L-BFGS-B failed on the band (status {result.status}: {result.message})")
+        # Every named status gives a usable band: the penalties are soft and the band is
+        # re-optimised at the next call, and L-BFGS-B returns its best iterate.
         X = np.concatenate([start[None], result.x[: 2 * (n - 1)].reshape(n - 1, 2), goal[None]])
         dT = result.x[2 * (n - 1):]
-        return X, dT, float(result.fun), int(result.nit)
+        return X, dT, float(result.fun), int(result.nit), status
 
     def _violation(self, X, dT, discs) -> float:
         centers, velocities, radii, required = discs
@@ -407,9 +412,9 @@ class TimedElasticBand:
                     best = trial
                 if bump == 0.0 and guide is not None and self._violation(trial[0], trial[1], discs) <= self.params.reinit_violation:
                     break  # the band along the global path is clear: no need for side bumps
-        X, dT, cost, iterations = best
+        X, dT, cost, iterations, status = best
         self._band = (X, dT)
-        return TEBPlan(X, dT, cost, self._violation(X, dT, discs), iterations, self._control(X, dT, velocity))
+        return TEBPlan(X, dT, cost, self._violation(X, dT, discs), iterations, status, self._control(X, dT, velocity))
 
     def _score(self, band, discs) -> tuple[bool, float]:
         """Bands without clearance violation (beyond the tolerance) first, then by cost."""

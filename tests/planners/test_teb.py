@@ -138,3 +138,23 @@ def test_pedestrian_moving_into_the_route_bends_the_band():
 def test_rejects_bad_input(make, error, message):
     with pytest.raises(error, match=message):
         make()
+
+
+def test_plans_report_a_named_solver_status_and_non_finite_bands_raise(monkeypatch):
+    from minimaxplan.models import SolverFailure
+    from minimaxplan.planners import teb
+
+    planner = TimedElasticBand(robot_system())
+    scene = NavigationScene([8.0, 0.0], [[4.0, 0.2]], [0.5])
+    plan = planner.optimise(np.zeros(4), scene)
+    assert plan.status in teb.LBFGSB_STATUS.values()
+    assert plan.to_dict()["status"] == plan.status
+
+    def broken_cost(z, *args):
+        cost, grad = band_cost(z, *args)
+        return np.nan, grad
+
+    monkeypatch.setattr(teb, "band_cost", broken_cost)
+    planner.reset()
+    with pytest.raises(SolverFailure, match="L-BFGS-B failed on the band"):
+        planner.optimise(np.zeros(4), scene)
