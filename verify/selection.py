@@ -820,9 +820,12 @@ class ModelSelector:
     -----
     A new transition can only eliminate. For each survivor the parameter of its last
     LP is kept; if that parameter explains the new transition within the tolerance
-    (an O(p d) check), nothing is solved. Otherwise the margin LP is re-solved over all
+    (an O(p (p + q + d)) check), nothing is solved. Otherwise the margin LP is re-solved over all
     transitions so far, starting constraint generation from the previous active rows.
-    Eliminated hypotheses are never checked again nor revived.
+    Eliminated hypotheses are never checked again nor revived; when all are
+    eliminated, ``survivors`` is empty (no exception: the certificates are the result).
+    Verdicts equal those of `eliminate_models` on the same transitions (both eliminate
+    iff the certified bound exceeds the tolerance).
 
     Memory: the transitions are stored in arrays grown by doubling, O(N (2p + q))
     floats for N transitions, plus the active row indices per survivor (typically

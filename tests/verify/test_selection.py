@@ -339,7 +339,7 @@ def test_wrong_friction_structure_and_input_gain_are_eliminated():
     fell, selector = transitions_to_elimination(truth, np.array([0.5, 2.0]), hypotheses, 300, seed=7)
     print(f"transitions to elimination: isotropic friction {fell.get(1)}, input gain x1.5 {fell.get(2)}")
     assert selector.survivors == [0]
-    assert fell[1] <= 100 and fell[2] <= 20
+    assert fell[1] <= 20 and fell[2] <= 5  # measured: 8 and 1 (seed 7); at most 9 and 2 over seeds 0-19
 
 
 def test_parameter_box_shrinks_with_data_and_feeds_predict_tube():
