@@ -243,19 +243,28 @@ def test_scalar_margin_and_box_by_hand():
     assert box.high[0] - widening <= 0.6 <= box.high[0]
 
 
-def test_scalar_box_of_two_transitions():
+def test_scalar_box_of_two_transitions_and_streamed_elimination():
     system = scalar_system()
-    X, U, Xn = np.array([[1.0], [2.0]]), np.zeros((2, 1)), np.array([[0.5], [1.1]])
+    # 0.5 = theta * 1 + w gives theta in [0.4, 0.6]; 0.32 = theta * 0.5 + w gives [0.44, 0.84]
+    box = feasible_parameter_box(system, [[1.0], [0.5], [0.32]], [[0.0], [0.0]])
+    # documented widening: PARAMETER_BOX_ALLOWANCE times each row's magnitude, divided by |x_n|
+    low_widening = PARAMETER_BOX_ALLOWANCE * (0.32 + 0.5 + 0.1) / 0.5 + 1e-9
+    high_widening = PARAMETER_BOX_ALLOWANCE * (0.5 + 1.0 + 0.1) / 1.0 + 1e-9
+    assert 0.44 - low_widening <= box.low[0] <= 0.44
+    assert 0.6 <= box.high[0] <= 0.6 + high_widening
+    # streamed: 1 -> 0.5 and 2 -> 1.1 (theta in [0.5, 0.6]) agree; 2 -> 1.5 (theta in [0.7, 0.8]) does not
+    X, U, Xn = np.array([[1.0], [2.0], [2.0]]), np.zeros((3, 1)), np.array([[0.5], [1.1], [1.5]])
     selector = ModelSelector([system])
-    for k in range(2):
-        selector.add(X[k], U[k], Xn[k])
-    assert selector.survivors == [0]
-    # trajectory form of the same two transitions through an exact intermediate: x 1 -> 0.5, then 0.5 -> 0.275
-    box = feasible_parameter_box(system, [[1.0], [0.5], [0.275]], [[0.0], [0.0]])
-    # 0.5 = theta + w, 0.275 = 0.5 theta + w: theta in [0.4, 0.6] and [0.35, 0.75]
-    widening = PARAMETER_BOX_ALLOWANCE * 1.6 + 1e-9  # the first transition's row magnitude is 1.6
-    assert 0.4 - widening <= box.low[0] <= 0.4
-    assert 0.6 <= box.high[0] <= 0.6 + widening
+    assert selector.add(X[0], U[0], Xn[0]) == [0]
+    assert selector.add(X[1], U[1], Xn[1]) == [0]
+    assert selector.add(X[2], U[2], Xn[2]) == []
+    certificate = selector.certificates[0]
+    assert 2 in certificate.transitions.tolist()
+    # the least inflation: theta = 0.65 needs |w| = 0.2 on the last two rows, s = 1
+    assert certificate.margin == pytest.approx(1.0, rel=1e-6)
+    assert certificate.recheck_transitions(system, X, U, Xn) == pytest.approx(certificate.lower_bound, rel=1e-12)
+    assert certificate.lower_bound == pytest.approx(1.0, rel=1e-6)
+    assert selector.add(X[0], U[0], Xn[0]) == []  # consistent data does not revive it
 
 
 def test_measurement_noise_bound_by_interval_arithmetic():
