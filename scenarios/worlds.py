@@ -291,6 +291,7 @@ class RobotWorld:
         else:
             self.crowd = _crowd(pedestrian_rng, 0, self.start, self.goal)
         self.goal_reward = GoalReward(self.goal, obstacles=self.obstacles, robot_radius=params.robot_radius)
+        self._initial_pedestrians = (self.crowd.positions.copy(), self.crowd.announced.copy())
         self.state = np.concatenate([self.start, np.zeros(2)])
         self.step_index = 0
         # Only the pedestrians' radii matter here: their true positions are passed at evaluation.
@@ -314,9 +315,10 @@ class RobotWorld:
 
     @property
     def pedestrians(self) -> MovingObstacles:
-        """What planners may know of the pedestrians now: current positions, announced
-        velocities, per-axis velocity uncertainty, radii, as `MovingObstacles` whose
-        ``time0`` is the current sub-step index (the boxes are sound from here on)."""
+        """What planners may know of the pedestrians now: current positions (observed
+        exactly), announced velocities, per-axis velocity uncertainty, radii, as
+        `MovingObstacles` whose ``time0`` is the current sub-step index (the boxes are
+        sound from here on)."""
         return MovingObstacles(
             self.crowd.positions.copy(), self.crowd.announced.copy(), self.crowd.radii.copy(),
             velocity_uncertainty=PEDESTRIAN_VELOCITY_UNCERTAINTY, dt=self.params.dt, time0=self.step_index,
@@ -401,7 +403,7 @@ class RobotWorld:
             "start": self.start.tolist(),
             "goal": self.goal.tolist(),
             "obstacles": self.obstacles.to_dict(),
-            "pedestrians": {"positions": self.crowd.positions.tolist(), "announced": self.crowd.announced.tolist()},
+            "pedestrians": {"positions": self._initial_pedestrians[0].tolist(), "announced": self._initial_pedestrians[1].tolist()},
             "params": self.params.to_dict(),
         }
 

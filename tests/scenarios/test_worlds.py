@@ -257,3 +257,12 @@ def test_corridor_margin_covers_the_grid_diagonal():
     from minimaxplan.scenarios.worlds import GRID_RESOLUTION
 
     assert CORRIDOR_MARGIN >= GRID_RESOLUTION / np.sqrt(2)
+
+
+def test_to_dict_describes_the_setup_not_the_current_state():
+    world = make_world("pedestrian", 8)
+    before = world.to_dict()
+    for _ in range(10):
+        world.apply([0.0, 0.0])
+    assert world.to_dict() == before
+    assert before["pedestrians"]["positions"] != world.crowd.positions.tolist()
