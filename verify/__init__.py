@@ -1,11 +1,28 @@
-"""minimaxplan.verify."""
+"""minimaxplan.verify: certificates.
 
-from .lmi import LMIResult, check_assumption4  # Assumption 4 LMI (cvxpy + Clarabel)
+* `check_assumption4`: the stability LMI of Assumption 4 (continuous or discrete form,
+  one matrix or a polytope with a common P), solved with cvxpy + Clarabel and re-checked
+  with numpy eigenvalues; the only module of the library that imports cvxpy.
+* `eliminate_models`, `ModelSelector`, `feasible_parameter_box`: LP feasibility of
+  structural hypotheses against observed transitions (HiGHS through scipy), with
+  certificates of inconsistency.
+"""
 
-from .selection import (  # LP model elimination (HiGHS)
+from .lmi import LMIResult, check_assumption4
+from .selection import (
     EliminationCertificate,
     ModelSelector,
     SelectionResult,
     eliminate_models,
     feasible_parameter_box,
 )
+
+__all__ = [
+    "check_assumption4",
+    "LMIResult",
+    "eliminate_models",
+    "ModelSelector",
+    "feasible_parameter_box",
+    "SelectionResult",
+    "EliminationCertificate",
+]
