@@ -227,6 +227,15 @@ class _Learner:
         self._boxes = None
 
     def survivors_with_boxes(self) -> list[tuple[int, Box]]:
+        """``(index, feasible parameter box)`` of every surviving hypothesis.
+
+        Raises `NoConsistentModel` when the data contradicts every hypothesis.
+        """
+        if not self.selector.survivors:
+            names = ", ".join(h.name for h in self.hypotheses)
+            raise NoConsistentModel(
+                f"every hypothesis ({names}) is contradicted by the {len(self.controls)} transitions observed"
+            )
         if self._boxes is None:
             X, U = np.array(self.states).reshape(-1, 4), np.array(self.controls).reshape(-1, 2)
             self._boxes = [
@@ -271,9 +280,10 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
         t = world.step_index
         waypoint = global_path.waypoint(x[:2], config.lookahead)
         if method == "robust":
-            survivors = learner.survivors_with_boxes()
-            if not survivors:
-                outcome = "no_consistent_model"
+            try:
+                survivors = learner.survivors_with_boxes()
+            except NoConsistentModel:
+                outcome = "no_consistent_model"  # a failure of the episode, not an error of the run
                 break
             pairs = [(planning[i], box) for i, box in survivors]
             if lmi is None:
