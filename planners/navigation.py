@@ -25,7 +25,7 @@ _MOVES = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0),
 
 
 class NavigationFunction:
-    """Cost-to-go to ``goal`` on a grid covering ``region`` (and the goal and discs).
+    """Cost-to-go to ``goal`` on a grid covering the goal and ``region``, plus ``padding``.
 
     Parameters
     ----------
@@ -36,15 +36,16 @@ class NavigationFunction:
     clearance
         Cells whose centre is closer than this to a disc's edge are blocked, m.
     region
-        Points (k, 2) the grid must cover besides the goal and the discs (e.g. the robot).
+        Points (k, 2) the grid must cover besides the goal; the first one (the robot)
+        must reach the goal on it, else the grid grows (see below).
     resolution, padding
-        Cell size and margin around the covered points, m.
+        Cell size and (initial) margin around the covered points, m.
     soft_clearance, near_cost
         Cost shaping near discs (see the module docstring).
     """
 
     def __init__(self, goal, centers, radii, *, clearance: float, region=None, resolution: float = 0.2,
-                 padding: float = 3.0, soft_clearance: float = 1.0, near_cost: float = 2.0):
+                 padding: float = 4.0, soft_clearance: float = 1.0, near_cost: float = 2.0):
         self.goal = as_finite_array("goal", goal, (2,))
         self.centers = as_finite_array("centers", centers).reshape(-1, 2) if np.size(centers) else np.zeros((0, 2))
         self.radii = as_finite_array("radii", radii).reshape(-1) if np.size(radii) else np.zeros(0)
@@ -54,14 +55,38 @@ class NavigationFunction:
         padding = as_positive_scalar("padding", padding, allow_zero=True)
         soft = as_positive_scalar("soft_clearance", soft_clearance, allow_zero=True)
         near = as_positive_scalar("near_cost", near_cost, allow_zero=True)
-        cover = [self.goal[None], self.centers]
+        # The grid covers the goal and the region (not every disc), so that a goal a few
+        # metres ahead (a waypoint of a global path) gives a small, fast grid. If the
+        # region's first point (the robot) cannot reach the goal on it, the padding
+        # doubles until it can or until the grid covers every disc with room around.
+        cover = [self.goal[None]]
         if region is not None:
             cover.append(as_finite_array("region", region).reshape(-1, 2))
         points = np.concatenate(cover)
+        anchor = points[1] if points.shape[0] > 1 else None
+        all_discs = self.centers, self.radii
+        if all_discs[0].shape[0]:
+            reach = np.max(np.abs(all_discs[0][:, None, :] - points[None]).max(axis=1) + all_discs[1][:, None], initial=0.0)
+        else:
+            reach = 0.0
+        full_padding = max(padding, float(reach) + self.clearance + 2 * self.resolution + 1.0)
+        while True:
+            self._build(points, padding, all_discs, soft, near)
+            if anchor is None or padding >= full_padding or self._reachable_near(anchor):
+                break
+            padding = min(2 * padding + self.resolution, full_padding)
+        self.padding = padding
+
+    def _build(self, points, padding, discs, soft, near) -> None:
         self.origin = points.min(axis=0) - padding
         top = points.max(axis=0) + padding
         self.shape = tuple(int(s) for s in np.ceil((top - self.origin) / self.resolution).astype(int) + 1)
         self.extent_high = self.origin + (np.array(self.shape) - 1) * self.resolution
+        # Discs too far from the grid to block or shape any cell play no part.
+        centers, radii = discs
+        gap = np.linalg.norm(np.maximum(self.origin - centers, 0.0) + np.maximum(centers - self.extent_high, 0.0), axis=1)
+        relevant = gap - radii <= self.clearance + soft
+        self.centers, self.radii = centers[relevant], radii[relevant]
         gx = self.origin[0] + self.resolution * np.arange(self.shape[0])
         gy = self.origin[1] + self.resolution * np.arange(self.shape[1])
         cells = np.stack(np.meshgrid(gx, gy, indexing="ij"), axis=-1)
@@ -79,6 +104,12 @@ class NavigationFunction:
         # Blocked or unreachable cells: worse than every reachable one, so descent leaves them.
         self._filled = np.where(finite, self.values, (self.values[finite].max() if finite.any() else 0.0) + 10.0)
         self._grad_x, self._grad_y = np.gradient(self._filled, self.resolution)
+
+    def _reachable_near(self, point, window: int = 5) -> bool:
+        """Whether some cell within ``window`` cells of ``point`` reaches the goal."""
+        i, j = self._cell(point)
+        block = self.values[max(i - window, 0):i + window + 1, max(j - window, 0):j + window + 1]
+        return bool(np.isfinite(block).any())
 
     def _cell(self, point) -> tuple[int, int]:
         index = np.rint((np.asarray(point) - self.origin) / self.resolution).astype(int)

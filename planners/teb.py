@@ -73,6 +73,9 @@ class TEBParameters:
     reinit_violation
         Fresh bands are tried when the warm band's clearance shortfall exceeds this, m
         (the penalties are soft, so tiny shortfalls inside the margin are normal).
+    goal_jump
+        A goal that moves less than this between calls (m) keeps the warm band, whose
+        end pose follows it; a larger jump starts afresh.
     max_iterations
         L-BFGS-B iterations per optimisation.
     navigation_function
@@ -98,6 +101,7 @@ class TEBParameters:
     obstacle_weight: float = 200.0
     detour_amplitude: float = 2.5
     reinit_violation: float = 0.05
+    goal_jump: float = 2.0
     max_iterations: int = 25
     navigation_function: bool = True
     grid_resolution: float = 0.2
@@ -106,7 +110,8 @@ class TEBParameters:
         for name in ("dt_ref", "dt_min", "dt_max", "max_speed", "time_weight", "velocity_weight",
                      "input_weight", "obstacle_weight", "grid_resolution"):
             as_positive_scalar(name, getattr(self, name))
-        for name in ("resize_hysteresis", "obstacle_margin", "pedestrian_margin", "detour_amplitude", "reinit_violation"):
+        for name in ("resize_hysteresis", "obstacle_margin", "pedestrian_margin", "detour_amplitude", "reinit_violation",
+                     "goal_jump"):
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
         for name in ("min_poses", "max_poses", "max_iterations"):
             value = getattr(self, name)
@@ -394,9 +399,17 @@ class TimedElasticBand:
         x = as_finite_array("state", state, (4,))
         start, velocity = x[:2], x[2:]
         discs = self._discs(scene)
-        if self._goal is None or not np.array_equal(self._goal, scene.goal) or self._band is None:
-            self._band = None
-            self._goal = scene.goal.copy()
+        if self._band is not None and not np.array_equal(self._goal, scene.goal):
+            if np.linalg.norm(scene.goal - self._goal) <= self.params.goal_jump:
+                # The (local) goal moved a little, e.g. a waypoint sliding along a global
+                # path: keep the band and move its end, as TEB does with a moving local goal.
+                X, dT = self._band
+                X = X.copy()
+                X[-1] = scene.goal
+                self._band = (X, dT)
+            else:
+                self._band = None
+        self._goal = scene.goal.copy()
         candidates = []
         if self._band is not None and len(self._band[1]) >= 1:
             candidates.append(self._warm_band(start))

@@ -158,3 +158,15 @@ def test_plans_report_a_named_solver_status_and_non_finite_bands_raise(monkeypat
     planner.reset()
     with pytest.raises(SolverFailure, match="L-BFGS-B failed on the band"):
         planner.optimise(np.zeros(4), scene)
+
+
+def test_a_goal_that_slides_keeps_the_warm_band_and_a_jump_starts_afresh():
+    planner = TimedElasticBand(robot_system())
+    state = np.array([0.0, 0.0, 0.5, 0.0])
+    first = planner.optimise(state, NavigationScene([3.0, 0.0]))
+    slid = planner.optimise(state, NavigationScene([3.5, 0.2]))  # a waypoint moving along a path
+    assert np.array_equal(slid.positions[-1], [3.5, 0.2])
+    assert slid.positions.shape[0] >= first.positions.shape[0] - 1  # warm band kept (then resized)
+    jumped = planner.optimise(state, NavigationScene([3.0, 8.0]))
+    assert np.array_equal(jumped.positions[-1], [3.0, 8.0])
+    assert np.max(jumped.positions[:, 1]) > 7.0
