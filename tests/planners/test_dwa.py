@@ -159,3 +159,10 @@ def test_plan_rejects_bad_state_and_scene():
         planner.plan([0.0, 0.0], scene)
     with pytest.raises(InputError, match="scene must be a NavigationScene"):
         planner.plan(np.zeros(4), {"goal": [1.0, 1.0]})
+
+
+def test_purely_local_variant_reaches_the_goal_in_an_empty_arena():
+    """``navigation_function=False`` is Fox et al.'s straight-line DWA."""
+    planner = DynamicWindowPlanner(robot_system(), params=DWAParameters(navigation_function=False))
+    world, _ = run_episode(planner, [3.0, 3.0], [15.0, 13.0], np.zeros((0, 2)), np.zeros(0), (0.4, 0.6), 4)
+    assert world.outcome == "goal"

@@ -62,3 +62,23 @@ def test_unreachable_goal_raises():
     nav = NavigationFunction([5.0, 5.0], ring, np.full(60, 0.4), clearance=0.3, region=[[15.0, 15.0]])
     with pytest.raises(InputError, match="goal cannot be reached"):
         nav.path([15.0, 15.0])
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, message",
+    [
+        ({"goal": [0.0]}, "DimensionError", r"goal must have shape \(2,\), got shape \(1,\)"),
+        ({"radii": [0.5, 0.5]}, "DimensionError", r"radii must have shape \(1,\), got shape \(2,\)"),
+        ({"clearance": -0.1}, "InputError", "clearance must be >= 0"),
+        ({"resolution": 0.0}, "InputError", "resolution must be > 0"),
+        ({"region": [[np.nan, 0.0]]}, "NonFiniteError", "region contains NaN"),
+    ],
+)
+def test_rejects_bad_input(kwargs, error, message):
+    import minimaxplan.models as models
+
+    arguments = {"goal": [5.0, 5.0], "centers": [[2.0, 2.0]], "radii": [0.5], "clearance": 0.4, "region": [[0.0, 0.0]]}
+    arguments.update(kwargs)
+    goal, centers, radii = arguments.pop("goal"), arguments.pop("centers"), arguments.pop("radii")
+    with pytest.raises(getattr(models, error), match=message):
+        NavigationFunction(goal, centers, radii, **arguments)
