@@ -185,3 +185,12 @@ class NavigationFunction:
             cell = nxt
             cells.append(cell)
         return self.origin + self.resolution * np.array(cells, dtype=float)
+
+    def waypoint(self, start, lookahead: float) -> np.ndarray:
+        """The point ``lookahead`` metres along `path` from ``start`` (the goal when nearer):
+        the "carrot" a local planner chases, as under a global planner."""
+        lookahead = as_positive_scalar("lookahead", lookahead)
+        points = np.concatenate([self.path(start), self.goal[None]])
+        travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        k = int(np.searchsorted(travelled, lookahead))
+        return self.goal.copy() if k >= len(points) else points[k].copy()

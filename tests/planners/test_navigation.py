@@ -82,3 +82,18 @@ def test_rejects_bad_input(kwargs, error, message):
     goal, centers, radii = arguments.pop("goal"), arguments.pop("centers"), arguments.pop("radii")
     with pytest.raises(getattr(models, error), match=message):
         NavigationFunction(goal, centers, radii, **arguments)
+
+
+def test_waypoint_is_lookahead_along_the_path_or_the_goal():
+    # a wall of discs across x = 10 below y = 15.5: the path detours above it
+    ys = np.arange(-6.0, 15.5, 1.0)
+    centers, radii = np.stack([np.full_like(ys, 10.0), ys], axis=1), np.full(ys.shape, 0.6)
+    nav = NavigationFunction([15.0, 5.0], centers, radii, clearance=0.5, region=[[5.0, 5.0]], padding=3.0)
+    start = np.array([5.0, 5.0])
+    near, far = nav.waypoint(start, 1.0), nav.waypoint(start, 6.0)
+    assert np.linalg.norm(near - start) <= 1.0 + 0.3
+    assert nav.cost_to_go(far) < nav.cost_to_go(near) < nav.cost_to_go(start)
+    assert far[1] > start[1] + 3.0  # heading for the gap, not straight at the goal
+    np.testing.assert_allclose(nav.waypoint([14.8, 5.1], 3.0), [15.0, 5.0])
+    with pytest.raises(InputError, match="lookahead"):
+        nav.waypoint(start, -1.0)
