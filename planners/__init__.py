@@ -1,10 +1,19 @@
-"""minimaxplan.planners."""
+"""minimaxplan.planners: tree search and the models and baselines it is compared with.
 
-from .decision import Decision
-from .search import OptimisticPlanner, RobustTreePlanner
-from .controllers import LinearFeedback, OpenLoop
-from .interval_model import BoxState, IntervalModel
-from .point_model import PointModel, PointState
+* `RobustTreePlanner` (eqs. (15)-(18)) and `OptimisticPlanner` (OPD, eq. (12) with its
+  discount), returning a `Decision` with root lower/upper value bounds (Theorem 3);
+* `IntervalModel` (a box-valued planner model whose reward is the pessimistic surrogate
+  of Theorem 1) and `PointModel` (nominal/oracle), driven by low-level controllers
+  (`OpenLoop`, `LinearFeedback`);
+* factories for the paper's comparison (`interval_robust_planner`,
+  `multi_model_robust_planner`, `nominal_planner`, `oracle_planner`);
+* the baselines `DynamicWindowPlanner` (DWA) and `TimedElasticBand` (TEB), and the grid
+  `NavigationFunction` that serves as their global planner.
+
+Planners see models only through ``step(state, action)`` (optionally ``expand``) and
+get obstacles as data; they never import `minimaxplan.scenarios`.
+"""
+
 from .comparison import (
     interval_robust_planner,
     multi_model_robust_planner,
@@ -12,5 +21,34 @@ from .comparison import (
     oracle_planner,
     root_state,
 )
+from .controllers import LinearFeedback, OpenLoop
+from .decision import Decision
 from .dwa import DWAParameters, DynamicWindowPlanner, NavigationScene
+from .interval_model import BoxState, IntervalModel
+from .navigation import NavigationFunction
+from .point_model import PointModel, PointState
+from .search import OptimisticPlanner, RobustTreePlanner
 from .teb import TEBParameters, TimedElasticBand
+
+__all__ = [
+    "RobustTreePlanner",
+    "OptimisticPlanner",
+    "Decision",
+    "IntervalModel",
+    "BoxState",
+    "PointModel",
+    "PointState",
+    "OpenLoop",
+    "LinearFeedback",
+    "interval_robust_planner",
+    "multi_model_robust_planner",
+    "nominal_planner",
+    "oracle_planner",
+    "root_state",
+    "DynamicWindowPlanner",
+    "DWAParameters",
+    "NavigationScene",
+    "TimedElasticBand",
+    "TEBParameters",
+    "NavigationFunction",
+]

@@ -1,9 +1,34 @@
-"""minimaxplan.scenarios."""
+"""minimaxplan.scenarios: the simulated worlds, their geometry and reward families.
+
+* the planar robot (`robot_system`, `robot_hypotheses`, `RobotParameters`) and its
+  seeded worlds (`make_world`: "static" or "pedestrian");
+* obstacle geometry (`CircularObstacles`, `MovingObstacles`; python-fcl for true
+  collisions, an exact vectorised twin for planners);
+* reward families with exact box minima (`GoalReward`, `SpeedLaneReward`);
+* `RobotNavigationEnv`, the Gymnasium API (the `gym` extra), imported on demand.
+"""
 
 from .geometry import CircularObstacles, MovingObstacles, fcl_disc_collisions
 from .rewards import GoalReward, SpeedLaneReward
 from .robot import DEFAULT_ROBOT, Hypothesis, RobotParameters, robot_hypotheses, robot_system
 from .worlds import EpisodeOver, RobotWorld, make_world
+
+__all__ = [
+    "CircularObstacles",
+    "MovingObstacles",
+    "fcl_disc_collisions",
+    "GoalReward",
+    "SpeedLaneReward",
+    "DEFAULT_ROBOT",
+    "Hypothesis",
+    "RobotParameters",
+    "robot_hypotheses",
+    "robot_system",
+    "EpisodeOver",
+    "RobotWorld",
+    "make_world",
+    "RobotNavigationEnv",
+]
 
 
 def __getattr__(name):
