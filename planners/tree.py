@@ -70,6 +70,9 @@ class SearchTree:
         rescales every rank by the same factor and so preserves the order.
     states
         ``states[m][i]`` is model m's state at node i.
+    any_terminated
+        List of bools: whether some model made a terminal transition on the path
+        (``terminal[i].any()``).
     expanded
         Node ids in the order they were expanded.
     max_depth
@@ -101,6 +104,10 @@ class SearchTree:
         self.states: list[list] = [[] for _ in range(n_models)]
         self.expanded: list[int] = []
         self._child_actions = list(range(n_actions))
+        # any_terminated[i]: some model terminated on the path to i (skips the per-model
+        # optimistic terms while no model has terminated, the usual case)
+        self.any_terminated: list[bool] = []
+        self._discounts: list[float] = [1.0]
 
     # ------------------------------------------------------------------ building
     def add_root(self, states) -> None:
@@ -117,6 +124,7 @@ class SearchTree:
         self.lower.append(0.0)
         self.upper.append(root_upper)
         self.rank.append(0)
+        self.any_terminated.append(False)
         for m, state in enumerate(states):
             self.states[m].append(state)
         self.size = 1
@@ -184,15 +192,27 @@ class SearchTree:
         end = first + n_actions
         self._grow(end)
         depth = self.depth[node]
-        child_returns = self.returns[node] + (self.gamma ** depth) * rewards
-        child_terminal = self.terminal[node] | new_terminal
-        tail = self.gamma ** (depth + 1) / (1.0 - self.gamma)
-        optimistic = child_returns + tail * ~child_terminal
-        child_upper = np.minimum(optimistic.min(axis=1), self.leaf_upper[node]).tolist()
+        discounts = self._discounts
+        while len(discounts) <= depth + 1:
+            discounts.append(self.gamma ** len(discounts))
+        child_returns = self.returns[node] + discounts[depth] * rewards
+        tail = discounts[depth + 1] / (1.0 - self.gamma)
+        parent_upper = self.leaf_upper[node]
         child_lower = child_returns.min(axis=1).tolist()
+        if self.any_terminated[node] or new_terminal.any():
+            child_terminal = self.terminal[node] | new_terminal
+            optimistic = child_returns + tail * ~child_terminal
+            child_upper = np.minimum(optimistic.min(axis=1), parent_upper).tolist()
+            self.terminal[first:end] = child_terminal
+            self.any_terminated.extend(child_terminal.any(axis=1).tolist())
+        else:
+            # No model terminated: every optimistic term is R_m + tail, and rounding is
+            # monotone, so min_m fl(R_m + tail) == fl(min_m R_m + tail) exactly.
+            child_upper = [min(value + tail, parent_upper) for value in child_lower]
+            self.terminal[first:end] = False
+            self.any_terminated.extend([False] * n_actions)
 
         self.returns[first:end] = child_returns
-        self.terminal[first:end] = child_terminal
         self.parent.extend([node] * n_actions)
         self.action.extend(self._child_actions)
         self.depth.extend([depth + 1] * n_actions)
