@@ -88,6 +88,7 @@ class _CollisionTerm:
         self._moving_reach_sq = (moving_obstacles.radii + self.robot_radius) ** 2
         self.has_static = len(obstacles) > 0
         self.has_moving = len(moving_obstacles) > 0
+        self._static_reach = list(zip(self._centers[:, 0].tolist(), self._centers[:, 1].tolist(), self._reach_sq.tolist()))
 
     def boxes(self, lower, upper, t):
         """Whether each box of positions (..., 2) holds a colliding point at sub-step t.
@@ -95,8 +96,36 @@ class _CollisionTerm:
         Planner hot path: per axis the box-to-point gap is ``max(lo - c, c - hi, 0)``
         (at most one of the two differences is positive, as lo <= hi).
         """
+        hit = self.boxes_or_none(lower, upper, t)
+        if hit is None:
+            return np.zeros(np.broadcast_shapes(lower.shape, upper.shape)[:-1], dtype=bool)
+        return hit
+
+    def _hull_misses_static(self, lower, upper) -> bool:
+        """Whether the bounding box of all the boxes (..., 2) is farther than reach from every disc.
+
+        Exact pre-check: each box lies in the hull, and the rounded gaps
+        ``fl(lo - c)``, ``fl(c - hi)`` are monotone in lo and hi, so every box's gap
+        (as `boxes` computes it) is at least the hull's on each axis: when the hull
+        misses every disc, so does every box, bit for bit the same verdict.
+        """
+        if lower.size == 0 or upper.size == 0:
+            return False
+        low_x, low_y = lower.min(axis=tuple(range(lower.ndim - 1))).tolist()
+        high_x, high_y = upper.max(axis=tuple(range(upper.ndim - 1))).tolist()
+        if not low_x <= high_x or not low_y <= high_y:
+            return False  # NaN (or an inverted box): leave the verdict to the full test
+        for cx, cy, reach_sq in self._static_reach:
+            gap_x = max(low_x - cx, cx - high_x, 0.0)
+            gap_y = max(low_y - cy, cy - high_y, 0.0)
+            if gap_x * gap_x + gap_y * gap_y <= reach_sq:
+                return False
+        return True
+
+    def boxes_or_none(self, lower, upper, t):
+        """`boxes`, or None when no box can collide (then every flag would be False)."""
         hit = None
-        if self.has_static:
+        if self.has_static and not self._hull_misses_static(lower, upper):
             gap = np.maximum(lower[..., None, :] - self._centers, self._centers - upper[..., None, :])
             np.maximum(gap, 0.0, out=gap)
             gap *= gap
@@ -108,8 +137,6 @@ class _CollisionTerm:
             gap *= gap
             moving_hit = (gap[..., 0] + gap[..., 1] <= self._moving_reach_sq).any(axis=-1)
             hit = moving_hit if hit is None else hit | moving_hit
-        if hit is None:
-            return np.zeros(np.broadcast_shapes(lower.shape, upper.shape)[:-1], dtype=bool)
         return hit
 
     def points(self, positions, t, moving_positions=None):
@@ -228,8 +255,14 @@ class _RewardBase:
     def box_minimum_raw(self, lower: np.ndarray, upper: np.ndarray, t=0) -> tuple[np.ndarray, np.ndarray]:
         """`box_minimum` without argument checks (float arrays (..., p), lower <= upper)."""
         pos = self._collision.pos
-        collided = self._collision.boxes(lower[..., pos], upper[..., pos], t)
-        return np.where(collided, 0.0, self._free_minimum(lower, upper)), collided
+        collided = self._collision.boxes_or_none(lower[..., pos], upper[..., pos], t)
+        free = self._free_minimum(lower, upper)
+        if collided is None and lower.shape == upper.shape and free.shape == lower.shape[:-1]:
+            # nothing can collide: np.where(False, 0, free) would be free itself
+            return free, np.zeros(free.shape, dtype=bool)
+        if collided is None:
+            collided = np.zeros(np.broadcast_shapes(lower.shape, upper.shape)[:-1], dtype=bool)
+        return np.where(collided, 0.0, free), collided
 
     def box_argmin(self, lower, upper, t=0) -> np.ndarray:
         """A state of each box where J attains `box_minimum` (shape (..., p))."""
