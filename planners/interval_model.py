@@ -251,24 +251,27 @@ class _IntervalCore:
     def propagate(self, z, time, index):
         """All sub-steps of one decision from boxes z (M or 1, 1 or A', 2p).
 
-        Returns the final boxes z, the pessimistic rewards (M, A') (minimum over the
-        sub-steps) and the collision flags (any over the sub-steps). The reward is
+        Returns the final boxes z and their lower corners (``-z[..., :p]``), the
+        pessimistic rewards (M, A') (minimum over the sub-steps) and the collision
+        flags (any over the sub-steps). The reward is
         evaluated once for the boxes of all sub-steps, stacked as (S, M, A', p), with
         the sub-step indices ``t`` of shape (S, 1, 1).
         """
         p, S = self.p, self.substeps
         if S == 1:
             z = self.substep(z, index)
-            reward, collided = self.reward_minimum(-z[..., :p], z[..., p:], time + 1)
-            return z, reward, collided
+            lower = -z[..., :p]
+            reward, collided = self.reward_minimum(lower, z[..., p:], time + 1)
+            return z, lower, reward, collided
         z = self.substep(z, index)
         stack = np.empty((S,) + z.shape)
         stack[0] = z
         for s in range(1, S):
             z = self.substep(z, index)
             stack[s] = z
-        reward, collided = self.reward_minimum(-stack[..., :p], stack[..., p:], self.times[time])
-        return z, reward.min(axis=0), collided.any(axis=0)
+        lowers = -stack[..., :p]
+        reward, collided = self.reward_minimum(lowers, stack[..., p:], self.times[time])
+        return z, lowers[-1], reward.min(axis=0), collided.any(axis=0)
 
 
 class _LinkedGroup:
@@ -282,6 +285,7 @@ class _LinkedGroup:
 
     def __init__(self, core: _IntervalCore) -> None:
         self.core = core
+        self.size = core.M
         self.actions = _ActionIndex(len(core.bank))
         self._key_state = None
         self._key_actions = None
@@ -295,11 +299,10 @@ class _LinkedGroup:
         core = self.core
         index = self.actions(actions)
         n = len(core.bank) if index is None else len(index)
-        z, rewards, collided = core.propagate(core.state_z(state), state.time, index)
+        z, lower, rewards, collided = core.propagate(core.state_z(state), state.time, index)
         # z, rewards and collided have full shape (M, n, .): the per-action drift broadcasts them
         z.flags.writeable = False
-        p = core.p
-        lower, upper = -z[..., :p], z[..., p:]
+        upper = z[..., core.p:]
         lower.flags.writeable = False
         time = state.time + core.substeps
         if core.M == 1:
@@ -433,6 +436,16 @@ class IntervalModel:
     def n_linked(self) -> int:
         """How many hypotheses this model is computed together with (itself included)."""
         return self._group.core.M
+
+    @property
+    def _joint(self):
+        """``(group, member)``: the planner's private fast path for linked models.
+
+        ``group.expand(state, actions)`` returns ``(next_states, rewards, terminals)``
+        for every hypothesis of the group at once (rewards and terminals of shape
+        (M, len(actions)), row m the result of `expand` of member m; ``group.size`` is M).
+        """
+        return self._group, self.member
 
     # --------------------------------------------------------------- protocol
     def expand(self, state: BoxState, actions) -> tuple[list, np.ndarray, np.ndarray]:

@@ -10,6 +10,11 @@ The planners see models only through a small transition protocol:
   of shape ``(len(actions),)``, ``terminals`` a bool array of the same shape. When present it is used instead of
   ``step`` (the two must agree; the tree does not depend on which is used).
 
+Linked models (`IntervalModel.linked`) also share one batched transition of all M
+hypotheses; when the planner's models are exactly one such group, in member order,
+and a node's models share one state, the planner takes all M results from that one
+call (the same numbers `expand` returns per model).
+
 After a terminal transition a model is never stepped again on that branch: its
 later rewards are 0 and its state stays the terminal state.
 
@@ -128,6 +133,19 @@ class _Transitions:
         return next_states, rewards, terminals
 
 
+def _joint_expand(models: list):
+    """The shared ``expand`` of linked models, if ``models`` are exactly one group in member order."""
+    joints = [getattr(model, "_joint", None) for model in models]
+    if any(joint is None for joint in joints):
+        return None
+    group = joints[0][0]
+    if getattr(group, "size", None) != len(models):
+        return None
+    if any(joint[0] is not group or joint[1] != m for m, joint in enumerate(joints)):
+        return None
+    return group.expand
+
+
 def _describe(out) -> str:
     if isinstance(out, tuple):
         return f"a tuple of length {len(out)}"
@@ -232,6 +250,7 @@ class RobustTreePlanner:
         self.models = tuple(models)
         self.actions = actions
         self._transitions = [_Transitions(m, model, actions) for m, model in enumerate(models)]
+        self._joint = _joint_expand(models)
         self._rewards = np.zeros((len(actions), len(models)))
         self._new_terminal = np.zeros((len(actions), len(models)), dtype=bool)
         self.tree: SearchTree | None = None
@@ -300,6 +319,10 @@ class RobustTreePlanner:
         return False
 
     def _expand(self, tree: SearchTree, leaf: int) -> int:
+        if self._joint is not None and not tree.any_terminated[leaf]:
+            first = self._expand_jointly(tree, leaf)
+            if first is not None:
+                return first
         n_actions = len(self.actions)
         # Scratch buffers, reused: add_children copies what it keeps.
         rewards, new_terminal = self._rewards, self._new_terminal
@@ -318,6 +341,33 @@ class RobustTreePlanner:
         if not (rewards.min() >= 0.0 and rewards.max() <= 1.0):
             self._reward_error(rewards)
         return tree.add_children(leaf, rewards, new_terminal)
+
+    def _expand_jointly(self, tree: SearchTree, leaf: int) -> int | None:
+        """`_expand` for one linked group sharing the leaf's state; None to take the general path.
+
+        The general path would ask each model in turn and get row m of this same
+        cached batched result, so the children are the same; shapes and dtypes are
+        checked here once (on a mismatch the general path reports the error).
+        """
+        state_lists = tree.states
+        state = state_lists[0][leaf]
+        for states in state_lists:
+            if states[leaf] is not state:
+                return None
+        next_states, rewards, terminals = self._joint(state, self.actions)
+        shape = (len(state_lists), len(self.actions))
+        if (
+            type(rewards) is not np.ndarray or rewards.dtype != np.float64 or rewards.shape != shape
+            or type(terminals) is not np.ndarray or terminals.dtype != bool or terminals.shape != shape
+            or len(next_states) != shape[1]
+        ):
+            return None
+        for states in state_lists:
+            states.extend(next_states)
+        rewards = rewards.T
+        if not (rewards.min() >= 0.0 and rewards.max() <= 1.0):
+            self._reward_error(rewards)
+        return tree.add_children(leaf, rewards, terminals.T)
 
     def _reward_error(self, rewards: np.ndarray) -> None:
         bad = ~((rewards >= 0.0) & (rewards <= 1.0))
