@@ -111,13 +111,22 @@ class _CollisionTerm:
         """
         if lower.size == 0 or upper.size == 0:
             return False
-        low_x, low_y = lower.min(axis=tuple(range(lower.ndim - 1))).tolist()
-        high_x, high_y = upper.max(axis=tuple(range(upper.ndim - 1))).tolist()
+        low_x, low_y = np.minimum.reduce(lower, axis=tuple(range(lower.ndim - 1))).tolist()
+        high_x, high_y = np.maximum.reduce(upper, axis=tuple(range(upper.ndim - 1))).tolist()
         if not low_x <= high_x or not low_y <= high_y:
             return False  # NaN (or an inverted box): leave the verdict to the full test
         for cx, cy, reach_sq in self._static_reach:
-            gap_x = max(low_x - cx, cx - high_x, 0.0)
-            gap_y = max(low_y - cy, cy - high_y, 0.0)
+            # max(lo - c, c - hi, 0): with lo <= hi at most one difference is positive
+            gap_x = low_x - cx
+            if gap_x <= 0.0:
+                gap_x = cx - high_x
+                if gap_x < 0.0:
+                    gap_x = 0.0
+            gap_y = low_y - cy
+            if gap_y <= 0.0:
+                gap_y = cy - high_y
+                if gap_y < 0.0:
+                    gap_y = 0.0
             if gap_x * gap_x + gap_y * gap_y <= reach_sq:
                 return False
         return True
