@@ -26,7 +26,7 @@ from minimaxplan.models.system import UncertainLinearSystem
 
 from .navigation import NavigationFunction
 
-__all__ = ["NavigationScene", "DWAParameters", "DWAEvaluation", "DynamicWindowPlanner"]
+__all__ = ["NavigationScene", "DWAParameters", "DWAEvaluation", "DynamicWindowPlanner", "planar_robot_model"]
 
 
 # ------------------------------------------------------------------ the scene
@@ -77,6 +77,28 @@ class NavigationScene:
 
     def to_dict(self) -> dict:
         return {k: v.tolist() for k, v in self.__dict__.items()}
+
+
+def planar_robot_model(system: UncertainLinearSystem, theta, substeps) -> tuple[np.ndarray, float]:
+    """Check a baseline's robot model and return ``(A(theta), dt)``.
+
+    The baselines plan for a planar point mass: 4 states (position, velocity), 2 inputs,
+    positions integrating velocities with weight dt; ``theta`` defaults to the centre of
+    the prior box; ``substeps`` (a control is held that long) must be a positive integer.
+    """
+    if not isinstance(system, UncertainLinearSystem):
+        raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+    if system.nstates != 4 or system.ninputs != 2:
+        raise InputError(f"system must have 4 states and 2 inputs (a planar point mass), "
+                         f"got {system.nstates} states and {system.ninputs} inputs")
+    if int(substeps) != substeps or substeps < 1:
+        raise InputError(f"substeps must be a positive integer, got {substeps!r}")
+    theta = system.theta.center if theta is None else as_finite_array("theta", theta, (system.nparams,))
+    A = system.A(theta)
+    dt = float(A[0, 2])
+    if not dt > 0:
+        raise InputError("system must integrate velocity into position (A[0, 2] = dt > 0)")
+    return A, dt
 
 
 def _points(name, value) -> np.ndarray:
@@ -219,27 +241,15 @@ class DynamicWindowPlanner:
 
     def __init__(self, system: UncertainLinearSystem, *, theta=None, substeps: int = 5, robot_radius: float = 0.3,
                  params: DWAParameters = DWAParameters(), control_bound: float = 1.0):
-        if not isinstance(system, UncertainLinearSystem):
-            raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
-        if system.nstates != 4 or system.ninputs != 2:
-            raise InputError(f"system must have 4 states and 2 inputs (a planar point mass), "
-                             f"got {system.nstates} states and {system.ninputs} inputs")
         if not isinstance(params, DWAParameters):
             raise InputError(f"params must be a DWAParameters, got {type(params).__name__}")
-        if int(substeps) != substeps or substeps < 1:
-            raise InputError(f"substeps must be a positive integer, got {substeps!r}")
-        theta = system.theta.center if theta is None else as_finite_array("theta", theta, (system.nparams,))
+        self._A, self._dt = planar_robot_model(system, theta, substeps)
+        self._B = system.B
         self.system = system
         self.params = params
         self.substeps = int(substeps)
         self.robot_radius = as_positive_scalar("robot_radius", robot_radius, allow_zero=True)
         self.control_bound = as_positive_scalar("control_bound", control_bound)
-        self._A = system.A(theta)
-        self._B = system.B
-        # Sub-step duration: positions integrate velocities with weight dt in the model.
-        self._dt = float(self._A[0, 2])
-        if not self._dt > 0:
-            raise InputError("system must integrate velocity into position (A[0, 2] = dt > 0)")
         grid = np.linspace(-1.0, 1.0, params.samples_per_axis) * self.control_bound
         self.controls = np.stack(np.meshgrid(grid, grid, indexing="ij"), axis=-1).reshape(-1, 2)
         self._horizon_steps = max(self.substeps, int(round(params.horizon / self._dt)))

@@ -39,7 +39,7 @@ from minimaxplan.models._validation import as_finite_array, as_positive_scalar
 from minimaxplan.models.errors import InputError, SolverFailure
 from minimaxplan.models.system import UncertainLinearSystem
 
-from .dwa import NavigationScene
+from .dwa import NavigationScene, planar_robot_model
 from .navigation import NavigationFunction
 
 __all__ = ["TEBParameters", "TEBPlan", "TimedElasticBand", "band_cost", "LBFGSB_STATUS"]
@@ -242,20 +242,9 @@ class TimedElasticBand:
 
     def __init__(self, system: UncertainLinearSystem, *, theta=None, substeps: int = 5, robot_radius: float = 0.3,
                  params: TEBParameters = TEBParameters(), control_bound: float = 1.0):
-        if not isinstance(system, UncertainLinearSystem):
-            raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
-        if system.nstates != 4 or system.ninputs != 2:
-            raise InputError(f"system must have 4 states and 2 inputs (a planar point mass), "
-                             f"got {system.nstates} states and {system.ninputs} inputs")
         if not isinstance(params, TEBParameters):
             raise InputError(f"params must be a TEBParameters, got {type(params).__name__}")
-        if int(substeps) != substeps or substeps < 1:
-            raise InputError(f"substeps must be a positive integer, got {substeps!r}")
-        theta = system.theta.center if theta is None else as_finite_array("theta", theta, (system.nparams,))
-        A = system.A(theta)
-        self._dt = float(A[0, 2])
-        if not self._dt > 0:
-            raise InputError("system must integrate velocity into position (A[0, 2] = dt > 0)")
+        A, self._dt = planar_robot_model(system, theta, substeps)
         self._decay = np.diag(A)[2:].copy()  # per-axis velocity factor a = 1 - dt * xi
         self._gain = np.diag(system.B[2:]).copy()
         self.friction = (1.0 - self._decay) / self._dt
