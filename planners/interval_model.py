@@ -125,6 +125,9 @@ class _SubstepTimes:
         return value
 
 
+_max_reduce = np.maximum.reduce  # ndarray.max without its Python wrapper (hot path)
+
+
 def _z_matrix(matrices: np.ndarray) -> np.ndarray:
     """For matrices (..., m, n): ``[[M+^T, M-^T], [M-^T, M+^T]]`` of shape (..., 2n, 2m).
 
@@ -168,6 +171,8 @@ class _IntervalCore:
         B = np.stack([system.B for system in systems])  # (M, p, q)
         self.k = k
         self.per_action = bank.has_feedback
+        # open loop without saturation: every sub-step is one product, one max, one sum
+        self.plain = not bank.has_feedback and not bank.saturating
         self.open_product = self._product(vertices)  # (M, 2p, 2kp)
         if self.per_action:
             feedback = np.einsum("mpq,aqr->mapr", B, bank.gains)  # B_m K_a
@@ -196,23 +201,31 @@ class _IntervalCore:
         per_vertex = _z_matrix(matrices)  # (..., k, 2p, 2p)
         return np.ascontiguousarray(np.moveaxis(per_vertex, -3, -2).reshape(matrices.shape[:-3] + (2 * p, 2 * k * p)))
 
-    def substep(self, z, index):
+    def substep(self, z, index, out=None):
         """One sub-step of boxes z = [-lower | upper] under the actions ``index`` (None = all).
 
         ``z`` has shape (M or 1, A' or 1, 2p): a box shared by all actions (or all
         hypotheses) is propagated once and broadcast against the per-action terms.
+        ``out``, if given, is an array of the result's shape (M, A', 2p) to write to.
         """
-        k, p = self.k, self.p
         if self.per_action:
             product = self.product if index is None else self.product[:, index]
             candidates = np.matmul(z[..., None, :], product)[..., 0, :]
         else:
             candidates = np.matmul(z, self.open_product)
-        bounds = candidates.reshape(candidates.shape[:-1] + (k, 2 * p)).max(axis=-2) if k > 1 else candidates
-        new_z = bounds + (self.drift_z if index is None else self.drift_z[:, index])
+        k = self.k
+        if k > 1:
+            bounds = _max_reduce(candidates.reshape(candidates.shape[:-1] + (k, 2 * self.p)), axis=-2)
+        else:
+            bounds = candidates
+        drift = self.drift_z if index is None else self.drift_z[:, index]
         if self.bank.saturating:
-            new_z = self._saturation(z, new_z, index)
-        return new_z
+            new_z = self._saturation(z, bounds + drift, index)
+            if out is None:
+                return new_z
+            out[...] = new_z
+            return out
+        return np.add(bounds, drift, out=out)
 
     def _saturation(self, z, closed_z, index):
         """Closed loop plus the bounded correction s(v), intersected with the open-loop bound.
@@ -239,6 +252,23 @@ class _IntervalCore:
         open_z = (candidates.reshape(candidates.shape[:-1] + (k, 2 * p)).max(axis=-2) if k > 1 else candidates) + self.w_z
         return np.minimum(closed_z + through_B[..., 0, :], open_z + through_B[..., 1, :])
 
+    def _plain_substeps(self, z, index, stack):
+        """`substep` repeated, inlined for open-loop controllers without saturation (hot path).
+
+        With ``stack`` None, one sub-step, returned; else ``len(stack)`` sub-steps written
+        to ``stack[s]``, the last one returned. Same operations as `substep`.
+        """
+        product, k = self.open_product, self.k
+        drift = self.drift_z if index is None else self.drift_z[:, index]
+        vertex_shape = (k, 2 * self.p)
+        matmul, add = np.matmul, np.add
+        for out in (None,) if stack is None else stack:
+            candidates = matmul(z, product)
+            if k > 1:
+                candidates = _max_reduce(candidates.reshape(candidates.shape[:-1] + vertex_shape), axis=-2)
+            z = add(candidates, drift, out=out)
+        return z
+
     def state_z(self, state: BoxState) -> np.ndarray:
         """The boxes of a state as z of shape (M or 1, 1, 2p)."""
         z = state.z
@@ -259,16 +289,17 @@ class _IntervalCore:
         """
         p, S = self.p, self.substeps
         if S == 1:
-            z = self.substep(z, index)
+            z = self._plain_substeps(z, index, None) if self.plain else self.substep(z, index)
             lower = -z[..., :p]
             reward, collided = self.reward_minimum(lower, z[..., p:], time + 1)
             return z, lower, reward, collided
-        z = self.substep(z, index)
-        stack = np.empty((S,) + z.shape)
-        stack[0] = z
-        for s in range(1, S):
-            z = self.substep(z, index)
-            stack[s] = z
+        # each sub-step's result has the per-action drift's shape (M, A', 2p)
+        stack = np.empty((S, self.M, self.drift_z.shape[1] if index is None else len(index), 2 * p))
+        if self.plain:
+            z = self._plain_substeps(z, index, stack)
+        else:
+            for s in range(S):
+                z = self.substep(z, index, out=stack[s])
         lowers = -stack[..., :p]
         reward, collided = self.reward_minimum(lowers, stack[..., p:], self.times[time])
         return z, lowers[-1], reward.min(axis=0), collided.any(axis=0)
