@@ -365,7 +365,7 @@ class RobustTreePlanner:
         for states in state_lists:
             states.extend(next_states)
         rewards = rewards.T
-        if not (rewards.min() >= 0.0 and rewards.max() <= 1.0):
+        if not (np.minimum.reduce(rewards, axis=None) >= 0.0 and np.maximum.reduce(rewards, axis=None) <= 1.0):
             self._reward_error(rewards)
         return tree.add_children(leaf, rewards, terminals.T)
 

@@ -26,6 +26,7 @@ import numpy as np
 __all__ = ["SearchTree"]
 
 _INITIAL_CAPACITY = 1024
+_min_reduce = np.minimum.reduce  # ndarray.min without its Python wrapper (hot path)
 _INITIAL_RANK_DIGITS = 64
 
 
@@ -88,7 +89,8 @@ class SearchTree:
         self.max_depth = 0
         capacity = min(max_nodes, _INITIAL_CAPACITY)
         self.returns = np.empty((capacity, n_models))
-        self.terminal = np.empty((capacity, n_models), dtype=bool)
+        # zero-filled (also when grown): rows without a terminated model need no write
+        self.terminal = np.zeros((capacity, n_models), dtype=bool)
         self.parent: list[int] = []
         self.action: list[int] = []
         self.depth: list[int] = []
@@ -165,7 +167,7 @@ class SearchTree:
         new_capacity = max(min(2 * capacity, self.max_nodes), needed)
         for name in ("returns", "terminal"):
             old = getattr(self, name)
-            new = np.empty((new_capacity,) + old.shape[1:], dtype=old.dtype)
+            new = np.zeros((new_capacity,) + old.shape[1:], dtype=old.dtype)
             new[:capacity] = old
             setattr(self, name, new)
 
@@ -198,7 +200,7 @@ class SearchTree:
         child_returns = self.returns[node] + discounts[depth] * rewards
         tail = discounts[depth + 1] / (1.0 - self.gamma)
         parent_upper = self.leaf_upper[node]
-        child_lower = child_returns.min(axis=1).tolist()
+        child_lower = _min_reduce(child_returns, axis=1).tolist()
         if self.any_terminated[node] or new_terminal.any():
             child_terminal = self.terminal[node] | new_terminal
             optimistic = child_returns + tail * ~child_terminal
@@ -209,7 +211,6 @@ class SearchTree:
             # No model terminated: every optimistic term is R_m + tail, and rounding is
             # monotone, so min_m fl(R_m + tail) == fl(min_m R_m + tail) exactly.
             child_upper = [min(value + tail, parent_upper) for value in child_lower]
-            self.terminal[first:end] = False
             self.any_terminated.extend([False] * n_actions)
 
         self.returns[first:end] = child_returns
