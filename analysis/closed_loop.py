@@ -59,7 +59,15 @@ from minimaxplan.verify.selection import ModelSelector, feasible_parameter_box
 
 from .experiment import EpisodeRecord
 
-__all__ = ["LoopConfig", "velocity_controllers", "planning_system", "assumption4_report", "run_episode"]
+__all__ = [
+    "LoopConfig",
+    "velocity_controllers",
+    "planning_system",
+    "measurement_box",
+    "assumption4_report",
+    "excitation_data",
+    "run_episode",
+]
 
 
 @dataclass(frozen=True)
@@ -181,6 +189,11 @@ def _global_path(world, clearance: float) -> NavigationFunction:
     region = np.array([world.start, [0.0, 0.0], [size, size]])
     return NavigationFunction(world.goal, world.obstacles.centers, world.obstacles.radii, clearance=clearance,
                               region=region, padding=3.0)
+
+
+def measurement_box(measured: np.ndarray, noise: float) -> tuple[np.ndarray, np.ndarray]:
+    """The box ``measured +- noise`` that holds the true state, rounded outward."""
+    return np.nextafter(measured - noise, -np.inf), np.nextafter(measured + noise, np.inf)
 
 
 def _objective(world, waypoint, uncertain: bool) -> GoalReward:
@@ -305,7 +318,7 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
                 lmi = assumption4_report(world.system, pairs[0][1])
             planner = multi_model_robust_planner(pairs, _objective(world, waypoint, uncertain=True), controllers,
                                                  gamma=config.gamma, budget=config.budget, substeps=params.substeps)
-            root = root_state(planner, x - noise, x + noise, time=t)
+            root = root_state(planner, *measurement_box(x, noise), time=t)
             decision = planner.plan(root)
             controller = controllers[decision.action]
             lower, upper, _, _ = planner.models[0].rollout(root, decision.sequence)

@@ -9,6 +9,8 @@ import os
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from minimaxplan.analysis.cli import main
 from minimaxplan.analysis.closed_loop import LoopConfig, planning_system, run_episode
@@ -151,3 +153,40 @@ def test_suboptimality_study_shape_and_trend_fit():
     assert "| 60 |" in markdown(study)
     fit = fit_trend([1, 2, 4, 8], [2 + 3 * np.log(n) / n for n in (1, 2, 4, 8)])
     assert fit["a"] == pytest.approx(2.0) and fit["b"] == pytest.approx(3.0)
+
+
+@settings(max_examples=40)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    actions=st.lists(st.integers(0, 4), min_size=1, max_size=4),
+)
+def test_boxes_of_the_robust_model_contain_the_loop_driven_by_noisy_measurements(seed, actions):
+    """The control acts on measured states; with the control error as a disturbance
+    through B (planning_system), the interval model still contains the true states,
+    with w and the measurement noise at their extremes."""
+    from minimaxplan.analysis.closed_loop import measurement_box, velocity_controllers
+    from minimaxplan.planners import IntervalModel
+    from minimaxplan.scenarios import GoalReward
+
+    rng = np.random.default_rng(seed)
+    system = robot_hypotheses()[0].system
+    theta = rng.uniform(system.theta.low, system.theta.high)
+    params_box = Box(np.maximum(theta - 0.05, system.theta.low), np.minimum(theta + 0.05, system.theta.high))
+    config = LoopConfig()
+    noise = 0.01
+    controllers = velocity_controllers(config)
+    model = IntervalModel(planning_system(system, config.gain * noise), params_box,
+                          GoalReward([50.0, 50.0]), controllers, substeps=5)
+    x = np.concatenate([rng.uniform(0, 20, 2), rng.uniform(-2, 2, 2)])
+    measured = x + rng.choice([-noise, noise], size=4)
+    lower, upper, _, _ = model.rollout(model.initial_state(*measurement_box(measured, noise)), actions)
+    k = 0
+    assert np.all(lower[0] <= x) and np.all(x <= upper[0])
+    for action in actions:
+        for _ in range(5):
+            u = np.clip(controllers[action].control(measured), -1, 1)
+            x = system.step(x, u, theta, rng.choice([-0.1, 0.1], size=2))
+            measured = x + rng.choice([-noise, noise], size=4)
+            k += 1
+            tol = 1e-9 * (1 + np.abs(x))
+            assert np.all(lower[k] - tol <= x) and np.all(x <= upper[k] + tol)
