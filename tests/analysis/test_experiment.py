@@ -105,6 +105,9 @@ def test_robust_episode_record_is_consistent():
     assert 0.0 <= record.discounted_return <= 1 / (1 - 0.9)
     assert record.extra["lmi"]["full_model"] == "infeasible"
     assert record.extra["lmi"]["velocity_subsystem"] == "feasible"
+    from minimaxplan.analysis.experiment import assumption4_note
+
+    assert "certified in 1/1 episodes; full model infeasible in 1/1" in assumption4_note([record])
     assert len(record.trajectory) >= record.decisions
 
 
@@ -118,8 +121,10 @@ def test_experiment_command_writes_every_output(tmp_path):
     for key in ("scenario", "method", "episodes", "failures", "failure_ci95", "mean_time_s", "median_time_s",
                 "max_time_s", "mean_return"):
         assert key in summary[0]
-    assert (out / "episodes.csv").read_text().count("\n") == 3
+    csv_text = (out / "episodes.csv").read_text()
+    assert csv_text.count("\n") == 3 and "assumption4_velocity_subsystem" in csv_text.splitlines()[0]
     assert "| scenario | method |" in (out / "table.md").read_text()
+    assert "Assumption 4" not in (out / "table.md").read_text()  # no robust episode, no report
     assert (out / "trajectories_static.png").stat().st_size > 1000
 
 
