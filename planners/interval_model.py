@@ -37,16 +37,44 @@ class BoxState:
     arithmetic works on (computed on demand when not given).
     """
 
-    __slots__ = ("lower", "upper", "time", "_z")
+    __slots__ = ("_lower", "_upper", "time", "_z", "_source")
 
     def __init__(self, lower, upper, time: int, z=None) -> None:
-        self.lower = lower
-        self.upper = upper
+        self._lower = lower
+        self._upper = upper
         self.time = time
         self._z = z
+        self._source = None
+
+    @classmethod
+    def _from_batch(cls, lower, upper, z, key, time: int) -> "BoxState":
+        """The state ``lower[key], upper[key]`` of a batched transition, its views taken on first use.
+
+        Most children of the search tree are never expanded nor inspected, so the
+        planner's hot path creates their states without slicing.
+        """
+        state = cls.__new__(cls)
+        state._lower = state._upper = state._z = None
+        state.time = time
+        state._source = (lower, upper, z, key)
+        return state
+
+    @property
+    def lower(self) -> np.ndarray:
+        if self._lower is None and self._source is not None:
+            self._lower = self._source[0][self._source[3]]
+        return self._lower
+
+    @property
+    def upper(self) -> np.ndarray:
+        if self._upper is None and self._source is not None:
+            self._upper = self._source[1][self._source[3]]
+        return self._upper
 
     @property
     def z(self) -> np.ndarray:
+        if self._z is None and self._source is not None:
+            self._z = self._source[2][self._source[3]]
         if self._z is None:
             z = np.concatenate([-np.asarray(self.lower, dtype=float), np.asarray(self.upper, dtype=float)], axis=-1)
             z.setflags(write=False)
@@ -336,10 +364,11 @@ class _LinkedGroup:
         upper = z[..., core.p:]
         lower.flags.writeable = False
         time = state.time + core.substeps
+        batch = BoxState._from_batch
         if core.M == 1:
-            next_states = [BoxState(lower[0, i], upper[0, i], time, z[0, i]) for i in range(n)]
+            next_states = [batch(lower, upper, z, (0, i), time) for i in range(n)]
         else:
-            next_states = [BoxState(lower[:, i], upper[:, i], time, z[:, i]) for i in range(n)]
+            next_states = [batch(lower, upper, z, (slice(None), i), time) for i in range(n)]
         self._key_state, self._key_actions = state, actions
         self._result = (next_states, rewards, collided)
         return self._result
