@@ -154,6 +154,7 @@ class _SubstepTimes:
 
 
 _max_reduce = np.maximum.reduce  # ndarray.max without its Python wrapper (hot path)
+_min_reduce = np.minimum.reduce
 
 
 def _z_matrix(matrices: np.ndarray) -> np.ndarray:
@@ -330,7 +331,7 @@ class _IntervalCore:
                 z = self.substep(z, index, out=stack[s])
         lowers = -stack[..., :p]
         reward, collided = self.reward_minimum(lowers, stack[..., p:], self.times[time])
-        return z, lowers[-1], reward.min(axis=0), collided.any(axis=0)
+        return z, lowers[-1], _min_reduce(reward, axis=0), np.logical_or.reduce(collided, axis=0)
 
 
 class _LinkedGroup:
