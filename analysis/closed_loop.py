@@ -47,7 +47,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, NoConsistentModel, UncertainLinearSystem
+from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, InputError, NoConsistentModel, UncertainLinearSystem
+from minimaxplan.models._validation import as_positive_scalar
 from minimaxplan.planners.comparison import multi_model_robust_planner, nominal_planner, root_state
 from minimaxplan.planners.controllers import LinearFeedback
 from minimaxplan.planners.dwa import DynamicWindowPlanner, NavigationScene
@@ -106,6 +107,23 @@ class LoopConfig:
     lookahead: float = 3.0
     path_clearance: float = 0.3
     directions: tuple = field(default=((1, 1), (1, -1), (-1, 1), (-1, -1), (0, 0)))
+
+    def __post_init__(self) -> None:
+        if isinstance(self.budget, bool) or not isinstance(self.budget, int) or self.budget < 1:
+            raise InputError(f"budget must be a positive integer, got {self.budget!r}")
+        if not 0.0 < float(self.gamma) < 1.0:
+            raise InputError(f"gamma must lie in (0, 1), got {self.gamma!r}")
+        for name in ("speed", "gain", "lsq_regularisation", "lookahead"):
+            as_positive_scalar(name, getattr(self, name))
+        as_positive_scalar("path_clearance", self.path_clearance, allow_zero=True)
+        for name in ("prior_samples", "max_decisions"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+                raise InputError(f"{name} must be None or a positive integer, got {value!r}")
+        if self.measurement not in ("uniform", "gaussian"):
+            raise InputError(f"measurement must be 'uniform' or 'gaussian', got {self.measurement!r}")
+        if not self.directions or any(np.shape(d) != (2,) for d in self.directions):
+            raise InputError(f"directions must be a non-empty sequence of 2-vectors, got {self.directions!r}")
 
 
 DEFAULT_CONFIG = LoopConfig()

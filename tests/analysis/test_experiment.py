@@ -199,3 +199,19 @@ def test_boxes_of_the_robust_model_contain_the_loop_driven_by_noisy_measurements
             k += 1
             tol = 1e-9 * (1 + np.abs(x))
             assert np.all(lower[k] - tol <= x) and np.all(x <= upper[k] + tol)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"budget": 0}, "budget must be a positive integer"),
+        ({"gamma": 1.0}, r"gamma must lie in \(0, 1\)"),
+        ({"speed": -1.0}, "speed must be > 0"),
+        ({"prior_samples": 0}, "prior_samples must be None or a positive integer"),
+        ({"measurement": "laser"}, "measurement must be 'uniform' or 'gaussian'"),
+        ({"directions": ((1, 1, 1),)}, "directions must be a non-empty sequence of 2-vectors"),
+    ],
+)
+def test_loop_config_rejects_bad_settings(kwargs, message):
+    with pytest.raises(InputError, match=message):
+        LoopConfig(**kwargs)
