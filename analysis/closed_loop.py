@@ -182,7 +182,7 @@ def _pedestrian_prediction(world, uncertain: bool) -> MovingObstacles:
 
 
 class _LeastSquares:
-    """Friction estimate of the true structure from measured transitions (for nominal and baselines)."""
+    """Least-squares friction estimate of the true structure from measured transitions (nominal planner)."""
 
     def __init__(self, system: UncertainLinearSystem, regularisation: float):
         self.system = system
@@ -308,8 +308,8 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
     noise = params.measurement_noise
     prior = None if config.prior_samples is None else excitation_data(world, config.prior_samples)
     learner = _Learner(hypotheses, noise, prior) if method == "robust" else None
-    lsq = _LeastSquares(world.system, config.lsq_regularisation)
-    if prior is not None:
+    lsq = _LeastSquares(world.system, config.lsq_regularisation) if method == "nominal" else None
+    if lsq is not None and prior is not None:
         for n in range(prior[1].shape[0]):
             lsq.add(prior[0][n], prior[1][n], prior[0][n + 1])
     planning = [planning_system(h.system, config.gain * noise) for h in hypotheses]
@@ -357,7 +357,7 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
             x_next = world.measure()
             if learner is not None:
                 learner.add(x, u, x_next)
-            if prior is None:
+            if lsq is not None and prior is None:
                 lsq.add(x, u, x_next)
             x = x_next
             if world.done:
