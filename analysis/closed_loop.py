@@ -210,8 +210,14 @@ def _global_path(world, clearance: float) -> NavigationFunction:
 
 
 def measurement_box(measured: np.ndarray, noise: float) -> tuple[np.ndarray, np.ndarray]:
-    """The box ``measured +- noise`` that holds the true state, rounded outward."""
-    return np.nextafter(measured - noise, -np.inf), np.nextafter(measured + noise, np.inf)
+    """The box ``measured +- noise`` that holds the true state, rounded outward.
+
+    The measurement itself was rounded (``fl(x + v)``, error up to half an ulp of
+    ``|measured|``) and so is ``measured -+ noise``: a margin of ``2 eps (|measured| +
+    noise)`` covers both, whatever the magnitudes of x and v.
+    """
+    margin = 2 * np.finfo(float).eps * (np.abs(measured) + noise)
+    return np.nextafter(measured - noise - margin, -np.inf), np.nextafter(measured + noise + margin, np.inf)
 
 
 def _objective(world, waypoint, uncertain: bool) -> GoalReward:

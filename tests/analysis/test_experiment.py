@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from minimaxplan.analysis.cli import main
@@ -215,3 +215,20 @@ def test_boxes_of_the_robust_model_contain_the_loop_driven_by_noisy_measurements
 def test_loop_config_rejects_bad_settings(kwargs, message):
     with pytest.raises(InputError, match=message):
         LoopConfig(**kwargs)
+
+
+@settings(max_examples=300)
+@given(
+    x=st.floats(-0.05, 0.05, allow_nan=False) | st.floats(-30, 30, allow_nan=False),
+    v=st.sampled_from([-1.0, 1.0]) | st.floats(-1.0, 1.0, allow_nan=False),
+    noise=st.sampled_from([0.01, 0.1, 1e-3]),
+)
+# |x + v| > |x - noise|: an ulp of the result does not cover the measurement's rounding
+@example(x=0.005767577380981881, v=1.0, noise=0.01)
+@example(x=0.0062231842228457, v=1.0, noise=0.01)
+def test_measurement_box_holds_the_true_state_exactly(x, v, noise):
+    from minimaxplan.analysis.closed_loop import measurement_box
+
+    measured = np.array([x + v * noise])  # rounded, as a sensor reading is
+    lower, upper = measurement_box(measured, noise)
+    assert lower[0] <= x <= upper[0]  # no tolerance: the box is rounded outward
