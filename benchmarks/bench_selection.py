@@ -136,7 +136,6 @@ def dense_margin(system: UncertainLinearSystem, states, controls) -> float:
         A_lo = sp.hstack([sp.csr_matrix(-E), sp.csr_matrix(-beta[:, None])])
         b_up, b_lo = z - center + radius, center + radius - z
     else:
-        r = system.ndisturbances
         block = sp.kron(sp.identity(n), sp.csr_matrix(system.D))
         A_up = sp.hstack([sp.csr_matrix(E), sp.csr_matrix(-beta[:, None]), block])
         A_lo = sp.hstack([sp.csr_matrix(-E), sp.csr_matrix(-beta[:, None]), -block])

@@ -188,7 +188,7 @@ class _IntervalCore:
         self.times = _SubstepTimes(substeps)
         systems = [system for system, _ in members]
         self.M = len(members)
-        self.p = p = systems[0].nstates
+        self.p = systems[0].nstates
         predictors = [IntervalPredictor(system, parameters) for system, parameters in members]
         self.predictors = predictors
         k = max(pred.nvertices for pred in predictors)

@@ -1,7 +1,5 @@
 """The demo's library walk-through (part 1) reports true facts."""
 
-import numpy as np
-
 from minimaxplan.analysis.cli import main
 from minimaxplan.analysis.demo import run
 

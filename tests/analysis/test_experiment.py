@@ -69,10 +69,9 @@ def test_same_seed_same_summary_sequential_and_pool():
 
 def test_dask_local_cluster_gives_the_same_summary():
     if os.environ.get("CI") == "true":
-        from distributed import Client, LocalCluster  # the cluster extra must be installed in CI
+        from distributed import LocalCluster  # the cluster extra must be installed in CI
     else:
-        distributed = pytest.importorskip("distributed")
-        Client, LocalCluster = distributed.Client, distributed.LocalCluster
+        LocalCluster = pytest.importorskip("distributed").LocalCluster
     kwargs = dict(episodes=2, seed=3, episode_fn=fast_episode, progress=False)
     local = run_experiment(["pedestrian"], ["robust"], workers=1, **kwargs)
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",

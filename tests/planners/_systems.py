@@ -91,3 +91,24 @@ def simulate(rng, system, thetas, x0, controllers, substeps):
 def inside(states, lower, upper, tol=1e-9):
     slack = tol * (1.0 + np.abs(states))
     return bool(np.all(states >= lower - slack) and np.all(states <= upper + slack))
+
+
+def run_baseline_episode(planner, start, goal, centers, radii, theta, seed):
+    """A baseline in closed loop in a real world whose layout is replaced by the given one."""
+    from minimaxplan.planners.dwa import NavigationScene
+    from minimaxplan.scenarios.geometry import CircularObstacles
+    from minimaxplan.scenarios.worlds import make_world
+
+    world = make_world("static", seed)
+    world.start, world.goal = np.asarray(start, float), np.asarray(goal, float)
+    world.obstacles = CircularObstacles(np.asarray(centers, float).reshape(-1, 2), np.asarray(radii, float))
+    world.true_theta = np.asarray(theta, float)
+    world.state = np.concatenate([world.start, np.zeros(2)])
+    scene = NavigationScene(world.goal, world.obstacles.centers, world.obstacles.radii)
+    if hasattr(planner, "reset"):
+        planner.reset()
+    path = [world.state[:2].copy()]
+    while not world.done:
+        world.apply_held(planner.plan(world.measure(), scene))
+        path.append(world.state[:2].copy())
+    return world, np.array(path)

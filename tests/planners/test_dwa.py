@@ -7,26 +7,11 @@ from hypothesis import strategies as st
 
 from minimaxplan.models import DimensionError, InputError, NonFiniteError
 from minimaxplan.planners.dwa import DWAParameters, DynamicWindowPlanner, NavigationScene
-from minimaxplan.scenarios.geometry import CircularObstacles
 from minimaxplan.scenarios.robot import robot_system
-from minimaxplan.scenarios.worlds import make_world
+
+from ._systems import run_baseline_episode as run_episode
 
 finite = dict(allow_nan=False, allow_infinity=False)
-
-
-def run_episode(planner, start, goal, centers, radii, theta, seed):
-    """Closed loop in a real world whose layout is replaced by the given one."""
-    world = make_world("static", seed)
-    world.start, world.goal = np.asarray(start, float), np.asarray(goal, float)
-    world.obstacles = CircularObstacles(np.asarray(centers, float).reshape(-1, 2), np.asarray(radii, float))
-    world.true_theta = np.asarray(theta, float)
-    world.state = np.concatenate([world.start, np.zeros(2)])
-    scene = NavigationScene(world.goal, world.obstacles.centers, world.obstacles.radii)
-    path = [world.state[:2].copy()]
-    while not world.done:
-        world.apply_held(planner.plan(world.measure(), scene))
-        path.append(world.state[:2].copy())
-    return world, np.array(path)
 
 
 thetas = st.tuples(st.floats(0.2, 0.8, **finite), st.floats(0.2, 0.8, **finite))

@@ -1,7 +1,5 @@
 """IntervalModel, PointModel, controllers and the comparison factories."""
 
-import importlib.util
-import pathlib
 
 import numpy as np
 import pytest
@@ -25,9 +23,7 @@ from minimaxplan.planners.point_model import PointModel, PointState
 from minimaxplan.scenarios.geometry import CircularObstacles
 from minimaxplan.scenarios.rewards import GoalReward
 
-_spec = importlib.util.spec_from_file_location("planner_test_systems", pathlib.Path(__file__).with_name("_systems.py"))
-systems = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(systems)
+from . import _systems as systems
 
 seeds = st.integers(0, 2**31 - 1)
 

@@ -19,8 +19,6 @@ bound `Decision.lower` (checked), so the test says: the guaranteed value that th
 planner reports is never more than what any admissible realisation collects.
 """
 
-import importlib.util
-import pathlib
 
 import numpy as np
 import pytest
@@ -33,9 +31,7 @@ from minimaxplan.planners.interval_model import IntervalModel
 from minimaxplan.scenarios.geometry import CircularObstacles, MovingObstacles
 from minimaxplan.scenarios.rewards import GoalReward
 
-_spec = importlib.util.spec_from_file_location("planner_test_systems", pathlib.Path(__file__).with_name("_systems.py"))
-systems = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(systems)
+from . import _systems as systems
 
 seeds = st.integers(0, 2**31 - 1)
 TOL = 1e-9
