@@ -58,7 +58,7 @@ from minimaxplan.scenarios import GoalReward, MovingObstacles, make_world, robot
 from minimaxplan.verify.lmi import check_assumption4
 from minimaxplan.verify.selection import ModelSelector, feasible_parameter_box
 
-from .experiment import EpisodeRecord
+from .experiment import METHODS, EpisodeRecord
 
 __all__ = [
     "LoopConfig",
@@ -195,6 +195,8 @@ class _LeastSquares:
         self.estimator.update(self.system.regressor(x), target)
 
     def estimate(self) -> np.ndarray:
+        """The regularised least-squares centre, projected onto the prior box (a friction
+        outside it is physically excluded; the prior centre before any data)."""
         prior = self.system.theta
         if self.estimator.nsamples == 0:
             return prior.center
@@ -306,6 +308,10 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
     the static map. ``discounted_return`` is ``sum_i gamma^i r_i`` over the decisions,
     ``r_i`` the smallest true goal reward over the sub-steps of decision i.
     """
+    if method not in METHODS:
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    if not isinstance(config, LoopConfig):
+        raise InputError(f"config must be a LoopConfig, got {type(config).__name__}")
     started = wallclock.perf_counter()
     world = make_world(scenario, seed, measurement=config.measurement)
     params = world.params

@@ -231,3 +231,10 @@ def test_measurement_box_holds_the_true_state_exactly(x, v, noise):
     measured = np.array([x + v * noise])  # rounded, as a sensor reading is
     lower, upper = measurement_box(measured, noise)
     assert lower[0] <= x <= upper[0]  # no tolerance: the box is rounded outward
+
+
+def test_run_episode_rejects_unknown_method_and_world():
+    with pytest.raises(InputError, match="method must be one of"):
+        run_episode("static", "magic", 0)
+    with pytest.raises(InputError, match="kind must be one of"):
+        run_episode("mars", "robust", 0)
