@@ -254,7 +254,15 @@ class _Learner:
 
     Online (``frozen`` False) it is fed every measured transition; frozen, it is fitted
     once on prior data and never changes.
+
+    The LP boxes are refitted on all the data only when it has grown by a factor
+    ``refit_growth`` since the last fit (or the survivors changed), so the total LP
+    work over an episode is O(N log N) instead of O(N^2). In between, the last box is
+    used: still sound, because the set of parameters consistent with more data is a
+    subset of the set consistent with less.
     """
+
+    refit_growth = 1.25
 
     def __init__(self, hypotheses, noise: float, prior: tuple | None):
         self.hypotheses = hypotheses
@@ -269,6 +277,7 @@ class _Learner:
             for n in range(U.shape[0]):
                 self.selector.add(X[n], U[n], X[n + 1])
         self._boxes = None
+        self._fitted_on = 0  # transitions behind the current boxes
 
     def add(self, x, u, x_next) -> None:
         if self.frozen:
@@ -278,7 +287,6 @@ class _Learner:
         self.controls.append(u)
         self.states.append(x_next)
         self.selector.add(x, u, x_next)
-        self._boxes = None
 
     def survivors_with_boxes(self) -> list[tuple[int, Box]]:
         """``(index, feasible parameter box)`` of every surviving hypothesis.
@@ -290,8 +298,11 @@ class _Learner:
             raise NoConsistentModel(
                 f"every hypothesis ({names}) is contradicted by the {len(self.controls)} transitions observed"
             )
-        if self._boxes is None:
+        n = len(self.controls)
+        stale = self._boxes is None or [i for i, _ in self._boxes] != self.selector.survivors
+        if stale or n >= self.refit_growth * self._fitted_on + 1:
             X, U = np.array(self.states).reshape(-1, 4), np.array(self.controls).reshape(-1, 2)
+            self._fitted_on = n
             self._boxes = [
                 (i, feasible_parameter_box(self.hypotheses[i].system, X, U, measurement_noise=self.noise)
                  if U.shape[0] else self.hypotheses[i].system.theta)

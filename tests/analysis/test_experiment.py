@@ -238,3 +238,23 @@ def test_run_episode_rejects_unknown_method_and_world():
         run_episode("static", "magic", 0)
     with pytest.raises(InputError, match="kind must be one of"):
         run_episode("mars", "robust", 0)
+
+
+def test_learner_boxes_stay_sound_and_nested_between_refits():
+    from minimaxplan.analysis.closed_loop import _Learner, excitation_data
+    from minimaxplan.scenarios import make_world
+
+    world = make_world("static", 8)
+    X, U = excitation_data(world, 120)
+    learner = _Learner(robot_hypotheses(), 0.01, None)
+    previous, fits = None, set()
+    for n in range(U.shape[0]):
+        learner.add(X[n], U[n], X[n + 1])
+        (index, box), *_ = learner.survivors_with_boxes()
+        assert index == 0 and box.contains(world.true_theta)
+        if previous is not None:
+            assert np.all(box.low >= previous.low) and np.all(box.high <= previous.high)
+        previous = box
+        fits.add(learner._fitted_on)
+    # refitted as the data grows geometrically (1, 2, 3, 4, 6, 8, ...), not at every transition
+    assert 10 <= len(fits) <= 25
