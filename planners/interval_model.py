@@ -11,7 +11,12 @@ collide).
 
 The planner never imports `minimaxplan.scenarios`: the reward is any object with
 ``box_minimum(lower, upper, t) -> (reward, collided)`` (and, optionally, the
-unchecked ``box_minimum_raw`` with the same meaning, used on the hot path).
+unchecked ``box_minimum_raw`` with the same meaning). A family that also exposes
+``kernel_params`` (see `minimaxplan.planners.box_kernels`) has its minimum evaluated
+in compiled code, and lets `RobustTreePlanner` run its compiled engine.
+
+The box arithmetic is compiled (`minimaxplan.planners.box_kernels`); this module
+precomputes its matrices and wraps its results as `BoxState`s.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from ..models.errors import DimensionError, EmptySetError, InputError
 from ..models.prediction import IntervalPredictor, interval_matvec
 from ..models.sets import Box
 from ..models.system import UncertainLinearSystem
+from .box_kernels import propagate, stack_rewards_kernel, transposed_blocks
 from .controllers import ControllerBank
 
 __all__ = ["BoxState", "IntervalModel"]
@@ -114,7 +120,7 @@ def _check_time(time) -> int:
 
 
 class _ActionIndex:
-    """Maps the planner's actions (controller indices) to an index array, cached per actions object."""
+    """Maps the planner's actions (controller indices) to an int64 index array, cached per actions object."""
 
     def __init__(self, n: int) -> None:
         self.n = n
@@ -130,7 +136,8 @@ class _ActionIndex:
             raise InputError(f"actions must be controller indices (integers), got {actions!r}") from None
         if any(i != a for i, a in zip(index, actions)) or any(not 0 <= i < self.n for i in index):
             raise InputError(f"actions must be controller indices in [0, {self.n}), got {list(actions)!r}")
-        value = None if index == list(range(self.n)) else np.array(index)
+        value = np.array(index, dtype=np.int64)
+        value.setflags(write=False)
         if isinstance(actions, tuple):
             self._key, self._value = actions, value
         return value
@@ -153,10 +160,6 @@ class _SubstepTimes:
         return value
 
 
-_max_reduce = np.maximum.reduce  # ndarray.max without its Python wrapper (hot path)
-_min_reduce = np.minimum.reduce
-
-
 def _z_matrix(matrices: np.ndarray) -> np.ndarray:
     """For matrices (..., m, n): ``[[M+^T, M-^T], [M-^T, M+^T]]`` of shape (..., 2n, 2m).
 
@@ -170,19 +173,25 @@ def _z_matrix(matrices: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate([top, bottom], axis=-2))
 
 
-class _IntervalCore:
-    """The batched arithmetic of one or several hypotheses under every controller.
+def _rows(matrices: np.ndarray) -> np.ndarray:
+    """The Z-form of matrices (..., m, n) as the compiled kernels read it: (..., 2m, 2n), writable, contiguous."""
+    return np.array(transposed_blocks(_z_matrix(matrices)), dtype=float)
 
-    A box is stored as ``z = [-lower | upper]`` (shape (..., 2p)). For a fixed matrix
-    M the exact box of ``{M x : lower <= x <= upper}`` is then ``z @ [[M+^T, M-^T],
-    [M-^T, M+^T]]`` (``M+ = max(M, 0)``, ``M- = max(-M, 0)``): one product, and the
-    bound over the k vertex matrices is one max over k. Boxes are arrays (M, A', 2p):
-    M hypotheses (``members``) times A' actions. Everything is precomputed;
-    `propagate` runs on raw arrays only.
+
+class _IntervalCore:
+    """The arithmetic of one or several hypotheses under every controller.
+
+    Precomputes, per hypothesis m and action a, the Z-form rows that
+    `minimaxplan.planners.box_kernels.substep` reads (``kernel``); `propagate` runs
+    the compiled transition of every (hypothesis, action) pair and evaluates the
+    pessimistic rewards, compiled when the reward family offers ``kernel_params``.
     """
 
-    def __init__(self, members, reward_minimum, bank: ControllerBank, substeps: int) -> None:
+    def __init__(self, members, reward, reward_minimum, bank: ControllerBank, substeps: int) -> None:
         self.reward_minimum = reward_minimum
+        self.kernel_params = getattr(reward, "kernel_params", None)
+        if self.kernel_params is not None:
+            self.stack_rewards = stack_rewards_kernel(type(self.kernel_params))
         self.bank = bank
         self.substeps = substeps
         self.times = _SubstepTimes(substeps)
@@ -199,139 +208,50 @@ class _IntervalCore:
         )  # (M, k, p, p), identity basis
         B = np.stack([system.B for system in systems])  # (M, p, q)
         self.k = k
-        self.per_action = bank.has_feedback
-        # open loop without saturation: every sub-step is one product, one max, one sum
-        self.plain = not bank.has_feedback and not bank.saturating
-        self.open_product = self._product(vertices)  # (M, 2p, 2kp)
-        if self.per_action:
+        per_action = bank.has_feedback
+        opened = _rows(vertices)  # (M, k, 2p, 2p)
+        if per_action:
             feedback = np.einsum("mpq,aqr->mapr", B, bank.gains)  # B_m K_a
-            closed = vertices[:, None] - feedback[:, :, None]  # (M, A, k, p, p)
-            self.product = self._product(closed)  # (M, A, 2p, 2kp)
+            closed = _rows(vertices[:, None] - feedback[:, :, None])  # (M, A, k, 2p, 2p)
         else:
-            self.product = self.open_product
+            closed = np.ascontiguousarray(opened[:, None])  # (M, 1, k, 2p, 2p)
         w = [interval_matvec(system.D, system.w.low, system.w.high) for system in systems]
-        self.w_lo = np.stack([lo for lo, _ in w])[:, None, :]  # (M, 1, p)
-        self.w_hi = np.stack([hi for _, hi in w])[:, None, :]
-        self.w_z = np.concatenate([-self.w_lo, self.w_hi], axis=-1)  # (M, 1, 2p)
+        w_lo = np.stack([lo for lo, _ in w])
+        w_hi = np.stack([hi for _, hi in w])
+        w_z = np.concatenate([-w_lo, w_hi], axis=-1)  # (M, 2p)
         drift = np.einsum("mpq,aq->map", B, bank.offsets)  # (M, A, p): B_m c_a
-        self.drift_z = np.concatenate([-drift, drift], axis=-1) + self.w_z  # (M, A, 2p)
-        self.q = B.shape[2]
-        self.B_z = _z_matrix(B)  # (M, 2q, 2p)
-        self.K_z = _z_matrix(bank.gains)  # (A, 2p, 2q)
-
-    def _product(self, matrices):
-        """`_z_matrix` of each of the k matrices, side by side: (..., 2p, 2kp).
-
-        The columns are ordered (vertex, bound, coordinate), so that the product's
-        result reshapes to (..., k, 2p), each row a z-box, and one max over the
-        vertex axis gives the bound over all k (numpy reduces that axis fastest).
-        """
-        p, k = self.p, matrices.shape[-3]
-        per_vertex = _z_matrix(matrices)  # (..., k, 2p, 2p)
-        return np.ascontiguousarray(np.moveaxis(per_vertex, -3, -2).reshape(matrices.shape[:-3] + (2 * p, 2 * k * p)))
-
-    def substep(self, z, index, out=None):
-        """One sub-step of boxes z = [-lower | upper] under the actions ``index`` (None = all).
-
-        ``z`` has shape (M or 1, A' or 1, 2p): a box shared by all actions (or all
-        hypotheses) is propagated once and broadcast against the per-action terms.
-        ``out``, if given, is an array of the result's shape (M, A', 2p) to write to.
-        """
-        if self.per_action:
-            product = self.product if index is None else self.product[:, index]
-            candidates = np.matmul(z[..., None, :], product)[..., 0, :]
-        else:
-            candidates = np.matmul(z, self.open_product)
-        k = self.k
-        if k > 1:
-            bounds = _max_reduce(candidates.reshape(candidates.shape[:-1] + (k, 2 * self.p)), axis=-2)
-        else:
-            bounds = candidates
-        drift = self.drift_z if index is None else self.drift_z[:, index]
-        if self.bank.saturating:
-            new_z = self._saturation(z, bounds + drift, index)
-            if out is None:
-                return new_z
-            out[...] = new_z
-            return out
-        return np.add(bounds, drift, out=out)
-
-    def _saturation(self, z, closed_z, index):
-        """Closed loop plus the bounded correction s(v), intersected with the open-loop bound.
-
-        All in z-form: ``[-(K x)_lo | (K x)_hi]`` over the box is one product with
-        ``K_z``; the input boxes of the correction and of the open loop go through
-        ``B_z`` in one product; the intersection of two z-boxes is their elementwise min.
-        """
-        sel = slice(None) if index is None else index
-        q, k, p = self.q, self.k, self.p
-        bank = self.bank
-        kx = np.matmul(z[..., None, :], self.K_z[sel])[..., 0, :]  # (M, A', 2q)
-        offsets = bank.offsets[sel]
-        # v = c - K x over the box: [c - (K x)_hi, c - (K x)_lo]
-        v_lo = offsets - kx[..., q:]
-        v_hi = offsets + kx[..., :q]
-        low, high = bank.low[sel], bank.high[sel]
-        u_lo = np.minimum(np.maximum(v_lo, low), high)
-        u_hi = np.minimum(np.maximum(v_hi, low), high)
-        # s(v) = sat(v) - v is nonincreasing: s in [u_hi - v_hi, u_lo - v_lo]; u in [u_lo, u_hi]
-        inputs = np.concatenate([v_hi - u_hi, u_lo - v_lo, -u_lo, u_hi], axis=-1)
-        through_B = np.matmul(inputs.reshape(inputs.shape[:-1] + (2, 2 * q)), self.B_z[:, None])  # (M, A', 2, 2p)
-        candidates = np.matmul(z, self.open_product)
-        open_z = (candidates.reshape(candidates.shape[:-1] + (k, 2 * p)).max(axis=-2) if k > 1 else candidates) + self.w_z
-        return np.minimum(closed_z + through_B[..., 0, :], open_z + through_B[..., 1, :])
-
-    def _plain_substeps(self, z, index, stack):
-        """`substep` repeated, inlined for open-loop controllers without saturation (hot path).
-
-        With ``stack`` None, one sub-step, returned; else ``len(stack)`` sub-steps written
-        to ``stack[s]``, the last one returned. Same operations as `substep`.
-        """
-        product, k = self.open_product, self.k
-        drift = self.drift_z if index is None else self.drift_z[:, index]
-        vertex_shape = (k, 2 * self.p)
-        matmul, add = np.matmul, np.add
-        for out in (None,) if stack is None else stack:
-            candidates = matmul(z, product)
-            if k > 1:
-                candidates = _max_reduce(candidates.reshape(candidates.shape[:-1] + vertex_shape), axis=-2)
-            z = add(candidates, drift, out=out)
-        return z
+        drift_z = np.concatenate([-drift, drift], axis=-1) + w_z[:, None]  # (M, A, 2p)
+        plain = [np.array(a, dtype=float) for a in (bank.offsets, bank.low, bank.high)]
+        self.kernel = (
+            closed, opened, drift_z, w_z, _rows(bank.gains), _rows(B), *plain, bool(per_action), bool(bank.saturating),
+        )
 
     def state_z(self, state: BoxState) -> np.ndarray:
-        """The boxes of a state as z of shape (M or 1, 1, 2p)."""
+        """The boxes of a state as z of shape (M or 1, 2p), contiguous."""
         z = state.z
         if z.ndim == 1:
-            return z[None, None, :]
+            return np.ascontiguousarray(z[None, :])
         if z.shape[0] != self.M:
             raise DimensionError(f"state holds {z.shape[0]} boxes, expected {self.M} (one per linked hypothesis)")
-        return z[:, None, :]
+        return np.ascontiguousarray(z)
 
     def propagate(self, z, time, index):
-        """All sub-steps of one decision from boxes z (M or 1, 1 or A', 2p).
+        """All sub-steps of one decision from boxes z (M or 1, 2p) under the actions ``index`` (int64 (n,)).
 
-        Returns the final boxes z and their lower corners (``-z[..., :p]``), the
-        pessimistic rewards (M, A') (minimum over the sub-steps) and the collision
-        flags (any over the sub-steps). The reward is
-        evaluated once for the boxes of all sub-steps, stacked as (S, M, A', p), with
-        the sub-step indices ``t`` of shape (S, 1, 1).
+        Returns the boxes after every sub-step, ``stack`` (S, M, n, 2p), the
+        pessimistic rewards (M, n) (minimum over the sub-steps) and the collision
+        flags (any over the sub-steps).
         """
         p, S = self.p, self.substeps
-        if S == 1:
-            z = self._plain_substeps(z, index, None) if self.plain else self.substep(z, index)
-            lower = -z[..., :p]
-            reward, collided = self.reward_minimum(lower, z[..., p:], time + 1)
-            return z, lower, reward, collided
-        # each sub-step's result has the per-action drift's shape (M, A', 2p)
-        stack = np.empty((S, self.M, self.drift_z.shape[1] if index is None else len(index), 2 * p))
-        if self.plain:
-            z = self._plain_substeps(z, index, stack)
-        else:
-            for s in range(S):
-                z = self.substep(z, index, out=stack[s])
-        lowers = -stack[..., :p]
-        reward, collided = self.reward_minimum(lowers, stack[..., p:], self.times[time])
-        return z, lowers[-1], _min_reduce(reward, axis=0), np.logical_or.reduce(collided, axis=0)
+        stack = np.empty((S, self.M, index.shape[0], 2 * p))
+        propagate(z, index, self.kernel, stack)
+        if self.kernel_params is not None:
+            rewards = np.empty(stack.shape[1:3])
+            collided = np.empty(stack.shape[1:3], dtype=bool)
+            self.stack_rewards(stack, time, self.kernel_params, rewards, collided)
+            return stack, rewards, collided
+        reward, collided = self.reward_minimum(-stack[..., :p], stack[..., p:], self.times[time])
+        return stack, np.minimum.reduce(reward, axis=0), np.logical_or.reduce(collided, axis=0)
 
 
 class _LinkedGroup:
@@ -354,25 +274,60 @@ class _LinkedGroup:
     def expand(self, state: BoxState, actions):
         if state is self._key_state and actions is self._key_actions:
             return self._result
-        if type(state) is not BoxState:
-            raise InputError(f"state must be a BoxState (see IntervalModel.initial_state), got {type(state).__name__}")
         core = self.core
+        root = self._state_z(state)
         index = self.actions(actions)
-        n = len(core.bank) if index is None else len(index)
-        z, lower, rewards, collided = core.propagate(core.state_z(state), state.time, index)
-        # z, rewards and collided have full shape (M, n, .): the per-action drift broadcasts them
+        stack, rewards, collided = core.propagate(root, state.time, index)
+        z = stack[-1]  # (M, n, 2p)
         z.flags.writeable = False
         upper = z[..., core.p:]
+        lower = -z[..., :core.p]
         lower.flags.writeable = False
         time = state.time + core.substeps
         batch = BoxState._from_batch
         if core.M == 1:
-            next_states = [batch(lower, upper, z, (0, i), time) for i in range(n)]
+            next_states = [batch(lower, upper, z, (0, i), time) for i in range(len(index))]
         else:
-            next_states = [batch(lower, upper, z, (slice(None), i), time) for i in range(n)]
+            next_states = [batch(lower, upper, z, (slice(None), i), time) for i in range(len(index))]
         self._key_state, self._key_actions = state, actions
         self._result = (next_states, rewards, collided)
         return self._result
+
+    def _state_z(self, state) -> np.ndarray:
+        if type(state) is not BoxState:
+            raise InputError(f"state must be a BoxState (see IntervalModel.initial_state), got {type(state).__name__}")
+        return self.core.state_z(state)
+
+    # ------------------------------------------- the planner's compiled engine
+    @property
+    def compiled(self) -> bool:
+        """Whether the reward has a compiled box minimum, so the compiled search can run."""
+        return self.core.kernel_params is not None
+
+    def search_inputs(self, state, actions) -> tuple:
+        """``(root boxes (M, 2p), time, action indices, kernel, reward params, substeps)`` for `run_search`."""
+        core = self.core
+        root = self._state_z(state)
+        if root.shape[0] != core.M:
+            root = np.repeat(root, core.M, axis=0)
+        return root, state.time, self.actions(actions), core.kernel, core.kernel_params, core.substeps
+
+    def node_states(self, z: np.ndarray, depth: list, time: int) -> list:
+        """The joint state of each node ``i >= 1`` of a compiled search (``z`` (nodes, M, 2p), owned).
+
+        The same objects, up to identity, that `expand` creates on the Python engine:
+        ``lower``, ``upper`` and ``z`` views of one batch, a (M, 2p) box per node (2p,
+        for M = 1), at sub-step ``time + depth * substeps``.
+        """
+        core = self.core
+        z.flags.writeable = False
+        lower = -z[..., :core.p]
+        lower.flags.writeable = False
+        upper = z[..., core.p:]
+        batch, S = BoxState._from_batch, core.substeps
+        if core.M == 1:
+            return [None] + [batch(lower, upper, z, (i, 0), time + depth[i] * S) for i in range(1, z.shape[0])]
+        return [None] + [batch(lower, upper, z, (i,), time + depth[i] * S) for i in range(1, z.shape[0])]
 
 
 class IntervalModel:
@@ -399,7 +354,7 @@ class IntervalModel:
 
     Notes
     -----
-    Per sub-step, for every action at once (one batched product), the box is
+    Per sub-step, for every action and hypothesis (one compiled call), the box is
     propagated by the interval predictor of the closed loop. Writing the controller as
     ``u = sat(v)``, ``v = c_a - K_a x`` (`ControllerBank`), and ``sat(v) = v + s(v)``:
 
@@ -423,7 +378,7 @@ class IntervalModel:
     because the closed-loop matrices differ per action and the reward reads the
     boxes in plant coordinates at every sub-step.
 
-    The batched arithmetic computes, per action and hypothesis, the same one-step box
+    The compiled arithmetic computes, per action and hypothesis, the same one-step box
     as `IntervalPredictor.step` (its vertex-wise exact bound), in round-to-nearest:
     it skips the predictor's outward rounding, so inclusion holds up to
     `minimaxplan.models.prediction.ROUNDING_TOL` relative (the tolerance DESIGN.md
@@ -468,7 +423,7 @@ class IntervalModel:
         reward_minimum = _check_reward(reward, p)
         substeps = _check_substeps(substeps)
         bank = ControllerBank(controllers, p, q)
-        group = _LinkedGroup(_IntervalCore(resolved, reward_minimum, bank, substeps))
+        group = _LinkedGroup(_IntervalCore(resolved, reward, reward_minimum, bank, substeps))
         models = []
         for m, (system, parameters) in enumerate(resolved):
             model = cls.__new__(cls)
@@ -565,21 +520,19 @@ class IntervalModel:
         seq = list(actions)
         self._group.actions(seq)
         core, m = self._group.core, self.member
-        z = np.broadcast_to(core.state_z(state), (core.M, 1, 2 * core.p))
-        p = core.p
-        lowers, uppers = [-z[m, 0, :p]], [z[m, 0, p:]]
+        z = core.state_z(state)
+        p, S = core.p, self.substeps
+        row = z[m if z.shape[0] > 1 else 0]
+        lowers, uppers = [-row[:p]], [row[p:]]
         rewards = np.empty(len(seq))
         terminals = np.zeros(len(seq), dtype=bool)
         time = state.time
         for n, action in enumerate(seq):
-            index = np.array([int(action)])
-            worst, hit = 1.0, False
-            for s in range(1, self.substeps + 1):
-                z = core.substep(z, index)
-                r, c = core.reward_minimum(-z[..., :p], z[..., p:], time + s)
-                worst, hit = min(worst, float(r[m, 0])), hit or bool(c[m, 0])
-                lowers.append(-z[m, 0, :p])
-                uppers.append(z[m, 0, p:])
-            rewards[n], terminals[n] = worst, hit
-            time += self.substeps
+            stack, reward, collided = core.propagate(z, time, np.array([int(action)], dtype=np.int64))
+            for s in range(S):
+                lowers.append(-stack[s, m, 0, :p])
+                uppers.append(stack[s, m, 0, p:])
+            rewards[n], terminals[n] = reward[m, 0], collided[m, 0]
+            z = np.ascontiguousarray(stack[-1, :, 0])
+            time += S
         return np.array(lowers), np.array(uppers), rewards, terminals

@@ -32,6 +32,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..models.errors import DimensionError, InputError, NonFiniteError, RewardRangeError
+from .compiled_search import SearchArrays, search_kernel
 from .decision import Decision
 from .tree import SearchTree
 
@@ -146,6 +147,19 @@ def _joint_expand(models: list):
     return group.expand
 
 
+def _compiled_group(models: list, joint):
+    """The linked group whose search can run compiled (see `compiled_search`), or None."""
+    if joint is None:
+        return None
+    group = models[0]._joint[0]
+    if getattr(group, "compiled", False) and callable(getattr(group, "search_inputs", None)):
+        return group
+    return None
+
+
+ENGINES = ("auto", "compiled", "python")
+
+
 def _describe(out) -> str:
     if isinstance(out, tuple):
         return f"a tuple of length {len(out)}"
@@ -206,6 +220,15 @@ class RobustTreePlanner:
         has no effect: every tie (equal b-values, equal lower bounds) is broken
         deterministically by action path, so the search is a deterministic function
         of the models and the state.
+    engine
+        ``"auto"`` (default), ``"compiled"`` or ``"python"``. The compiled engine
+        (`minimaxplan.planners.compiled_search`, numba) runs the whole search when the
+        models are one `IntervalModel.linked` group (or a single `IntervalModel`)
+        whose reward has a compiled box minimum (``kernel_params``, as the
+        `minimaxplan.scenarios` families do), and every model starts from the same
+        state; ``"auto"`` uses it then and the Python engine otherwise, ``"compiled"``
+        raises `InputError` when it cannot run. Both engines build the same tree bit
+        for bit; `engine_used` says which one ran last.
 
     Notes
     -----
@@ -231,7 +254,8 @@ class RobustTreePlanner:
     regret of the chosen first action is at most ``U_root - L_root``.
     """
 
-    def __init__(self, models: Sequence, actions: Sequence, *, gamma: float, budget: int, seed: int = 0) -> None:
+    def __init__(self, models: Sequence, actions: Sequence, *, gamma: float, budget: int, seed: int = 0,
+                 engine: str = "auto") -> None:
         try:
             models = list(models)
         except TypeError:
@@ -253,7 +277,30 @@ class RobustTreePlanner:
         self._joint = _joint_expand(models)
         self._rewards = np.zeros((len(actions), len(models)))
         self._new_terminal = np.zeros((len(actions), len(models)), dtype=bool)
-        self.tree: SearchTree | None = None
+        if engine not in ENGINES:
+            raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
+        self.engine = engine
+        self._compiled = None if engine == "python" else _compiled_group(self.models, self._joint)
+        if engine == "compiled" and self._compiled is None:
+            raise InputError(
+                "engine='compiled' needs the models of one IntervalModel.linked group, in member order, "
+                "whose reward has a compiled box minimum (kernel_params)"
+            )
+        self.engine_used: str | None = None
+        self._arrays: SearchArrays | None = None
+        self._tree: SearchTree | None = None
+        self._compiled_result = None
+
+    @property
+    def tree(self) -> SearchTree | None:
+        """The search tree of the last `plan` call (None before the first).
+
+        After a compiled search the tree is copied out of the engine's arrays on first
+        access.
+        """
+        if self._tree is None and self._compiled_result is not None:
+            self._tree = self._materialise(*self._compiled_result)
+        return self._tree
 
     @property
     def n_models(self) -> int:
@@ -293,9 +340,15 @@ class RobustTreePlanner:
                 )
         else:
             states = [state] * n_models
+        self._tree = self._compiled_result = None
+        if self._compiled is not None and all(s is states[0] for s in states):
+            return self._plan_compiled(states[0])
+        if self.engine == "compiled":
+            raise InputError("engine='compiled' needs one initial state shared by every model")
+        self.engine_used = "python"
         tree = SearchTree(n_models, len(self.actions), self.gamma, max_nodes=1 + self.budget * len(self.actions))
         tree.add_root(states)
-        self.tree = tree
+        self._tree = tree
         solved = self._search(tree)
         return self._decision(tree, solved)
 
@@ -372,10 +425,73 @@ class RobustTreePlanner:
     def _reward_error(self, rewards: np.ndarray) -> None:
         bad = ~((rewards >= 0.0) & (rewards <= 1.0))
         a, m = (int(i) for i in np.argwhere(bad)[0])
+        self._raise_reward_error(a, m, float(rewards[a, m]))
+
+    def _raise_reward_error(self, a: int, m: int, value: float) -> None:
         raise RewardRangeError(
-            f"models[{m}] returned reward {float(rewards[a, m])!r} for action {self.actions[a]!r} "
+            f"models[{m}] returned reward {value!r} for action {self.actions[a]!r} "
             f"(index {a}); rewards must be finite and in [0, 1]"
         )
+
+    # ---------------------------------------------------------- compiled engine
+    def _plan_compiled(self, state) -> Decision:
+        """`plan` on the compiled engine: same tree, same `Decision` (see `compiled_search`)."""
+        group = self._compiled
+        root, time, index, kernel, params, substeps = group.search_inputs(state, self.actions)
+        n_actions, n_models = len(self.actions), self.n_models
+        max_nodes = 1 + self.budget * n_actions
+        if self._arrays is None:
+            self._arrays = SearchArrays(max_nodes, n_models, n_actions, root.shape[1], substeps, self.budget)
+            self._discounts = np.array([self.gamma ** d for d in range(self.budget + 2)])
+        arrays = self._arrays
+        self.engine_used = "compiled"
+        size, n_expanded, solved, max_depth, bad_action, bad_model = search_kernel(type(params))(
+            self.budget, self.gamma, self._discounts, root, time, index, substeps, kernel, params,
+            arrays.z, arrays.returns, arrays.terminal, arrays.parent, arrays.action, arrays.depth,
+            arrays.first_child, arrays.leaf_lower, arrays.leaf_upper, arrays.lower, arrays.upper,
+            arrays.any_terminated, arrays.expanded, arrays.heap, arrays.stack, arrays.rewards, arrays.collided,
+            arrays.error,
+        )
+        if bad_action >= 0:
+            self._raise_reward_error(int(bad_action), int(bad_model), float(arrays.error[0]))
+        self._compiled_result = (state, time, size, n_expanded, max_depth)
+        first_child, lower = arrays.first_child, arrays.lower
+        first = int(first_child[0])
+        path, node = [], 0
+        while first_child[node] >= 0:
+            start = int(first_child[node])
+            a = int(np.argmax(lower[start:start + n_actions]))
+            path.append(a)
+            node = start + a
+        return Decision(
+            action=self.actions[path[0]],
+            action_index=path[0],
+            lower=float(lower[0]),
+            upper=float(arrays.upper[0]),
+            expansions=int(n_expanded),
+            depth=int(max_depth),
+            sequence=tuple(self.actions[a] for a in path),
+            sequence_indices=tuple(path),
+            action_lower=tuple(lower[first:first + n_actions].tolist()),
+            action_upper=tuple(arrays.upper[first:first + n_actions].tolist()),
+            nodes=int(size),
+            solved=bool(solved),
+        )
+
+    def _materialise(self, root_state, time: int, size: int, n_expanded: int, max_depth: int) -> SearchTree:
+        """The `SearchTree` of the last compiled search, with the states the Python engine would hold."""
+        arrays = self._arrays
+        depth = arrays.depth[:size].tolist()
+        joint = self._compiled.node_states(arrays.z[:size].copy(), depth, time)
+        parent, terminal = arrays.parent[:size].tolist(), arrays.terminal
+        states = []
+        for m in range(self.n_models):
+            # a terminated model keeps its terminal state on the rest of the branch
+            column = [root_state] + [None] * (size - 1)
+            for i in range(1, size):
+                column[i] = column[parent[i]] if terminal[parent[i], m] else joint[i]
+            states.append(column)
+        return SearchTree.from_arrays(arrays, size, n_expanded, max_depth, self.gamma, 1 + self.budget * len(self.actions), states)
 
     def _decision(self, tree: SearchTree, solved: bool) -> Decision:
         n_actions = len(self.actions)
@@ -409,7 +525,7 @@ class OptimisticPlanner(RobustTreePlanner):
     model
         One model following the transition protocol (``step``, optionally
         ``expand``); rewards in [0, 1].
-    actions, gamma, budget
+    actions, gamma, budget, engine
         As for `RobustTreePlanner`.
 
     Notes
@@ -421,8 +537,8 @@ class OptimisticPlanner(RobustTreePlanner):
     ``O(K^(-log(1/gamma) / log kappa))`` (Lemma 1, eq. (13)).
     """
 
-    def __init__(self, model: Any, actions: Sequence, *, gamma: float, budget: int) -> None:
-        super().__init__([model], actions, gamma=gamma, budget=budget)
+    def __init__(self, model: Any, actions: Sequence, *, gamma: float, budget: int, engine: str = "auto") -> None:
+        super().__init__([model], actions, gamma=gamma, budget=budget, engine=engine)
 
     @property
     def model(self) -> Any:

@@ -111,6 +111,38 @@ class SearchTree:
         self.any_terminated: list[bool] = []
         self._discounts: list[float] = [1.0]
 
+    @classmethod
+    def from_arrays(cls, arrays, size: int, n_expanded: int, max_depth: int, gamma: float, max_nodes: int,
+                    states: list[list]) -> "SearchTree":
+        """The tree a compiled search left in ``arrays`` (`compiled_search.SearchArrays`), as this class stores it.
+
+        Copies the first ``size`` rows; ranks, frontier and discounts are recomputed
+        from the structure, so the result equals the tree the Python engine builds.
+        """
+        n_models, n_actions = arrays.returns.shape[1], arrays.stack.shape[2]
+        tree = cls(n_models, n_actions, gamma, max_nodes)
+        tree.size, tree.max_depth = size, max_depth
+        tree.returns = arrays.returns[:size].copy()
+        tree.terminal = arrays.terminal[:size].copy()
+        for name in ("parent", "action", "depth", "first_child", "leaf_lower", "leaf_upper", "lower", "upper",
+                     "any_terminated"):
+            setattr(tree, name, getattr(arrays, name)[:size].tolist())
+        tree.expanded = arrays.expanded[:n_expanded].tolist()
+        tree.states = states
+        while tree.rank_digits < max_depth:
+            tree.rank_digits *= 2
+        weights = tree._digit_weights = tree._weights(tree.rank_digits)
+        rank = [0] * size
+        for i in range(1, size):
+            rank[i] = rank[tree.parent[i]] + tree.action[i] * weights[tree.depth[i]]
+        tree.rank = rank
+        tree._frontier = [(-tree.leaf_upper[i], rank[i], i) for i in range(size) if tree.first_child[i] < 0]
+        heapq.heapify(tree._frontier)
+        tree._discounts = [1.0]
+        while len(tree._discounts) <= max_depth:
+            tree._discounts.append(gamma ** len(tree._discounts))
+        return tree
+
     # ------------------------------------------------------------------ building
     def add_root(self, states) -> None:
         """Create the root (depth 0, zero returns, nothing terminated)."""

@@ -9,7 +9,10 @@ minimum of J over a box that contains the true state). Each family here gives
 * ``box_minimum(lower, upper, t) -> (reward, collided)``: the EXACT minimum over the
   box, vectorised over leading dimensions, and ``box_argmin`` a point of the box that
   attains it (for tests and diagnostics);
-* ``box_minimum_raw``: the same without argument checks, for a planner's hot path.
+* ``box_minimum_raw``: the same without argument checks;
+* ``kernel_params``: the same minimum for compiled code (the planner's compiled
+  engine), implemented in `minimaxplan.scenarios.compiled_rewards` with the same
+  floating-point operations (tested bit for bit against ``box_minimum_raw``).
 
 ``t`` is the absolute sub-step index (moving obstacles' predicted boxes depend on
 it); a scalar or an array broadcasting against the leading dimensions.
@@ -37,6 +40,7 @@ import numpy as np
 from minimaxplan.models._validation import as_finite_array, as_positive_scalar, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError
 
+from .compiled_rewards import GoalParams, SpeedLaneParams, collision_params
 from .geometry import CircularObstacles, MovingObstacles, box_point_sq_distance
 
 __all__ = ["GoalReward", "SpeedLaneReward"]
@@ -330,6 +334,7 @@ class GoalReward(_RewardBase):
         object.__setattr__(self, "moving_obstacles", collision.moving)
         object.__setattr__(self, "robot_radius", collision.robot_radius)
         object.__setattr__(self, "position_indices", collision.position_indices)
+        object.__setattr__(self, "kernel_params", GoalParams(collision_params(collision), self.goal))
 
     def _used_indices(self):
         return self.position_indices
@@ -461,6 +466,12 @@ class SpeedLaneReward(_RewardBase):
         object.__setattr__(self, "robot_radius", collision.robot_radius)
         object.__setattr__(self, "position_indices", collision.position_indices)
         object.__setattr__(self, "_speed_sel", _selector(speed))
+        params = SpeedLaneParams(
+            collision_params(collision), np.array(speed, dtype=np.int64),
+            -1 if self.lateral_index is None else self.lateral_index, self.target_speed, self.speed_range,
+            c1, c2, self.lane_width, float(self.n_lanes),
+        )
+        object.__setattr__(self, "kernel_params", params)
 
     def _used_indices(self):
         extra = () if self.lateral_index is None else (self.lateral_index,)

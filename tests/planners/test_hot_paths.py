@@ -1,7 +1,10 @@
 """The planner's fast paths give the same numbers as the general ones, bit for bit.
 
-- linked `IntervalModel`s: one joint transition per expansion vs the per-model protocol;
+- linked `IntervalModel`s: one joint transition per expansion vs the per-model protocol
+  (both on the Python engine);
 - the rewards' bounding-box pre-check of static obstacles: a batch of boxes vs each box alone.
+
+The compiled engine against the Python engine: tests/planners/test_compiled_engine.py.
 """
 
 import numpy as np
@@ -45,7 +48,7 @@ def test_linked_models_joint_path_equals_per_model_protocol(seed, with_moving, s
     hypotheses = [(system, None), (random_system(rng, p=4, q=system.ninputs), None)]
     reward = random_goal_reward(rng, with_moving)
     models = IntervalModel.linked(hypotheses, reward, controllers, substeps=substeps)
-    planner = RobustTreePlanner(models, models[0].actions, gamma=0.85, budget=25)
+    planner = RobustTreePlanner(models, models[0].actions, gamma=0.85, budget=25, engine="python")
     assert planner._joint is not None  # the fast path is taken
     centre = rng.uniform(-3, 3, 4)
     root = models[0].initial_state(centre - 0.1, centre + 0.1, time=int(rng.integers(0, 5)))
@@ -53,6 +56,7 @@ def test_linked_models_joint_path_equals_per_model_protocol(seed, with_moving, s
     fast_tree = tree_arrays(planner)
     planner._joint = None  # the per-model protocol
     general = planner.plan(root)
+    assert planner.engine_used == "python"
     assert fast == general
     assert fast_tree == tree_arrays(planner)
 

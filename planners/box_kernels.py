@@ -1,0 +1,216 @@
+"""Compiled (numba) interval arithmetic of `IntervalModel` and the compiled-reward protocol.
+
+The one implementation of the box transition: `IntervalModel.expand` and `rollout`
+call `propagate`, and the compiled search (`minimaxplan.planners.compiled_search`)
+calls the same functions, so both engines compute the same boxes bit for bit.
+
+A box is stored as ``z = [-lower | upper]`` (2p,). For a fixed matrix ``M`` the exact
+box of ``{M x : lower <= x <= upper}`` is ``Z(M) z`` with ``Z(M) = [[M+, M-], [M-,
+M+]]`` (``M+ = max(M, 0)``, ``M- = max(-M, 0)``), and the box over k vertex matrices is
+the elementwise max of the k products. Each sum is accumulated in index order without
+fast-math reassociation (numba's default), so results do not depend on the machine's
+BLAS; like `IntervalModel` before it, this arithmetic does not round outward
+(inclusion holds up to `minimaxplan.models.prediction.ROUNDING_TOL` relative).
+
+Compiled rewards
+----------------
+A reward family offers its exact box minimum to compiled code by exposing
+``kernel_params``: a namedtuple of arrays and floats, for which the family registers
+an implementation of `box_reward_minimum` with ``numba.extending.overload``
+(``minimaxplan.scenarios.compiled_rewards`` does so for `GoalReward` and
+`SpeedLaneReward`). The planner never imports the family: it passes the params object
+through, and numba picks the implementation from its type.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import pathlib
+import sys
+
+import numpy as np
+from numba import njit
+
+__all__ = ["box_reward_minimum", "propagate", "stack_rewards_kernel", "transposed_blocks"]
+
+
+def box_reward_minimum(params, z, p, t):
+    """The exact minimum of a reward over the box ``z = [-lower | upper]`` (2p,) at sub-step t.
+
+    Returns ``(reward, collided)``. Compiled code only: a reward family registers an
+    implementation for the type of its ``kernel_params`` (see the module docstring).
+    """
+    raise NotImplementedError(
+        f"no compiled box minimum is registered for reward parameters of type {type(params).__name__}"
+    )
+
+
+def transposed_blocks(z_matrices: np.ndarray) -> np.ndarray:
+    """Z-form matrices (..., 2n, 2m) as the row blocks the kernels read: (..., 2m, 2n), contiguous."""
+    return np.ascontiguousarray(np.swapaxes(z_matrices, -1, -2))
+
+
+@njit(cache=True, inline="always")
+def _maximum(a, b):
+    """``np.maximum`` of two floats (NaN propagates)."""
+    return a if (a >= b or a != a) else b
+
+
+@njit(cache=True, inline="always")
+def _minimum(a, b):
+    """``np.minimum`` of two floats (NaN propagates)."""
+    return a if (a <= b or a != a) else b
+
+
+@njit(cache=True)
+def _vertex_bound(z, blocks, out):
+    """``out[j] = max_v sum_i blocks[v, j, i] z[i]``: the box over k vertex matrices (blocks (k, 2p, 2p))."""
+    n = z.shape[0]
+    for j in range(n):
+        out[j] = -np.inf
+    for v in range(blocks.shape[0]):
+        for j in range(n):
+            total = 0.0
+            for i in range(n):
+                total += blocks[v, j, i] * z[i]
+            out[j] = _maximum(out[j], total)
+
+
+@njit(cache=True)
+def _product(rows, vector, out):
+    """``out = rows @ vector`` (rows (n, m)), summed in index order."""
+    for j in range(rows.shape[0]):
+        total = 0.0
+        for i in range(rows.shape[1]):
+            total += rows[j, i] * vector[i]
+        out[j] = total
+
+
+@njit(cache=True)
+def substep(z, m, a, core, out, scratch):
+    """One sub-step of hypothesis m's box ``z`` under controller a, written to ``out`` (2p,).
+
+    ``core`` is `IntervalModel`'s precomputed tuple ``(closed, opened, drift, w, gains,
+    inputs, offsets, low, high, per_action, saturating)``:
+
+    - ``closed`` (M, A or 1, k, 2p, 2p): Z-form rows of the closed-loop vertex matrices
+      ``A(v) - B_m K_a`` (one action slot when no controller has feedback);
+    - ``opened`` (M, k, 2p, 2p): the open-loop vertex matrices ``A(v)``;
+    - ``drift`` (M, A, 2p): ``B_m c_a`` plus the disturbance box ``D w``, z-form;
+    - ``w`` (M, 2p): the disturbance box alone; ``gains`` (A, 2q, 2p) and ``inputs``
+      (M, 2p, 2q): Z-form rows of ``K_a`` and ``B_m``;
+    - ``offsets``, ``low``, ``high`` (A, q): ``u = clip(c_a - K_a x, low_a, high_a)``.
+
+    Without saturation: ``Z(A(v) - B K) z`` maximised over vertices, plus the drift.
+    With saturation (see `IntervalModel`): that box plus ``B s(v)`` with the
+    saturation correction's interval, intersected with the open-loop box ``A(theta) x
+    + B sat(v) + D w``. ``scratch`` is a (4, max(2p, 2q)) work array.
+    """
+    closed, opened, drift, w, gains, inputs, offsets, low, high, per_action, saturating = core
+    n = z.shape[0]
+    _vertex_bound(z, closed[m, a if per_action else 0], out)
+    for j in range(n):
+        out[j] += drift[m, a, j]
+    if not saturating:
+        return
+    q = offsets.shape[1]
+    kx = scratch[0, : 2 * q]
+    _product(gains[a], z, kx)  # [-(K x)_lo | (K x)_hi] over the box
+    correction = scratch[1, : 2 * q]
+    applied = scratch[2, : 2 * q]
+    for r in range(q):
+        v_lo = offsets[a, r] - kx[q + r]
+        v_hi = offsets[a, r] + kx[r]
+        u_lo = _minimum(_maximum(v_lo, low[a, r]), high[a, r])
+        u_hi = _minimum(_maximum(v_hi, low[a, r]), high[a, r])
+        # s(v) = sat(v) - v is nonincreasing: s in [u_hi - v_hi, u_lo - v_lo]; u in [u_lo, u_hi]
+        correction[r] = v_hi - u_hi
+        correction[q + r] = u_lo - v_lo
+        applied[r] = -u_lo
+        applied[q + r] = u_hi
+    through = scratch[3, :n]
+    _product(inputs[m], correction, through)
+    for j in range(n):
+        out[j] += through[j]
+    open_box = scratch[0, :n]  # kx is no longer needed
+    _vertex_bound(z, opened[m], open_box)
+    _product(inputs[m], applied, through)
+    for j in range(n):
+        out[j] = _minimum(out[j], open_box[j] + w[m, j] + through[j])
+
+
+@njit(cache=True)
+def propagate(z0, actions, core, stack):
+    """Every sub-step of every (hypothesis, action) from the boxes ``z0`` into ``stack``.
+
+    ``z0`` (R, 2p) holds one box per hypothesis (R = M) or one shared box (R = 1);
+    ``actions`` (n,) are controller indices; ``stack`` (S, M, n, 2p) receives the box
+    after each sub-step s.
+    """
+    n_sub, n_models, n_actions, n = stack.shape
+    width = max(n, 2 * core[6].shape[1])
+    scratch = np.empty((4, width))
+    for m in range(n_models):
+        start = z0[m if z0.shape[0] > 1 else 0]
+        for i in range(n_actions):
+            source = start
+            for s in range(n_sub):
+                substep(source, m, actions[i], core, stack[s, m, i], scratch)
+                source = stack[s, m, i]
+
+
+def sources_digest(*files: str) -> int:
+    """A 63-bit digest of source files, for the cache key of compiled code that calls into them.
+
+    numba's on-disk cache checks only the source file of the compiled function
+    itself. A kernel compiled through a factory that closes over this digest is
+    re-compiled whenever one of ``files`` changes (numba hashes a cached closure's
+    cell contents into the cache key).
+    """
+    digest = hashlib.sha256()
+    for file in files:
+        digest.update(pathlib.Path(file).read_bytes())
+    return int.from_bytes(digest.digest()[:8], "little") >> 1
+
+
+def reward_sources(params_type: type) -> list[str]:
+    """The source files a compiled reward call depends on: this module and the reward's module."""
+    return [__file__, sys.modules[params_type.__module__].__file__]
+
+
+@njit
+def pessimistic_rewards(stack, time, params, rewards, collided):
+    """Pessimistic rewards of the boxes of `propagate`: the minimum over the sub-steps.
+
+    ``rewards[m, i] = min_s box_reward_minimum(stack[s, m, i], time + s + 1)`` (0 at a
+    sub-step whose box may collide), ``collided[m, i]`` whether any sub-step's box may.
+    Not cached itself (it calls the reward family's overload): callers cache it
+    through a factory keyed by `sources_digest`, as `stack_rewards_kernel` does.
+    """
+    n_sub, n_models, n_actions, n = stack.shape
+    p = n // 2
+    for m in range(n_models):
+        for i in range(n_actions):
+            worst = 0.0
+            hit = False
+            for s in range(n_sub):
+                value, collides = box_reward_minimum(params, stack[s, m, i], p, float(time + s + 1))
+                if collides:
+                    value = 0.0
+                    hit = True
+                worst = value if s == 0 else _minimum(worst, value)
+            rewards[m, i] = worst
+            collided[m, i] = hit
+
+
+@functools.lru_cache(maxsize=None)
+def stack_rewards_kernel(params_type: type):
+    """`pessimistic_rewards`, compiled and cached for rewards whose ``kernel_params`` have type ``params_type``."""
+    version = sources_digest(*reward_sources(params_type))
+
+    def stack_rewards(stack, time, params, rewards, collided):
+        _ = version  # ties numba's cache entry to the sources it calls into
+        pessimistic_rewards(stack, time, params, rewards, collided)
+
+    return njit(cache=True)(stack_rewards)
