@@ -18,6 +18,11 @@ call (the same numbers `expand` returns per model).
 After a terminal transition a model is never stepped again on that branch: its
 later rewards are 0 and its state stays the terminal state.
 
+Two engines run this search: the Python one below, for every model of the protocol,
+and a compiled one (`minimaxplan.planners.compiled_search`) for linked `IntervalModel`s
+whose reward has a compiled box minimum. They build the same tree bit for bit; the
+``engine`` argument of `RobustTreePlanner` chooses, ``engine_used`` reports.
+
 States are opaque to the planner and never copied: one state object may be shared
 by several tree nodes (below a terminal transition) and, when `plan` gets one
 initial state, by every model. Models must return new states, never modify a
