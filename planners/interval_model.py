@@ -190,8 +190,6 @@ class _IntervalCore:
     def __init__(self, members, reward, reward_minimum, bank: ControllerBank, substeps: int) -> None:
         self.reward_minimum = reward_minimum
         self.kernel_params = getattr(reward, "kernel_params", None)
-        if self.kernel_params is not None:
-            self.stack_rewards = stack_rewards_kernel(type(self.kernel_params))
         self.bank = bank
         self.substeps = substeps
         self.times = _SubstepTimes(substeps)
@@ -248,7 +246,8 @@ class _IntervalCore:
         if self.kernel_params is not None:
             rewards = np.empty(stack.shape[1:3])
             collided = np.empty(stack.shape[1:3], dtype=bool)
-            self.stack_rewards(stack, time, self.kernel_params, rewards, collided)
+            # looked up per call (a cached dict lookup), so that models stay picklable
+            stack_rewards_kernel(type(self.kernel_params))(stack, time, self.kernel_params, rewards, collided)
             return stack, rewards, collided
         reward, collided = self.reward_minimum(-stack[..., :p], stack[..., p:], self.times[time])
         return stack, np.minimum.reduce(reward, axis=0), np.logical_or.reduce(collided, axis=0)

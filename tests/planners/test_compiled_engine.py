@@ -204,3 +204,18 @@ def test_sources_digest_follows_file_contents(tmp_path):
     assert sources_digest(str(source)) == before and 0 <= before < 2**63
     source.write_text("x = 2\n")
     assert sources_digest(str(source)) != before
+
+
+def test_a_pickled_planner_plans_alike_in_another_process_state():
+    """Experiments ship planners to worker processes: the compiled engine's pieces must pickle."""
+    import pickle
+
+    rng = np.random.default_rng(5)
+    system = random_system(rng, p=4)
+    centre = rng.uniform(-3, 3, 4)
+    models = IntervalModel.linked([(system, None)] * 2, random_reward(rng, "speed_2", centre[:2]), random_controllers(rng, system))
+    planner = RobustTreePlanner(models, models[0].actions, gamma=0.9, budget=20)
+    root = models[0].initial_state(centre - 0.05, centre + 0.05)
+    decision = planner.plan(root)
+    clone = pickle.loads(pickle.dumps(planner))
+    assert clone.plan(pickle.loads(pickle.dumps(root))) == decision and clone.engine_used == "compiled"
