@@ -323,6 +323,9 @@ class IntervalPredictor:
             B_error, D_error = _gamma(p) * abs_inv @ np.abs(system.B), _gamma(p) * abs_inv @ np.abs(system.D)
             abs_matrices = np.max(np.abs(matrices), axis=0)
         self.vertex_matrices = frozen_copy(matrices)
+        #: Elementwise bound on |vertex_matrices[v] - (the exact matrix they round)|, one for all v
+        #: (forming A(v), and the basis change when there is one).
+        self.vertex_matrix_error = frozen_copy(matrix_error)
         k = matrices.shape[0]
         stacked = matrices.reshape(k * p, p)
         positive, negative = np.maximum(stacked, 0.0), np.maximum(-stacked, 0.0)

@@ -9,8 +9,9 @@ box of ``{M x : lower <= x <= upper}`` is ``Z(M) z`` with ``Z(M) = [[M+, M-], [M
 M+]]`` (``M+ = max(M, 0)``, ``M- = max(-M, 0)``), and the box over k vertex matrices is
 the elementwise max of the k products. Each sum is accumulated in index order without
 fast-math reassociation (numba's default), so results do not depend on the machine's
-BLAS; like `IntervalModel` before it, this arithmetic does not round outward
-(inclusion holds up to `minimaxplan.models.prediction.ROUNDING_TOL` relative).
+BLAS. Every bound is then moved outward by a rigorous bound on its rounding error
+(precomputed rows applied to the box's magnitudes, see `IntervalModel`), so the boxes
+contain the exact reachable sets, not just up to a tolerance.
 
 Compiled rewards
 ----------------
@@ -88,11 +89,29 @@ def _product(rows, vector, out):
 
 
 @njit(cache=True)
+def _magnitudes(z, mag):
+    """``mag[i] = max(|lower_i|, |upper_i|)``, a bound on |x_i| over the box (NaN propagates)."""
+    p = mag.shape[0]
+    for i in range(p):
+        mag[i] = _maximum(abs(z[i]), abs(z[p + i]))
+
+
+@njit(cache=True)
+def _error(rows, mag, constant, j):
+    """``constant + sum_i rows[j, i] mag[i]``: a rounding-error bound (rows and constant include their safety factor)."""
+    total = constant
+    for i in range(mag.shape[0]):
+        total += rows[j, i] * mag[i]
+    return total
+
+
+@njit(cache=True)
 def substep(z, m, a, core, out, scratch):
-    """One sub-step of hypothesis m's box ``z`` under controller a, written to ``out`` (2p,).
+    """One sub-step of hypothesis m's box ``z`` under controller a, written to ``out`` (2p,), rounded outward.
 
     ``core`` is `IntervalModel`'s precomputed tuple ``(closed, opened, drift, w, gains,
-    inputs, offsets, low, high, per_action, saturating)``:
+    inputs, offsets, low, high, per_action, saturating, closed_error, drift_error,
+    opened_error, w_error, gain_error, offset_error, input_error, tiny)``:
 
     - ``closed`` (M, A or 1, k, 2p, 2p): Z-form rows of the closed-loop vertex matrices
       ``A(v) - B_m K_a`` (one action slot when no controller has feedback);
@@ -100,18 +119,31 @@ def substep(z, m, a, core, out, scratch):
     - ``drift`` (M, A, 2p): ``B_m c_a`` plus the disturbance box ``D w``, z-form;
     - ``w`` (M, 2p): the disturbance box alone; ``gains`` (A, 2q, 2p) and ``inputs``
       (M, 2p, 2q): Z-form rows of ``K_a`` and ``B_m``;
-    - ``offsets``, ``low``, ``high`` (A, q): ``u = clip(c_a - K_a x, low_a, high_a)``.
+    - ``offsets``, ``low``, ``high`` (A, q): ``u = clip(c_a - K_a x, low_a, high_a)``;
+    - the ``*_error`` arrays: rigorous bounds on the rounding of each part, as rows
+      applied to the box's magnitudes (``closed_error`` (M, A or 1, p, p),
+      ``opened_error`` (M, p, p), ``gain_error`` (A, q, p), ``input_error`` (M, p, q))
+      or constants (``drift_error`` (M, A, p), ``w_error`` (M, p), ``offset_error`` (A, q),
+      ``tiny`` for underflow); see `IntervalModel` (Notes) for how they are formed.
 
-    Without saturation: ``Z(A(v) - B K) z`` maximised over vertices, plus the drift.
-    With saturation (see `IntervalModel`): that box plus ``B s(v)`` with the
-    saturation correction's interval, intersected with the open-loop box ``A(theta) x
-    + B sat(v) + D w``. ``scratch`` is a (4, max(2p, 2q)) work array.
+    Without saturation: ``Z(A(v) - B K) z`` maximised over vertices, plus the drift,
+    plus the error bound. With saturation (see `IntervalModel`): that box plus ``B
+    s(v)`` with the saturation correction's interval, intersected with the open-loop
+    box ``A(theta) x + B sat(v) + D w``; the scalar steps of the correction are moved
+    one ulp outward. ``scratch`` is a (5, max(2p, 2q)) work array.
     """
-    closed, opened, drift, w, gains, inputs, offsets, low, high, per_action, saturating = core
+    (closed, opened, drift, w, gains, inputs, offsets, low, high, per_action, saturating,
+     closed_error, drift_error, opened_error, w_error, gain_error, offset_error, input_error, tiny) = core
     n = z.shape[0]
-    _vertex_bound(z, closed[m, a if per_action else 0], out)
-    for j in range(n):
-        out[j] += drift[m, a, j]
+    p = n // 2
+    slot = a if per_action else 0
+    mag = scratch[4, :p]
+    _magnitudes(z, mag)
+    _vertex_bound(z, closed[m, slot], out)
+    for j in range(p):
+        error = _error(closed_error[m, slot], mag, drift_error[m, a, j], j)
+        out[j] += drift[m, a, j] + error
+        out[p + j] += drift[m, a, p + j] + error
     if not saturating:
         return
     q = offsets.shape[1]
@@ -120,24 +152,35 @@ def substep(z, m, a, core, out, scratch):
     correction = scratch[1, : 2 * q]
     applied = scratch[2, : 2 * q]
     for r in range(q):
-        v_lo = offsets[a, r] - kx[q + r]
-        v_hi = offsets[a, r] + kx[r]
+        error = _error(gain_error[a], mag, tiny, r)
+        # v = c - K x over the box, each bound moved outward past its rounding and c's
+        v_lo = np.nextafter(offsets[a, r] - (kx[q + r] + error), -np.inf)
+        v_lo = np.nextafter(v_lo - offset_error[a, r], -np.inf)
+        v_hi = np.nextafter(offsets[a, r] + (kx[r] + error), np.inf)
+        v_hi = np.nextafter(v_hi + offset_error[a, r], np.inf)
         u_lo = _minimum(_maximum(v_lo, low[a, r]), high[a, r])
         u_hi = _minimum(_maximum(v_hi, low[a, r]), high[a, r])
         # s(v) = sat(v) - v is nonincreasing: s in [u_hi - v_hi, u_lo - v_lo]; u in [u_lo, u_hi]
-        correction[r] = v_hi - u_hi
-        correction[q + r] = u_lo - v_lo
+        correction[r] = np.nextafter(v_hi - u_hi, np.inf)
+        correction[q + r] = np.nextafter(u_lo - v_lo, np.inf)
         applied[r] = -u_lo
         applied[q + r] = u_hi
     through = scratch[3, :n]
+    input_mag = scratch[0, :q]  # kx is no longer needed
+    _magnitudes(correction, input_mag)
     _product(inputs[m], correction, through)
-    for j in range(n):
-        out[j] += through[j]
-    open_box = scratch[0, :n]  # kx is no longer needed
+    for j in range(p):
+        error = _error(input_error[m], input_mag, tiny, j)
+        out[j] += through[j] + error
+        out[p + j] += through[p + j] + error
+    open_box = scratch[1, :n]  # the correction is no longer needed
     _vertex_bound(z, opened[m], open_box)
+    _magnitudes(applied, input_mag)
     _product(inputs[m], applied, through)
-    for j in range(n):
-        out[j] = _minimum(out[j], open_box[j] + w[m, j] + through[j])
+    for j in range(p):
+        error = _error(opened_error[m], mag, w_error[m, j], j) + _error(input_error[m], input_mag, tiny, j)
+        out[j] = _minimum(out[j], open_box[j] + w[m, j] + through[j] + error)
+        out[p + j] = _minimum(out[p + j], open_box[p + j] + w[m, p + j] + through[p + j] + error)
 
 
 @njit(cache=True)
@@ -150,7 +193,7 @@ def propagate(z0, actions, core, stack):
     """
     n_sub, n_models, n_actions, n = stack.shape
     width = max(n, 2 * core[6].shape[1])
-    scratch = np.empty((4, width))
+    scratch = np.empty((5, width))
     for m in range(n_models):
         start = z0[m if z0.shape[0] > 1 else 0]
         for i in range(n_actions):
