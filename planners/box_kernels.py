@@ -5,9 +5,9 @@ call `propagate`, and the compiled search (`minimaxplan.planners.compiled_search
 calls the same functions, so both engines compute the same boxes bit for bit.
 
 A box is stored as ``z = [-lower | upper]`` (2p,). For a fixed matrix ``M`` the exact
-box of ``{M x : lower <= x <= upper}`` is ``Z(M) z`` with ``Z(M) = [[M+, M-], [M-,
-M+]]`` (``M+ = max(M, 0)``, ``M- = max(-M, 0)``), and the box over k vertex matrices is
-the elementwise max of the k products. Each sum is accumulated in index order without
+box of ``{M x : lower <= x <= upper}`` is ``z @ Z(M)`` with ``Z(M) = [[M+^T, M-^T],
+[M-^T, M+^T]]`` (``M+ = max(M, 0)``, ``M- = max(-M, 0)``), and the box over k vertex
+matrices is the elementwise max of the k products. Each sum is accumulated in index order without
 fast-math reassociation (numba's default), so results do not depend on the machine's
 BLAS. Every bound is then moved outward by a rigorous bound on its rounding error
 (precomputed rows applied to the box's magnitudes, see `IntervalModel`), so the boxes
@@ -33,7 +33,7 @@ import sys
 import numpy as np
 from numba import njit
 
-__all__ = ["box_reward_minimum", "propagate", "stack_rewards_kernel", "transposed_blocks"]
+__all__ = ["box_reward_minimum", "propagate", "stack_rewards_kernel"]
 
 
 def box_reward_minimum(params, z, p, t):
@@ -45,11 +45,6 @@ def box_reward_minimum(params, z, p, t):
     raise NotImplementedError(
         f"no compiled box minimum is registered for reward parameters of type {type(params).__name__}"
     )
-
-
-def transposed_blocks(z_matrices: np.ndarray) -> np.ndarray:
-    """Z-form matrices (..., 2n, 2m) as the row blocks the kernels read: (..., 2m, 2n), contiguous."""
-    return np.ascontiguousarray(np.swapaxes(z_matrices, -1, -2))
 
 
 @njit(cache=True, inline="always")
@@ -64,31 +59,38 @@ def _minimum(a, b):
     return a if (a <= b or a != a) else b
 
 
-@njit(cache=True)
-def _vertex_bound(z, blocks, out):
-    """``out[j] = max_v sum_i blocks[v, j, i] z[i]``: the box over k vertex matrices (blocks (k, 2p, 2p))."""
+@njit(cache=True, inline="always")
+def _vertex_bound(z, columns, out, total):
+    """``out[j] = max_v sum_i columns[v, i, j] z[i]``: the box over k vertex matrices (columns (k, 2p, 2p)).
+
+    Each sum runs over i in order; the loop over j is innermost, so the 2p sums
+    advance together (vectorisable without reordering any sum). ``total`` is a (2p,)
+    work array.
+    """
     n = z.shape[0]
     for j in range(n):
         out[j] = -np.inf
-    for v in range(blocks.shape[0]):
+    for v in range(columns.shape[0]):
         for j in range(n):
-            total = 0.0
-            for i in range(n):
-                total += blocks[v, j, i] * z[i]
-            out[j] = _maximum(out[j], total)
+            total[j] = 0.0
+        for i in range(n):
+            zi = z[i]
+            for j in range(n):
+                total[j] += columns[v, i, j] * zi
+        for j in range(n):
+            out[j] = _maximum(out[j], total[j])
 
 
-@njit(cache=True)
-def _product(rows, vector, out):
-    """``out = rows @ vector`` (rows (n, m)), summed in index order."""
-    for j in range(rows.shape[0]):
-        total = 0.0
-        for i in range(rows.shape[1]):
-            total += rows[j, i] * vector[i]
-        out[j] = total
+@njit(cache=True, inline="always")
+def _add_products(columns, vector, out):
+    """``out[j] += sum_i columns[i, j] vector[i]``, the sum over i in order."""
+    for i in range(columns.shape[0]):
+        vi = vector[i]
+        for j in range(columns.shape[1]):
+            out[j] += columns[i, j] * vi
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _magnitudes(z, mag):
     """``mag[i] = max(|lower_i|, |upper_i|)``, a bound on |x_i| over the box (NaN propagates)."""
     p = mag.shape[0]
@@ -96,33 +98,25 @@ def _magnitudes(z, mag):
         mag[i] = _maximum(abs(z[i]), abs(z[p + i]))
 
 
-@njit(cache=True)
-def _error(rows, mag, constant, j):
-    """``constant + sum_i rows[j, i] mag[i]``: a rounding-error bound (rows and constant include their safety factor)."""
-    total = constant
-    for i in range(mag.shape[0]):
-        total += rows[j, i] * mag[i]
-    return total
-
-
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def substep(z, m, a, core, out, scratch):
     """One sub-step of hypothesis m's box ``z`` under controller a, written to ``out`` (2p,), rounded outward.
 
     ``core`` is `IntervalModel`'s precomputed tuple ``(closed, opened, drift, w, gains,
     inputs, offsets, low, high, per_action, saturating, closed_error, drift_error,
-    opened_error, w_error, gain_error, offset_error, input_error, tiny)``:
+    opened_error, w_error, gain_error, offset_error, input_error, tiny)``, in the
+    z-form's column layout (``M x`` is ``sum_i column_i x_i``):
 
-    - ``closed`` (M, A or 1, k, 2p, 2p): Z-form rows of the closed-loop vertex matrices
-      ``A(v) - B_m K_a`` (one action slot when no controller has feedback);
+    - ``closed`` (M, A or 1, k, 2p, 2p): Z-form columns of the closed-loop vertex
+      matrices ``A(v) - B_m K_a`` (one action slot when no controller has feedback);
     - ``opened`` (M, k, 2p, 2p): the open-loop vertex matrices ``A(v)``;
     - ``drift`` (M, A, 2p): ``B_m c_a`` plus the disturbance box ``D w``, z-form;
-    - ``w`` (M, 2p): the disturbance box alone; ``gains`` (A, 2q, 2p) and ``inputs``
-      (M, 2p, 2q): Z-form rows of ``K_a`` and ``B_m``;
+    - ``w`` (M, 2p): the disturbance box alone; ``gains`` (A, 2p, 2q) and ``inputs``
+      (M, 2q, 2p): Z-form columns of ``K_a`` and ``B_m``;
     - ``offsets``, ``low``, ``high`` (A, q): ``u = clip(c_a - K_a x, low_a, high_a)``;
-    - the ``*_error`` arrays: rigorous bounds on the rounding of each part, as rows
+    - the ``*_error`` arrays: rigorous bounds on the rounding of each part, as columns
       applied to the box's magnitudes (``closed_error`` (M, A or 1, p, p),
-      ``opened_error`` (M, p, p), ``gain_error`` (A, q, p), ``input_error`` (M, p, q))
+      ``opened_error`` (M, p, p), ``gain_error`` (A, p, q), ``input_error`` (M, q, p))
       or constants (``drift_error`` (M, A, p), ``w_error`` (M, p), ``offset_error`` (A, q),
       ``tiny`` for underflow); see `IntervalModel` (Notes) for how they are formed.
 
@@ -130,33 +124,54 @@ def substep(z, m, a, core, out, scratch):
     plus the error bound. With saturation (see `IntervalModel`): that box plus ``B
     s(v)`` with the saturation correction's interval, intersected with the open-loop
     box ``A(theta) x + B sat(v) + D w``; the scalar steps of the correction are moved
-    one ulp outward. ``scratch`` is a (5, max(2p, 2q)) work array.
+    one ulp outward. ``scratch`` is a (11, max(2p, 2q)) work array.
     """
+    n = z.shape[0]
+    error = scratch[6, : n // 2]
+    _linear_part(z, m, a if core[9] else 0, core, out, error, scratch)
+    _finish(z, m, a, core, out, error, scratch)
+
+
+@njit(cache=True, inline="always")
+def _linear_part(z, m, slot, core, out, error, scratch):
+    """``out = max_v Z(M_v) z`` for the closed loop's vertex matrices, ``error`` its rounding bound before the drift."""
+    closed, closed_error = core[0], core[11]
+    p = z.shape[0] // 2
+    mag, total = scratch[4, :p], scratch[5, : 2 * p]
+    _magnitudes(z, mag)
+    _vertex_bound(z, closed[m, slot], out, total)
+    error[:] = 0.0
+    _add_products(closed_error[m, slot], mag, error)
+
+
+@njit(cache=True, inline="always")
+def _finish(z, m, a, core, out, error, scratch):
+    """The rest of `substep` after `_linear_part`: the drift, the bounds, the saturation path (``error`` is read only)."""
     (closed, opened, drift, w, gains, inputs, offsets, low, high, per_action, saturating,
      closed_error, drift_error, opened_error, w_error, gain_error, offset_error, input_error, tiny) = core
     n = z.shape[0]
     p = n // 2
-    slot = a if per_action else 0
-    mag = scratch[4, :p]
-    _magnitudes(z, mag)
-    _vertex_bound(z, closed[m, slot], out)
     for j in range(p):
-        error = _error(closed_error[m, slot], mag, drift_error[m, a, j], j)
-        out[j] += drift[m, a, j] + error
-        out[p + j] += drift[m, a, p + j] + error
+        bound = error[j] + drift_error[m, a, j]
+        out[j] += drift[m, a, j] + bound
+        out[p + j] += drift[m, a, p + j] + bound
     if not saturating:
         return
     q = offsets.shape[1]
+    mag = scratch[4, :p]  # the box's magnitudes, from _linear_part
     kx = scratch[0, : 2 * q]
-    _product(gains[a], z, kx)  # [-(K x)_lo | (K x)_hi] over the box
+    kx[:] = 0.0
+    _add_products(gains[a], z, kx)  # [-(K x)_lo | (K x)_hi] over the box
+    gain_rounding = scratch[7, :q]
+    gain_rounding[:] = tiny
+    _add_products(gain_error[a], mag, gain_rounding)
     correction = scratch[1, : 2 * q]
     applied = scratch[2, : 2 * q]
     for r in range(q):
-        error = _error(gain_error[a], mag, tiny, r)
         # v = c - K x over the box, each bound moved outward past its rounding and c's
-        v_lo = np.nextafter(offsets[a, r] - (kx[q + r] + error), -np.inf)
+        v_lo = np.nextafter(offsets[a, r] - (kx[q + r] + gain_rounding[r]), -np.inf)
         v_lo = np.nextafter(v_lo - offset_error[a, r], -np.inf)
-        v_hi = np.nextafter(offsets[a, r] + (kx[r] + error), np.inf)
+        v_hi = np.nextafter(offsets[a, r] + (kx[r] + gain_rounding[r]), np.inf)
         v_hi = np.nextafter(v_hi + offset_error[a, r], np.inf)
         u_lo = _minimum(_maximum(v_lo, low[a, r]), high[a, r])
         u_hi = _minimum(_maximum(v_hi, low[a, r]), high[a, r])
@@ -168,19 +183,26 @@ def substep(z, m, a, core, out, scratch):
     through = scratch[3, :n]
     input_mag = scratch[0, :q]  # kx is no longer needed
     _magnitudes(correction, input_mag)
-    _product(inputs[m], correction, through)
+    through[:] = 0.0
+    _add_products(inputs[m], correction, through)
+    input_rounding = scratch[8, :p]
+    input_rounding[:] = tiny
+    _add_products(input_error[m], input_mag, input_rounding)
     for j in range(p):
-        error = _error(input_error[m], input_mag, tiny, j)
-        out[j] += through[j] + error
-        out[p + j] += through[p + j] + error
+        out[j] += through[j] + input_rounding[j]
+        out[p + j] += through[p + j] + input_rounding[j]
     open_box = scratch[1, :n]  # the correction is no longer needed
-    _vertex_bound(z, opened[m], open_box)
+    _vertex_bound(z, opened[m], open_box, scratch[5, :n])
     _magnitudes(applied, input_mag)
-    _product(inputs[m], applied, through)
+    through[:] = 0.0
+    _add_products(inputs[m], applied, through)
+    open_rounding = scratch[8, :p]
+    open_rounding[:] = w_error[m]
+    _add_products(opened_error[m], mag, open_rounding)
+    _add_products(input_error[m], input_mag, open_rounding)
     for j in range(p):
-        error = _error(opened_error[m], mag, w_error[m, j], j) + _error(input_error[m], input_mag, tiny, j)
-        out[j] = _minimum(out[j], open_box[j] + w[m, j] + through[j] + error)
-        out[p + j] = _minimum(out[p + j], open_box[p + j] + w[m, p + j] + through[p + j] + error)
+        out[j] = _minimum(out[j], open_box[j] + w[m, j] + through[j] + open_rounding[j])
+        out[p + j] = _minimum(out[p + j], open_box[p + j] + w[m, p + j] + through[p + j] + open_rounding[j])
 
 
 @njit(cache=True)
@@ -193,13 +215,26 @@ def propagate(z0, actions, core, stack):
     """
     n_sub, n_models, n_actions, n = stack.shape
     width = max(n, 2 * core[6].shape[1])
-    scratch = np.empty((5, width))
+    scratch = np.empty((11, width))
+    # Open loop without saturation: the first sub-step's product is the same for every action
+    shared = not core[9] and not core[10]
+    base, base_error = scratch[9, :n], scratch[10, : n // 2]
     for m in range(n_models):
         start = z0[m if z0.shape[0] > 1 else 0]
+        if shared:
+            _linear_part(start, m, 0, core, base, base_error, scratch)
         for i in range(n_actions):
+            a = actions[i]
             source = start
-            for s in range(n_sub):
-                substep(source, m, actions[i], core, stack[s, m, i], scratch)
+            first = 0
+            if shared:
+                out = stack[0, m, i]
+                out[:] = base
+                _finish(start, m, a, core, out, base_error, scratch)
+                source = out
+                first = 1
+            for s in range(first, n_sub):
+                substep(source, m, a, core, stack[s, m, i], scratch)
                 source = stack[s, m, i]
 
 

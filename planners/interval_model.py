@@ -28,7 +28,7 @@ from ..models.errors import DimensionError, EmptySetError, InputError
 from ..models.prediction import IntervalPredictor, _gamma, interval_matvec
 from ..models.sets import Box
 from ..models.system import UncertainLinearSystem
-from .box_kernels import propagate, stack_rewards_kernel, transposed_blocks
+from .box_kernels import propagate, stack_rewards_kernel
 from .controllers import ControllerBank, LinearFeedback
 
 __all__ = ["BoxState", "IntervalModel"]
@@ -173,9 +173,9 @@ def _z_matrix(matrices: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate([top, bottom], axis=-2))
 
 
-def _rows(matrices: np.ndarray) -> np.ndarray:
-    """The Z-form of matrices (..., m, n) as the compiled kernels read it: (..., 2m, 2n), writable, contiguous."""
-    return np.array(transposed_blocks(_z_matrix(matrices)), dtype=float)
+def _columns(matrices: np.ndarray) -> np.ndarray:
+    """`_z_matrix` as the compiled kernels read it: (..., 2n, 2m) for matrices (..., m, n), writable, contiguous."""
+    return np.array(_z_matrix(matrices), dtype=float)
 
 
 def _rounding_errors(systems, predictors, vertices, B, bank: ControllerBank, closed_abs, drift_z, w_z) -> tuple:
@@ -219,15 +219,22 @@ def _rounding_errors(systems, predictors, vertices, B, bank: ControllerBank, clo
     ) + tiny
     gain_error = safety * g * abs_K
     input_error = safety * g * abs_B
-    return tuple(np.ascontiguousarray(x, dtype=float) for x in (
-        closed_error, drift_error, opened_error, w_error, gain_error, offset_error, input_error,
-    )) + (float(tiny),)
+    def columns(rows):  # the kernels apply row-indexed bounds by columns
+        return np.ascontiguousarray(np.swapaxes(rows, -1, -2), dtype=float)
+
+    def constant(values):
+        return np.ascontiguousarray(values, dtype=float)
+
+    return (
+        columns(closed_error), constant(drift_error), columns(opened_error), constant(w_error), columns(gain_error),
+        constant(offset_error), columns(input_error), float(tiny),
+    )
 
 
 class _IntervalCore:
     """The arithmetic of one or several hypotheses under every controller.
 
-    Precomputes, per hypothesis m and action a, the Z-form rows that
+    Precomputes, per hypothesis m and action a, the Z-form columns that
     `minimaxplan.planners.box_kernels.substep` reads (``kernel``); `propagate` runs
     the compiled transition of every (hypothesis, action) pair and evaluates the
     pessimistic rewards, compiled when the reward family offers ``kernel_params``.
@@ -253,11 +260,11 @@ class _IntervalCore:
         B = np.stack([system.B for system in systems])  # (M, p, q)
         self.k = k
         per_action = bank.has_feedback
-        opened = _rows(vertices)  # (M, k, 2p, 2p)
+        opened = _columns(vertices)  # (M, k, 2p, 2p)
         if per_action:
             feedback = np.einsum("mpq,aqr->mapr", B, bank.gains)  # B_m K_a
             closed_matrices = vertices[:, None] - feedback[:, :, None]  # (M, A, k, p, p)
-            closed = _rows(closed_matrices)  # (M, A, k, 2p, 2p)
+            closed = _columns(closed_matrices)  # (M, A, k, 2p, 2p)
             closed_abs = np.max(np.abs(closed_matrices), axis=2)
         else:
             closed = np.ascontiguousarray(opened[:, None])  # (M, 1, k, 2p, 2p)
@@ -271,7 +278,7 @@ class _IntervalCore:
         plain = [np.array(a, dtype=float) for a in (bank.offsets, bank.low, bank.high)]
         errors = _rounding_errors(systems, predictors, vertices, B, bank, closed_abs, drift_z, w_z)
         self.kernel = (
-            closed, opened, drift_z, w_z, _rows(bank.gains), _rows(B), *plain, bool(per_action), bool(bank.saturating),
+            closed, opened, drift_z, w_z, _columns(bank.gains), _columns(B), *plain, bool(per_action), bool(bank.saturating),
             *errors,
         )
 
