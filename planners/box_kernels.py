@@ -26,6 +26,7 @@ through, and numba picks the implementation from its type.
 from __future__ import annotations
 
 import functools
+import math
 import hashlib
 import pathlib
 import sys
@@ -98,7 +99,7 @@ def _magnitudes(z, mag):
         mag[i] = _maximum(abs(z[i]), abs(z[p + i]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def substep(z, m, a, core, out, scratch):
     """One sub-step of hypothesis m's box ``z`` under controller a, written to ``out`` (2p,), rounded outward.
 
@@ -169,15 +170,15 @@ def _finish(z, m, a, core, out, error, scratch):
     applied = scratch[2, : 2 * q]
     for r in range(q):
         # v = c - K x over the box, each bound moved outward past its rounding and c's
-        v_lo = np.nextafter(offsets[a, r] - (kx[q + r] + gain_rounding[r]), -np.inf)
-        v_lo = np.nextafter(v_lo - offset_error[a, r], -np.inf)
-        v_hi = np.nextafter(offsets[a, r] + (kx[r] + gain_rounding[r]), np.inf)
-        v_hi = np.nextafter(v_hi + offset_error[a, r], np.inf)
+        v_lo = math.nextafter(offsets[a, r] - (kx[q + r] + gain_rounding[r]), -math.inf)
+        v_lo = math.nextafter(v_lo - offset_error[a, r], -math.inf)
+        v_hi = math.nextafter(offsets[a, r] + (kx[r] + gain_rounding[r]), math.inf)
+        v_hi = math.nextafter(v_hi + offset_error[a, r], math.inf)
         u_lo = _minimum(_maximum(v_lo, low[a, r]), high[a, r])
         u_hi = _minimum(_maximum(v_hi, low[a, r]), high[a, r])
         # s(v) = sat(v) - v is nonincreasing: s in [u_hi - v_hi, u_lo - v_lo]; u in [u_lo, u_hi]
-        correction[r] = np.nextafter(v_hi - u_hi, np.inf)
-        correction[q + r] = np.nextafter(u_lo - v_lo, np.inf)
+        correction[r] = math.nextafter(v_hi - u_hi, math.inf)
+        correction[q + r] = math.nextafter(u_lo - v_lo, math.inf)
         applied[r] = -u_lo
         applied[q + r] = u_hi
     through = scratch[3, :n]

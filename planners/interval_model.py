@@ -136,8 +136,7 @@ class _ActionIndex:
             raise InputError(f"actions must be controller indices (integers), got {actions!r}") from None
         if any(i != a for i, a in zip(index, actions)) or any(not 0 <= i < self.n for i in index):
             raise InputError(f"actions must be controller indices in [0, {self.n}), got {list(actions)!r}")
-        value = np.array(index, dtype=np.int64)
-        value.setflags(write=False)
+        value = np.array(index, dtype=np.int64)  # writable, like every array the kernels get (one compiled signature)
         if isinstance(actions, tuple):
             self._key, self._value = actions, value
         return value
@@ -283,13 +282,13 @@ class _IntervalCore:
         )
 
     def state_z(self, state: BoxState) -> np.ndarray:
-        """The boxes of a state as z of shape (M or 1, 2p), contiguous."""
+        """The boxes of a state as z of shape (M or 1, 2p): a writable contiguous copy (one compiled signature)."""
         z = state.z
         if z.ndim == 1:
-            return np.ascontiguousarray(z[None, :])
+            return np.array(z[None, :], dtype=float)
         if z.shape[0] != self.M:
             raise DimensionError(f"state holds {z.shape[0]} boxes, expected {self.M} (one per linked hypothesis)")
-        return np.ascontiguousarray(z)
+        return np.array(z, dtype=float)
 
     def propagate(self, z, time, index):
         """All sub-steps of one decision from boxes z (M or 1, 2p) under the actions ``index`` (int64 (n,)).
