@@ -30,11 +30,20 @@ import math
 import hashlib
 import pathlib
 import sys
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
-__all__ = ["box_reward_minimum", "propagate", "stack_rewards_kernel"]
+__all__ = ["IntervalKernel", "box_reward_minimum", "propagate", "stack_rewards_kernel"]
+
+
+IntervalKernel = namedtuple(
+    "IntervalKernel",
+    ["closed", "opened", "drift", "w", "gains", "inputs", "offsets", "low", "high", "per_action", "saturating",
+     "closed_error", "drift_error", "opened_error", "w_error", "gain_error", "offset_error", "input_error", "tiny"],
+)
+IntervalKernel.__doc__ = """The precomputed arrays of `substep` (built by `IntervalModel`; see `substep` for each field)."""
 
 
 def box_reward_minimum(params, z, p, t):
@@ -103,10 +112,8 @@ def _magnitudes(z, mag):
 def substep(z, m, a, core, out, scratch):
     """One sub-step of hypothesis m's box ``z`` under controller a, written to ``out`` (2p,), rounded outward.
 
-    ``core`` is `IntervalModel`'s precomputed tuple ``(closed, opened, drift, w, gains,
-    inputs, offsets, low, high, per_action, saturating, closed_error, drift_error,
-    opened_error, w_error, gain_error, offset_error, input_error, tiny)``, in the
-    z-form's column layout (``M x`` is ``sum_i column_i x_i``):
+    ``core`` is the `IntervalKernel` that `IntervalModel` precomputes, in the z-form's
+    column layout (``M x`` is ``sum_i column_i x_i``):
 
     - ``closed`` (M, A or 1, k, 2p, 2p): Z-form columns of the closed-loop vertex
       matrices ``A(v) - B_m K_a`` (one action slot when no controller has feedback);
@@ -129,14 +136,14 @@ def substep(z, m, a, core, out, scratch):
     """
     n = z.shape[0]
     error = scratch[6, : n // 2]
-    _linear_part(z, m, a if core[9] else 0, core, out, error, scratch)
+    _linear_part(z, m, a if core.per_action else 0, core, out, error, scratch)
     _finish(z, m, a, core, out, error, scratch)
 
 
 @njit(cache=True, inline="always")
 def _linear_part(z, m, slot, core, out, error, scratch):
     """``out = max_v Z(M_v) z`` for the closed loop's vertex matrices, ``error`` its rounding bound before the drift."""
-    closed, closed_error = core[0], core[11]
+    closed, closed_error = core.closed, core.closed_error
     p = z.shape[0] // 2
     mag, total = scratch[4, :p], scratch[5, : 2 * p]
     _magnitudes(z, mag)
@@ -215,10 +222,10 @@ def propagate(z0, actions, core, stack):
     after each sub-step s.
     """
     n_sub, n_models, n_actions, n = stack.shape
-    width = max(n, 2 * core[6].shape[1])
+    width = max(n, 2 * core.offsets.shape[1])
     scratch = np.empty((11, width))
     # Open loop without saturation: the first sub-step's product is the same for every action
-    shared = not core[9] and not core[10]
+    shared = not core.per_action and not core.saturating
     base, base_error = scratch[9, :n], scratch[10, : n // 2]
     for m in range(n_models):
         start = z0[m if z0.shape[0] > 1 else 0]

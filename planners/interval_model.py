@@ -28,7 +28,7 @@ from ..models.errors import DimensionError, EmptySetError, InputError
 from ..models.prediction import IntervalPredictor, _gamma, interval_matvec
 from ..models.sets import Box
 from ..models.system import UncertainLinearSystem
-from .box_kernels import propagate, stack_rewards_kernel
+from .box_kernels import IntervalKernel, propagate, stack_rewards_kernel
 from .controllers import ControllerBank, LinearFeedback
 
 __all__ = ["BoxState", "IntervalModel"]
@@ -276,7 +276,7 @@ class _IntervalCore:
         drift_z = np.concatenate([-drift, drift], axis=-1) + w_z[:, None]  # (M, A, 2p)
         plain = [np.array(a, dtype=float) for a in (bank.offsets, bank.low, bank.high)]
         errors = _rounding_errors(systems, predictors, vertices, B, bank, closed_abs, drift_z, w_z)
-        self.kernel = (
+        self.kernel = IntervalKernel(
             closed, opened, drift_z, w_z, _columns(bank.gains), _columns(B), *plain, bool(per_action), bool(bank.saturating),
             *errors,
         )

@@ -219,3 +219,18 @@ def test_a_pickled_planner_plans_alike_in_another_process_state():
     decision = planner.plan(root)
     clone = pickle.loads(pickle.dumps(planner))
     assert clone.plan(pickle.loads(pickle.dumps(root))) == decision and clone.engine_used == "compiled"
+
+
+def test_compiled_kernels_are_keyed_by_the_sources_they_call():
+    """numba's disk cache tracks only a function's own file: the kernels close over a digest of their callees'."""
+    from minimaxplan.planners import box_kernels, compiled_search
+    from minimaxplan.scenarios import compiled_rewards
+
+    def closure_values(dispatcher):
+        return [cell.cell_contents for cell in dispatcher.py_func.__closure__ or ()]
+
+    for params_type in (compiled_rewards.GoalParams, compiled_rewards.SpeedLaneParams):
+        rewards = stack_rewards_kernel(params_type)
+        search = compiled_search.search_kernel(params_type)
+        assert sources_digest(box_kernels.__file__, compiled_rewards.__file__) in closure_values(rewards)
+        assert sources_digest(compiled_search.__file__, box_kernels.__file__, compiled_rewards.__file__) in closure_values(search)
