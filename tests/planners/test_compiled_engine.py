@@ -67,10 +67,10 @@ def test_compiled_engine_builds_the_python_engines_tree(seed, n_models, substeps
     reward = random_reward(rng, kind, centre[:2])
     models = IntervalModel.linked(hypotheses, reward, random_controllers(rng, system), substeps=substeps)
     root = models[0].initial_state(centre - 0.05, centre + 0.05, time=int(rng.integers(0, 5)))
-    (fast, general), (fast_tree, general_tree), (tree, _) = both_engines(models, root, gamma, budget)
+    (fast, general), (fast_tree, general_tree), (tree, python_tree) = both_engines(models, root, gamma, budget)
     assert fast == general
     assert fast_tree == general_tree
-    assert tree.rank == _.rank and sorted(tree._frontier) == sorted(_._frontier)
+    assert tree.rank == python_tree.rank and sorted(tree._frontier) == sorted(python_tree._frontier)
 
 
 def test_compiled_engine_covers_collisions_and_terminated_models():
