@@ -7,11 +7,12 @@ calls the same functions, so both engines compute the same boxes bit for bit.
 A box is stored as ``z = [-lower | upper]`` (2p,). For a fixed matrix ``M`` the exact
 box of ``{M x : lower <= x <= upper}`` is ``z @ Z(M)`` with ``Z(M) = [[M+^T, M-^T],
 [M-^T, M+^T]]`` (``M+ = max(M, 0)``, ``M- = max(-M, 0)``), and the box over k vertex
-matrices is the elementwise max of the k products. Each sum is accumulated in index order without
-fast-math reassociation (numba's default), so results do not depend on the machine's
-BLAS. Every bound is then moved outward by a rigorous bound on its rounding error
-(precomputed rows applied to the box's magnitudes, see `IntervalModel`), so the boxes
-contain the exact reachable sets, not just up to a tolerance.
+matrices is the elementwise max of the k products. Each sum is accumulated in index
+order without fast-math reassociation (numba's default), so results do not depend on
+the machine's BLAS. Every bound is then moved outward by a rigorous bound on its
+rounding error (precomputed columns applied to the box's magnitudes, see
+`IntervalModel`), so the boxes contain the exact reachable sets, not just up to a
+tolerance.
 
 Compiled rewards
 ----------------
@@ -26,8 +27,8 @@ through, and numba picks the implementation from its type.
 from __future__ import annotations
 
 import functools
-import math
 import hashlib
+import math
 import pathlib
 import sys
 from collections import namedtuple
