@@ -157,33 +157,29 @@ class _PrecomputedMember:
         return self.group.states, self.group.rewards[self.member], self.group.terminals[self.member]
 
 
-def linked_search_alone(rng, n_models=4, n_actions=4):
-    """Median CPU time (ms) of `RobustTreePlanner.plan` on linked models whose joint transition costs nothing."""
+def _search_cpu_ms(models, n_actions):
+    """Median CPU time (ms) of `RobustTreePlanner.plan` (Python engine) on models whose transitions cost nothing."""
     from minimaxplan.planners import RobustTreePlanner
 
-    group = _PrecomputedGroup(rng, n_models, n_actions)
-    planner = RobustTreePlanner([_PrecomputedMember(group, m) for m in range(n_models)], range(n_actions), gamma=GAMMA, budget=BUDGET)
+    planner = RobustTreePlanner(models, range(n_actions), gamma=GAMMA, budget=BUDGET)
     times = []
     for _ in range(OUR_REPEATS * N_ROOTS):
         started = time.process_time()
         decision = planner.plan(None)
         times.append(time.process_time() - started)
-    assert decision.expansions == BUDGET
+    assert decision.expansions == BUDGET and planner.engine_used == "python"
     return statistics.median(times) * 1e3
+
+
+def linked_search_alone(rng, n_models=4, n_actions=4):
+    """The search's bookkeeping with one joint transition per expansion (the path of linked models)."""
+    group = _PrecomputedGroup(rng, n_models, n_actions)
+    return _search_cpu_ms([_PrecomputedMember(group, m) for m in range(n_models)], n_actions)
 
 
 def tree_search_alone(rng, n_models=4, n_actions=4):
-    """Median CPU time (ms) of `RobustTreePlanner.plan` with transitions that cost nothing."""
-    from minimaxplan.planners import RobustTreePlanner
-
-    planner = RobustTreePlanner([_PrecomputedModel(rng, n_actions) for _ in range(n_models)], range(n_actions), gamma=GAMMA, budget=BUDGET)
-    times = []
-    for _ in range(OUR_REPEATS * N_ROOTS):
-        started = time.process_time()
-        decision = planner.plan(None)
-        times.append(time.process_time() - started)
-    assert decision.expansions == BUDGET
-    return statistics.median(times) * 1e3
+    """The search's bookkeeping through the per-model protocol."""
+    return _search_cpu_ms([_PrecomputedModel(rng, n_actions) for _ in range(n_models)], n_actions)
 
 
 def measure(substeps, rng):

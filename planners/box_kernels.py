@@ -18,7 +18,8 @@ Compiled rewards
 ----------------
 A reward family offers its exact box minimum to compiled code by exposing
 ``kernel_params``: a namedtuple of arrays and floats, for which the family registers
-an implementation of `box_reward_minimum` with ``numba.extending.overload``
+an implementation of `box_reward_minimum` with ``numba.extending.overload`` and
+declares the type with `register_reward_params`
 (``minimaxplan.scenarios.compiled_rewards`` does so for `GoalReward` and
 `SpeedLaneReward`). The planner never imports the family: it passes the params object
 through, and numba picks the implementation from its type.
@@ -36,7 +37,10 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-__all__ = ["IntervalKernel", "box_reward_minimum", "propagate", "stack_rewards_kernel"]
+__all__ = [
+    "IntervalKernel", "box_reward_minimum", "has_compiled_minimum", "propagate", "register_reward_params",
+    "stack_rewards_kernel",
+]
 
 
 IntervalKernel = namedtuple(
@@ -45,6 +49,20 @@ IntervalKernel = namedtuple(
      "closed_error", "drift_error", "opened_error", "w_error", "gain_error", "offset_error", "input_error", "tiny"],
 )
 IntervalKernel.__doc__ = """The precomputed arrays of `substep` (built by `IntervalModel`; see `substep` for each field)."""
+
+
+_REWARD_PARAMS_TYPES: set = set()
+
+
+def register_reward_params(params_type: type) -> type:
+    """Declare that ``params_type`` has an implementation of `box_reward_minimum` (returns the type)."""
+    _REWARD_PARAMS_TYPES.add(params_type)
+    return params_type
+
+
+def has_compiled_minimum(params) -> bool:
+    """Whether ``params``'s type was registered with `register_reward_params`."""
+    return type(params) in _REWARD_PARAMS_TYPES
 
 
 def box_reward_minimum(params, z, p, t):

@@ -28,7 +28,7 @@ from ..models.errors import DimensionError, EmptySetError, InputError
 from ..models.prediction import IntervalPredictor, _gamma, interval_matvec
 from ..models.sets import Box
 from ..models.system import UncertainLinearSystem
-from .box_kernels import IntervalKernel, propagate, stack_rewards_kernel
+from .box_kernels import IntervalKernel, has_compiled_minimum, propagate, stack_rewards_kernel
 from .controllers import ControllerBank, LinearFeedback
 
 __all__ = ["BoxState", "IntervalModel"]
@@ -242,6 +242,12 @@ class _IntervalCore:
     def __init__(self, members, reward, reward_minimum, bank: ControllerBank, substeps: int) -> None:
         self.reward_minimum = reward_minimum
         self.kernel_params = getattr(reward, "kernel_params", None)
+        if self.kernel_params is not None and not has_compiled_minimum(self.kernel_params):
+            raise InputError(
+                f"reward.kernel_params has type {type(self.kernel_params).__name__}, for which no compiled box minimum "
+                "is registered (see minimaxplan.planners.box_kernels.register_reward_params); use None for a reward "
+                "without a compiled form"
+            )
         self.bank = bank
         self.substeps = substeps
         self.times = _SubstepTimes(substeps)

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from minimaxplan.planners.box_kernels import _maximum, _minimum, box_reward_minimum
+from minimaxplan.planners.box_kernels import _maximum, _minimum, box_reward_minimum, register_reward_params
 
 __all__ = ["CollisionParams", "GoalParams", "SpeedLaneParams", "collision_params"]
 
@@ -128,3 +128,7 @@ def _speed_lane_box_minimum(params, z, p, t):
         return reward, False
 
     return implementation
+
+
+register_reward_params(GoalParams)
+register_reward_params(SpeedLaneParams)

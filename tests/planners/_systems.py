@@ -112,3 +112,19 @@ def run_baseline_episode(planner, start, goal, centers, radii, theta, seed):
         world.apply_held(planner.plan(world.measure(), scene))
         path.append(world.state[:2].copy())
     return world, np.array(path)
+
+
+def robot_system(dt=0.1):
+    """The paper's robot (double integrator with anisotropic friction), friction prior [0.2, 0.8]^2."""
+    A = np.zeros((4, 4))
+    A[0, 2] = A[1, 3] = 1.0
+    phi = np.zeros((2, 4, 4))
+    phi[0, 2, 2] = phi[1, 3, 3] = -1.0
+    B = np.zeros((4, 2))
+    B[2, 0] = B[3, 1] = 1.0
+    return UncertainLinearSystem.from_continuous(
+        A, phi, B, D=B.copy(), w=Box([-0.1, -0.1], [0.1, 0.1]), theta=Box([0.2, 0.2], [0.8, 0.8]), dt=dt
+    )
+
+
+ROBOT_ACTIONS = [OpenLoop(u) for u in ([-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0])]

@@ -234,3 +234,40 @@ def test_compiled_kernels_are_keyed_by_the_sources_they_call():
         search = compiled_search.search_kernel(params_type)
         assert sources_digest(box_kernels.__file__, compiled_rewards.__file__) in closure_values(rewards)
         assert sources_digest(compiled_search.__file__, box_kernels.__file__, compiled_rewards.__file__) in closure_values(search)
+
+
+@given(seeds, st.integers(1, 3), st.sampled_from(REWARD_KINDS))
+def test_compiled_bounds_are_monotone_and_trees_nest_as_the_budget_grows(seed, n_models, kind):
+    """Theorem 3 on the compiled engine itself: the tree after K expansions is a prefix of the one after K + 1."""
+    rng = np.random.default_rng(seed)
+    system = random_system(rng, p=4)
+    hypotheses = [(system, None)] + [(random_system(rng, p=4, q=system.ninputs), None) for _ in range(n_models - 1)]
+    centre = rng.uniform(-3, 3, 4)
+    models = IntervalModel.linked(hypotheses, random_reward(rng, kind, centre[:2]), random_controllers(rng, system))
+    root = models[0].initial_state(centre - 0.05, centre + 0.05)
+    previous = None
+    for budget in range(1, 16):
+        planner = RobustTreePlanner(models, models[0].actions, gamma=0.85, budget=budget, engine="compiled")
+        decision = planner.plan(root)
+        tree = planner.tree
+        assert decision.lower <= decision.upper
+        if previous is not None:
+            old_decision, old_tree = previous
+            assert decision.lower >= old_decision.lower and decision.upper <= old_decision.upper
+            n = old_tree.size
+            assert tree.parent[:n] == old_tree.parent and tree.expanded[: len(old_tree.expanded)] == old_tree.expanded
+            assert np.array_equal(tree.returns[:n], old_tree.returns[:n])
+        previous = decision, tree
+
+
+def test_kernel_params_without_a_registered_minimum_are_rejected():
+    from collections import namedtuple
+
+    rng = np.random.default_rng(2)
+    system = random_system(rng, p=4)
+
+    class Unregistered(_NumpyReward):
+        kernel_params = namedtuple("SomethingElse", ["goal"])(np.zeros(2))
+
+    with pytest.raises(InputError, match="reward.kernel_params has type SomethingElse, for which no compiled box minimum"):
+        IntervalModel(system, None, Unregistered(GoalReward([0.0, 0.0])), [OpenLoop(np.zeros(system.ninputs))])

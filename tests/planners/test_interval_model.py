@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from minimaxplan.models import Box, UncertainLinearSystem
+from minimaxplan.models import Box
 from minimaxplan.models.errors import DimensionError, EmptySetError, InputError
 from minimaxplan.models.prediction import IntervalPredictor
 from minimaxplan.planners import OptimisticPlanner, RobustTreePlanner
@@ -24,6 +24,7 @@ from minimaxplan.scenarios.geometry import CircularObstacles
 from minimaxplan.scenarios.rewards import GoalReward
 
 from . import _systems as systems
+from ._systems import ROBOT_ACTIONS, robot_system
 
 seeds = st.integers(0, 2**31 - 1)
 
@@ -38,19 +39,6 @@ class UnboundedReward:
         return self.inner.box_minimum(lower, upper, t)
 
 
-def robot_system(dt=0.1):
-    A = np.zeros((4, 4))
-    A[0, 2] = A[1, 3] = 1.0
-    phi = np.zeros((2, 4, 4))
-    phi[0, 2, 2] = phi[1, 3, 3] = -1.0
-    B = np.zeros((4, 2))
-    B[2, 0] = B[3, 1] = 1.0
-    return UncertainLinearSystem.from_continuous(
-        A, phi, B, D=B.copy(), w=Box([-0.1, -0.1], [0.1, 0.1]), theta=Box([0.2, 0.2], [0.8, 0.8]), dt=dt
-    )
-
-
-ROBOT_ACTIONS = [OpenLoop(u) for u in ([-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0])]
 
 
 # ------------------------------------------------------------------ inclusion

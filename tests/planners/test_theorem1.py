@@ -171,19 +171,8 @@ def test_multi_model_guarantee_holds_for_the_true_hypothesis(seed, substeps):
 def test_robot_example_is_not_vacuous():
     """A robot among obstacles: the guarantee is positive and the true return exceeds it."""
     rng = np.random.default_rng(11)
-    A = np.zeros((4, 4))
-    A[0, 2] = A[1, 3] = 1.0
-    phi = np.zeros((2, 4, 4))
-    phi[0, 2, 2] = phi[1, 3, 3] = -1.0
-    B = np.zeros((4, 2))
-    B[2, 0] = B[3, 1] = 1.0
-    from minimaxplan.models import UncertainLinearSystem
-    from minimaxplan.planners.controllers import OpenLoop
-
-    system = UncertainLinearSystem.from_continuous(
-        A, phi, B, D=B.copy(), w=Box([-0.1, -0.1], [0.1, 0.1]), theta=Box([0.2, 0.2], [0.8, 0.8]), dt=0.1
-    )
-    controllers = [OpenLoop(u) for u in ([-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0])]
+    system = systems.robot_system()
+    controllers = systems.ROBOT_ACTIONS
     obstacles = CircularObstacles([[1.5, 1.0], [0.5, 2.0], [2.5, 2.5]], [0.4, 0.3, 0.5])
     moving = MovingObstacles([[3.0, 0.0]], [[-0.5, 0.5]], [0.3], velocity_uncertainty=0.2, dt=0.1)
     reward = GoalReward([4.0, 4.0], obstacles=obstacles, moving_obstacles=moving, robot_radius=0.3)
