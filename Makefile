@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP_BASE  := $(VENV)/.installed-dev
 STAMP_BENCH := $(VENV)/.installed-bench
 
-.PHONY: demo test bench clean
+.PHONY: demo test lint bench clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +26,12 @@ demo: $(STAMP_BASE)
 
 test: $(STAMP_BASE)
 	$(PY) -m pytest -n 2 -q
+
+# ruff (lint rules and formatting) and mypy on the package; .ci/run runs it before the tests.
+lint: $(STAMP_BASE)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+	$(VENV)/bin/mypy
 
 bench: $(STAMP_BENCH)
 	$(PY) benchmarks/run_all.py
