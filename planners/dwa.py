@@ -16,7 +16,7 @@ is checked by holding it for one decision period and then braking at full power.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -45,11 +45,12 @@ class NavigationScene:
     """
 
     goal: np.ndarray
-    obstacle_centers: np.ndarray | None = None
-    obstacle_radii: np.ndarray | None = None
-    pedestrian_positions: np.ndarray | None = None
-    pedestrian_velocities: np.ndarray | None = None
-    pedestrian_radii: np.ndarray | None = None
+    # Each disc argument also accepts None for "none"; all are arrays after construction.
+    obstacle_centers: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    obstacle_radii: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    pedestrian_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    pedestrian_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    pedestrian_radii: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "goal", as_finite_array("goal", self.goal, (2,)))
@@ -68,6 +69,7 @@ class NavigationScene:
 
     @property
     def radii(self) -> np.ndarray:
+        """All disc radii, obstacles then pedestrians, (n + m,)."""
         return np.concatenate([self.obstacle_radii, self.pedestrian_radii])
 
     @property
@@ -76,6 +78,7 @@ class NavigationScene:
         return np.concatenate([np.zeros_like(self.obstacle_centers), self.pedestrian_velocities])
 
     def to_dict(self) -> dict:
+        """The scene as plain lists (JSON-ready)."""
         return {k: v.tolist() for k, v in self.__dict__.items()}
 
 
@@ -113,7 +116,7 @@ def _points(name, value) -> np.ndarray:
 
 def _discs(center_name, centers, radius_name, radii) -> tuple[np.ndarray, np.ndarray]:
     c = _points(center_name, centers)
-    if radii is None:
+    if radii is None or (c.shape[0] and np.size(radii) == 0):
         if c.shape[0]:
             raise InputError(f"{radius_name} is required with {center_name} of shape {c.shape}")
         return c, np.zeros(0)
@@ -186,6 +189,7 @@ class DWAParameters:
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
 
     def to_dict(self) -> dict:
+        """The parameters as a plain dict (JSON-ready)."""
         return asdict(self)
 
 
@@ -239,6 +243,10 @@ class DynamicWindowPlanner:
     of that cost-to-go at the end (or the direction to the goal).
     """
 
+    # The navigation function of the last scene, and the key it was built for.
+    _nav: NavigationFunction | None = None
+    _nav_key: tuple[bytes, bytes, bytes] | None = None
+
     def __init__(self, system: UncertainLinearSystem, *, theta=None, substeps: int = 5, robot_radius: float = 0.3,
                  params: DWAParameters = DWAParameters(), control_bound: float = 1.0):
         if not isinstance(params, DWAParameters):
@@ -278,7 +286,20 @@ class DynamicWindowPlanner:
         return out
 
     def evaluate(self, state, scene: NavigationScene) -> DWAEvaluation:
-        """Score every sample of the window from the measured ``state`` (4,)."""
+        """Score every sample of the window from the measured ``state``.
+
+        Parameters
+        ----------
+        state : array_like, shape (4,)
+            The measured robot state (position, velocity).
+        scene : NavigationScene
+            The goal and the discs to avoid, as seen now.
+
+        Returns
+        -------
+        DWAEvaluation
+            Every sample's score, admissibility and clearance, and the chosen control.
+        """
         if not isinstance(scene, NavigationScene):
             raise InputError(f"scene must be a NavigationScene, got {type(scene).__name__}")
         x = _validated_state(state, 4)
@@ -325,7 +346,7 @@ class DynamicWindowPlanner:
             way = nav.descent(end[:, :2])
             cosine = np.einsum("ki,ki->k", end[:, 2:], way) / np.maximum(speed_end, 1e-9)
         else:
-            d0 = np.linalg.norm(scene.goal - x[:2])
+            d0 = float(np.linalg.norm(scene.goal - x[:2]))
             to_goal = scene.goal - end[:, :2]
             d_end = np.linalg.norm(to_goal, axis=-1)
             cosine = np.einsum("ki,ki->k", end[:, 2:], to_goal) / np.maximum(speed_end * d_end, 1e-9)
@@ -351,7 +372,7 @@ class DynamicWindowPlanner:
         """The navigation function of this scene's goal and static discs (cached; rebuilt
         when they change or the points leave its grid)."""
         key = (scene.goal.tobytes(), scene.obstacle_centers.tobytes(), scene.obstacle_radii.tobytes())
-        nav = getattr(self, "_nav", None)
+        nav = self._nav
         if nav is None or self._nav_key != key or not nav.covers(points):
             nav = NavigationFunction(scene.goal, scene.obstacle_centers, scene.obstacle_radii,
                                      clearance=self.robot_radius + self.params.safety_margin, region=points,
@@ -369,5 +390,13 @@ class DynamicWindowPlanner:
         return np.linalg.norm(positions[..., None, :] - moving, axis=-1) - scene.radii
 
     def plan(self, state, scene: NavigationScene) -> np.ndarray:
-        """The control ``u`` (2,) to hold for the next decision period."""
+        """The control ``u`` (2,) to hold for the next decision period.
+
+        Parameters
+        ----------
+        state : array_like, shape (4,)
+            The measured robot state (position, velocity).
+        scene : NavigationScene
+            The goal and the discs to avoid, as seen now.
+        """
         return self.evaluate(state, scene).control

@@ -133,7 +133,13 @@ class NavigationFunction:
         return distances.reshape(nx, ny)
 
     def covers(self, points) -> bool:
-        """Whether every point (..., 2) lies on the grid."""
+        """Whether every point lies on the grid.
+
+        Parameters
+        ----------
+        points : array_like, shape (..., 2)
+            Planar positions.
+        """
         p = np.asarray(points, dtype=float)
         return bool(np.all(p >= self.origin) and np.all(p <= self.extent_high))
 
@@ -147,11 +153,23 @@ class NavigationFunction:
                 + (1 - fx) * fy * field[i, j + 1] + fx * fy * field[i + 1, j + 1])
 
     def cost_to_go(self, points) -> np.ndarray:
-        """Interpolated cost-to-go at points (..., 2) (blocked cells count as worse than any reachable one)."""
+        """Interpolated cost-to-go at points (blocked cells count as worse than any reachable one).
+
+        Parameters
+        ----------
+        points : array_like, shape (..., 2)
+            Planar positions.
+        """
         return self._bilinear(self._filled, np.asarray(points, dtype=float))
 
     def descent(self, points) -> np.ndarray:
-        """Unit direction of steepest descent of the cost-to-go at points (..., 2) (0 where flat)."""
+        """Unit direction of steepest descent of the cost-to-go at points (0 where flat).
+
+        Parameters
+        ----------
+        points : array_like, shape (..., 2)
+            Planar positions.
+        """
         p = np.asarray(points, dtype=float)
         g = np.stack([self._bilinear(self._grad_x, p), self._bilinear(self._grad_y, p)], axis=-1)
         norm = np.linalg.norm(g, axis=-1, keepdims=True)
@@ -160,7 +178,15 @@ class NavigationFunction:
     def path(self, start) -> np.ndarray:
         """Cell centres (k, 2) from ``start`` to the goal, each the neighbour of lowest cost-to-go.
 
-        Raises `InputError` when the goal cannot be reached from the start's cell.
+        Parameters
+        ----------
+        start : array_like, shape (2,)
+            The position the path starts from.
+
+        Raises
+        ------
+        InputError
+            When the goal cannot be reached from the start's cell.
         """
         cell = self._cell(as_finite_array("start", start, (2,)))
         values = self._filled
@@ -172,7 +198,7 @@ class NavigationFunction:
             if not np.isfinite(block).any():
                 raise InputError("the goal cannot be reached from start on the navigation grid")
             k = np.unravel_index(np.argmin(block), block.shape)
-            cell = (i0 + k[0], j0 + k[1])
+            cell = (int(i0 + k[0]), int(j0 + k[1]))
         goal_cell = self._cell(self.goal)
         cells = [cell]
         limit = self.shape[0] * self.shape[1]
@@ -187,8 +213,17 @@ class NavigationFunction:
         return self.origin + self.resolution * np.array(cells, dtype=float)
 
     def waypoint(self, start, lookahead: float) -> np.ndarray:
-        """The point ``lookahead`` metres along `path` from ``start`` (the goal when nearer):
-        the "carrot" a local planner chases, as under a global planner."""
+        """The point ``lookahead`` metres along `path` from ``start`` (the goal when nearer).
+
+        This is the "carrot" a local planner chases, as under a global planner.
+
+        Parameters
+        ----------
+        start : array_like, shape (2,)
+            The position the path starts from.
+        lookahead : float
+            Distance along the path, metres (> 0).
+        """
         lookahead = as_positive_scalar("lookahead", lookahead)
         points = np.concatenate([self.path(start), self.goal[None]])
         travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])

@@ -123,6 +123,7 @@ class TEBParameters:
             raise InputError(f"need dt_min < dt_ref < dt_max, got {self.dt_min}, {self.dt_ref}, {self.dt_max}")
 
     def to_dict(self) -> dict:
+        """The parameters as a plain dict (JSON-ready)."""
         return asdict(self)
 
 
@@ -240,6 +241,10 @@ class TimedElasticBand:
         Controls lie in ``[-control_bound, control_bound]^2``.
     """
 
+    # The navigation function of the last scene, and the key it was built for.
+    _nav: NavigationFunction | None = None
+    _nav_key: tuple[bytes, bytes, bytes] | None = None
+
     def __init__(self, system: UncertainLinearSystem, *, theta=None, substeps: int = 5, robot_radius: float = 0.3,
                  params: TEBParameters = TEBParameters(), control_bound: float = 1.0):
         if not isinstance(params, TEBParameters):
@@ -287,7 +292,7 @@ class TimedElasticBand:
         if not self.params.navigation_function:
             return None
         key = (scene.goal.tobytes(), scene.obstacle_centers.tobytes(), scene.obstacle_radii.tobytes())
-        nav = getattr(self, "_nav", None)
+        nav = self._nav
         if nav is None or self._nav_key != key or not nav.covers(start):
             nav = NavigationFunction(scene.goal, scene.obstacle_centers, scene.obstacle_radii,
                                      clearance=self.robot_radius + self.params.obstacle_margin, region=start[None],
@@ -298,8 +303,8 @@ class TimedElasticBand:
         except InputError:
             return None  # boxed in on the grid: fall back to the straight line
 
-    def _warm_band(self, start) -> tuple[np.ndarray, np.ndarray]:
-        X, dT = self._band
+    def _warm_band(self, band: tuple[np.ndarray, np.ndarray], start) -> tuple[np.ndarray, np.ndarray]:
+        X, dT = band
         # Drop the poses already passed: keep from the pose nearest to the robot (among the first few).
         look = min(len(dT), 4)
         nearest = int(np.argmin(np.linalg.norm(X[: look + 1] - start, axis=1)))
@@ -382,13 +387,26 @@ class TimedElasticBand:
         return np.clip(u, -self.control_bound, self.control_bound)
 
     def optimise(self, state, scene: NavigationScene) -> TEBPlan:
-        """Optimise the band from the measured ``state`` (4,) and return it with the control."""
+        """Optimise the band from the measured ``state`` and return it with the control.
+
+        Parameters
+        ----------
+        state : array_like, shape (4,)
+            The measured robot state (position, velocity).
+        scene : NavigationScene
+            The goal and the discs to avoid, as seen now.
+
+        Returns
+        -------
+        TEBPlan
+            The optimised band, its cost and clearance violation, and the control.
+        """
         if not isinstance(scene, NavigationScene):
             raise InputError(f"scene must be a NavigationScene, got {type(scene).__name__}")
         x = as_finite_array("state", state, (4,))
         start, velocity = x[:2], x[2:]
         discs = self._discs(scene)
-        if self._band is not None and not np.array_equal(self._goal, scene.goal):
+        if self._band is not None and self._goal is not None and not np.array_equal(self._goal, scene.goal):
             if np.linalg.norm(scene.goal - self._goal) <= self.params.goal_jump:
                 # The (local) goal moved a little, e.g. a waypoint sliding along a global
                 # path: keep the band and move its end, as TEB does with a moving local goal.
@@ -401,7 +419,7 @@ class TimedElasticBand:
         self._goal = scene.goal.copy()
         candidates = []
         if self._band is not None and len(self._band[1]) >= 1:
-            candidates.append(self._warm_band(start))
+            candidates.append(self._warm_band(self._band, start))
         best = None
         for X, dT in candidates:
             best = self._optimise(X, dT, velocity, discs)
@@ -414,6 +432,7 @@ class TimedElasticBand:
                     best = trial
                 if bump == 0.0 and guide is not None and self._violation(trial[0], trial[1], discs) <= self.params.reinit_violation:
                     break  # the band along the global path is clear: no need for side bumps
+        assert best is not None  # the fresh bands above run whenever no warm band did
         X, dT, cost, iterations, status = best
         self._band = (X, dT)
         return TEBPlan(X, dT, cost, self._violation(X, dT, discs), iterations, status, self._control(X, dT, velocity))
@@ -423,5 +442,13 @@ class TimedElasticBand:
         return (self._violation(band[0], band[1], discs) > self.params.reinit_violation, band[2])
 
     def plan(self, state, scene: NavigationScene) -> np.ndarray:
-        """The control ``u`` (2,) to hold for the next decision period."""
+        """The control ``u`` (2,) to hold for the next decision period.
+
+        Parameters
+        ----------
+        state : array_like, shape (4,)
+            The measured robot state (position, velocity).
+        scene : NavigationScene
+            The goal and the discs to avoid, as seen now.
+        """
         return self.optimise(state, scene).control
