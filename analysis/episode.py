@@ -145,6 +145,7 @@ class EpisodeJob:
 
     @property
     def key(self) -> tuple[str, str, int]:
+        """``(scenario, method, seed)``: what identifies the job's record."""
         return (self.scenario, self.method, self.seed)
 
 

@@ -17,7 +17,7 @@ import os
 import pathlib
 import time
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import stats
@@ -34,6 +34,7 @@ __all__ = [
     "summarise",
     "write_outputs",
 ]
+
 
 @dataclass(frozen=True)
 class ExperimentResult:
@@ -101,8 +102,7 @@ def _jobs(scenarios: Sequence[str], methods: Sequence[str], episodes: int, seed:
         built = resolve(scenario_factory(s))()
         for m in methods:
             template = make_job(s, m, seed, config, built=built)
-            jobs += [EpisodeJob(s, m, k, config, template.scenario_factory, template.method_factory)
-                     for k in episode_seeds(seed, episodes)]
+            jobs += [replace(template, seed=k) for k in episode_seeds(seed, episodes)]
     return jobs
 
 

@@ -235,12 +235,14 @@ class RobotMethod(Method):
         self.config = config
 
     def start(self, world: RobotWorld) -> None:
+        """Keep the world; build the velocity controllers and the global path of its map."""
         self.world = world
         self.params = world.params
         self.controllers = velocity_controllers(self.config, self.params.control_bound)
         self.global_path = self.scenario.global_path(world, self.params.robot_radius + self.config.path_clearance)
 
     def decide(self, measurement: np.ndarray) -> Policy:
+        """`plan` towards the waypoint ``lookahead`` m along the global path, saturated."""
         waypoint = self.global_path.waypoint(measurement[:2], self.config.lookahead)
         return _Saturated(self.plan(measurement, waypoint), self.params.control_bound)
 
@@ -249,6 +251,7 @@ class RobotMethod(Method):
         raise NotImplementedError
 
     def report(self) -> dict:
+        """No Assumption 4 report and no predicted boxes (the robust method has both)."""
         return {"lmi": None, "plans": []}
 
 

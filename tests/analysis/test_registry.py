@@ -263,3 +263,21 @@ def test_cli_accepts_registered_names_and_rejects_unknown_ones_in_one_line(tmp_p
         assert code == 2 and captured.out == ""
         assert captured.err.startswith("minimaxplan experiment: error: ") and message in captured.err
         assert captured.err.count("\n") == 1
+
+
+def test_the_example_of_docs_extending_runs_as_printed(capsys):
+    import pathlib
+    import re
+    import sys
+    import types
+
+    text = (pathlib.Path(__file__).resolve().parents[2] / "docs" / "extending.md").read_text()
+    (example,) = [b for b in re.findall(r"```python\n(.*?)```", text, flags=re.S) if "run_experiment" in b]
+    module = types.ModuleType("extending_example")  # a module, so that its factories pickle by reference
+    sys.modules[module.__name__] = module
+    try:
+        exec(compile(example, "docs/extending.md", "exec"), module.__dict__)
+    finally:
+        del sys.modules[module.__name__]
+    assert capsys.readouterr().out == "['goal', 'goal', 'goal']\n"
+    assert "['goal', 'goal', 'goal']" in text
