@@ -95,14 +95,14 @@ def report(result: dict) -> str:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .experiment import METHODS, SCENARIOS
     from .experiment_command import run_and_report
+    from .registry import method_names, scenario_names
 
     print(report(run(seed=args.seed)), flush=True)
     if args.episodes == 0:
         return 0
     print(f"\nShort experiment: {args.episodes} episodes per method in each world (paper: 100)", flush=True)
-    table, out = run_and_report(list(SCENARIOS), list(METHODS), episodes=args.episodes, seed=args.seed,
+    table, out = run_and_report(scenario_names(), method_names(), episodes=args.episodes, seed=args.seed,
                                 workers=args.workers, dask_address=None, out=args.out)
     print(table)
     print(f"plots and per-episode data written to {out}/")

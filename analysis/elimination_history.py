@@ -9,8 +9,8 @@ and records, for every hypothesis, whether it survives and its inconsistency mar
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

@@ -1,8 +1,10 @@
 """Monte-Carlo experiments: many seeded episodes per method and world, run in parallel.
 
+Scenarios and methods are the registered ones (`minimaxplan.analysis.registry`).
 Episodes are independent, so they run on a local process pool by default or on a Dask
 cluster (``dask_address``) for a user who outgrows one machine; both give identical
-records because every episode is a pure function of ``(scenario, method, seed)``.
+records because every episode is a pure function of ``(scenario, method, seed, config)``
+and each job carries the factories of its scenario and method (`EpisodeJob`).
 """
 
 from __future__ import annotations
@@ -14,68 +16,30 @@ import math
 import os
 import pathlib
 import time
-from dataclasses import asdict, dataclass, field
-from typing import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import stats
 
 from minimaxplan.models.errors import InputError
 
+from .episode import DEFAULT_CONFIG, EpisodeJob, EpisodeRecord, LoopConfig, make_job, run_job
+from .registry import resolve, scenario_factory
+
 __all__ = [
-    "EpisodeRecord",
     "ExperimentResult",
-    "METHODS",
-    "SCENARIOS",
     "episode_seeds",
     "run_experiment",
     "summarise",
     "write_outputs",
 ]
 
-METHODS = ("robust", "nominal", "oracle", "dwa", "teb")
-SCENARIOS = ("static", "pedestrian")
-
-
-@dataclass(frozen=True)
-class EpisodeRecord:
-    """The outcome of one episode.
-
-    ``outcome`` is "goal", "collision", "timeout", "no_consistent_model", or "horizon"
-    (stopped after ``LoopConfig.max_decisions``); only "goal" is a success.
-    ``time_s`` is the simulated time at the end of the episode.
-    """
-
-    scenario: str
-    method: str
-    seed: int
-    outcome: str
-    time_s: float
-    discounted_return: float
-    decisions: int
-    wall_time_s: float
-    trajectory: tuple = field(default=(), repr=False)
-    extra: dict = field(default_factory=dict, repr=False)
-
-    @property
-    def success(self) -> bool:
-        return self.outcome == "goal"
-
-    def row(self) -> dict:
-        """The flat CSV row (no trajectory)."""
-        data = asdict(self)
-        data.pop("trajectory")
-        data.pop("extra")
-        data["success"] = self.success
-        # The Assumption 4 report of the robust method (once per episode), empty otherwise.
-        lmi = self.extra.get("lmi") or {}
-        data["assumption4_full_model"] = lmi.get("full_model", "")
-        data["assumption4_velocity_subsystem"] = lmi.get("velocity_subsystem", "")
-        return data
-
 
 @dataclass(frozen=True)
 class ExperimentResult:
+    """Every `EpisodeRecord` in job order, the `summarise` records, and the run's wall time."""
+
     records: tuple
     summary: tuple
     wall_time_s: float
@@ -126,17 +90,20 @@ def summarise(records: Iterable[EpisodeRecord]) -> list[dict]:
     return summary
 
 
-def _validate(scenarios: Sequence[str], methods: Sequence[str], episodes: int, workers: int) -> None:
-    for s in scenarios:
-        if s not in SCENARIOS:
-            raise InputError(f"scenario must be one of {SCENARIOS}, got {s!r}")
-    for m in methods:
-        if m not in METHODS:
-            raise InputError(f"method must be one of {METHODS}, got {m!r}")
-    if episodes < 1:
+def _jobs(scenarios: Sequence[str], methods: Sequence[str], episodes: int, seed: int,
+          config: LoopConfig) -> list[EpisodeJob]:
+    """Every job in order (scenario, then method, then seed), names checked before any runs."""
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise InputError(f"episodes must be >= 1, got {episodes}")
-    if workers < 1:
-        raise InputError(f"workers must be >= 1, got {workers}")
+    if not scenarios or not methods:
+        raise InputError(f"at least one scenario and one method are needed, got {list(scenarios)} and {list(methods)}")
+    jobs = []
+    for s in scenarios:
+        built = resolve(scenario_factory(s))()
+        for m in methods:
+            template = make_job(s, m, seed, config, built=built)
+            jobs += [replace(template, seed=k) for k in episode_seeds(seed, episodes)]
+    return jobs
 
 
 def run_experiment(
@@ -145,32 +112,42 @@ def run_experiment(
     *,
     episodes: int,
     seed: int = 0,
+    config: LoopConfig = DEFAULT_CONFIG,
     workers: int | None = None,
     dask_address: str | None = None,
-    episode_fn: Callable[..., EpisodeRecord] | None = None,
     progress: bool = True,
 ) -> ExperimentResult:
     """Run ``episodes`` seeded episodes of every method in every scenario.
 
     Parameters
     ----------
-    episode_fn
-        ``(scenario, method, seed) -> EpisodeRecord``; defaults to
-        `minimaxplan.analysis.closed_loop.run_episode`. Must be picklable (module level).
+    scenarios, methods
+        Registered names (`register_scenario`, `register_method`); every method must
+        support every scenario.
+    episodes, seed
+        Episode i of every method uses world seed ``seed + i`` (paired comparison).
+    config
+        The loop settings of every episode.
     workers
         Local processes (default: all cores). Ignored with ``dask_address``.
     dask_address
         Address of a Dask scheduler (the ``cluster`` extra); episodes are mapped there.
+
+    Raises
+    ------
+    UnknownScenario, UnknownMethod, UnsupportedScenario
+        Before any episode runs, if a name is not registered or a method does not
+        support a scenario (the message names the registered names).
     """
     workers = workers or os.cpu_count() or 1
-    _validate(scenarios, methods, episodes, workers)
-    if episode_fn is None:
-        from .closed_loop import run_episode as episode_fn  # noqa: N813 (late: heavy imports)
-    jobs = [(s, m, k) for s in scenarios for m in methods for k in episode_seeds(seed, episodes)]
+    if workers < 1:
+        raise InputError(f"workers must be >= 1, got {workers}")
+    jobs = _jobs(scenarios, methods, episodes, seed, config)
     started = time.perf_counter()
-    records = _run_jobs(jobs, episode_fn, workers, dask_address, progress)
+    records = _run_jobs(jobs, workers, dask_address, progress)
     # Order is by job, not by completion, so that the same seed gives the same output.
-    records = tuple(sorted(records, key=lambda r: jobs.index((r.scenario, r.method, r.seed))))
+    order = {job.key: n for n, job in enumerate(jobs)}
+    records = tuple(sorted(records, key=lambda r: order[(r.scenario, r.method, r.seed)]))
     return ExperimentResult(records, tuple(summarise(records)), time.perf_counter() - started)
 
 
@@ -180,7 +157,7 @@ def _progress_bar(total: int, enabled: bool):
     return tqdm(total=total, desc="episodes", unit="ep", disable=not enabled)
 
 
-def _run_jobs(jobs, episode_fn, workers, dask_address, progress) -> list[EpisodeRecord]:
+def _run_jobs(jobs: list[EpisodeJob], workers: int, dask_address: str | None, progress: bool) -> list[EpisodeRecord]:
     bar = _progress_bar(len(jobs), progress)
     records: list[EpisodeRecord] = []
     try:
@@ -188,17 +165,17 @@ def _run_jobs(jobs, episode_fn, workers, dask_address, progress) -> list[Episode
             from distributed import Client, as_completed
 
             with Client(dask_address) as client:
-                futures = [client.submit(episode_fn, *job, pure=False) for job in jobs]
+                futures = [client.submit(run_job, job, pure=False) for job in jobs]
                 for future in as_completed(futures):
                     records.append(future.result())
                     bar.update()
         elif workers == 1:
             for job in jobs:
-                records.append(episode_fn(*job))
+                records.append(run_job(job))
                 bar.update()
         else:
             with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-                futures = [pool.submit(episode_fn, *job) for job in jobs]
+                futures = [pool.submit(run_job, job) for job in jobs]
                 for future in concurrent.futures.as_completed(futures):
                     records.append(future.result())
                     bar.update()

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import pathlib
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
-from .experiment import EpisodeRecord
+from .episode import EpisodeRecord
 
 __all__ = ["plot_trajectories"]
 
@@ -38,17 +38,21 @@ def plot_trajectories(records: Sequence[EpisodeRecord], path: str | pathlib.Path
             ax.add_patch(Circle(c, rad, color="0.6"))
         for p in world.get("pedestrians", {}).get("positions", []):
             ax.plot(*p, "k^", ms=7)
-        if world:
+        if "start" in world and "goal" in world:  # a robot world's map
             ax.plot(*world["start"], "ks", ms=7)
             ax.add_patch(Circle(world["goal"], world["params"]["goal_tolerance"], fill=False, ec="k", ls="--"))
+        planar = all(np.shape(r.trajectory)[1:] == (2,) for r in group if r.trajectory)
         for r in group:
             trajectory = np.array(r.trajectory)
             if trajectory.size:
-                ax.plot(trajectory[:, 0], trajectory[:, 1], color=colors.get(r.method, "k"), lw=1.5, label=f"{r.method} ({r.outcome})")
+                # planar positions as a path; any other dimension against the sub-step index
+                x, y = (trajectory[:, 0], trajectory[:, 1]) if planar else (np.arange(len(trajectory)), trajectory[:, 0])
+                ax.plot(x, y, color=colors.get(r.method, "k"), lw=1.5, label=f"{r.method} ({r.outcome})")
             for _, lower, upper in r.extra.get("plans", []):
                 for lo, hi in zip(lower[1:], upper[1:]):
                     ax.add_patch(Rectangle(lo, hi[0] - lo[0], hi[1] - lo[1], fill=False, ec=colors["robust"], lw=0.4, alpha=0.6))
-        ax.set_aspect("equal")
+        if planar:
+            ax.set_aspect("equal")
         ax.set_title(f"{group[0].scenario} world, seed {seed}")
         ax.legend(fontsize=7, loc="best")
     if title:

@@ -13,7 +13,6 @@ over the sub-steps of decision i.
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import pathlib
 from dataclasses import replace
@@ -22,7 +21,7 @@ import numpy as np
 
 from minimaxplan.models.errors import InputError
 
-from .closed_loop import DEFAULT_CONFIG, LoopConfig, run_episode
+from .episode import DEFAULT_CONFIG, LoopConfig
 from .experiment import run_experiment
 
 __all__ = ["suboptimality_study", "fit_trend", "plot_study", "register"]
@@ -46,14 +45,13 @@ def suboptimality_study(samples=DEFAULT_SAMPLES, *, episodes: int = 20, seed: in
     if not samples or min(samples) < 1:
         raise InputError(f"samples must be positive integers, got {samples}")
     base = replace(config, max_decisions=horizon)
-    oracle = run_experiment([scenario], ["oracle"], episodes=episodes, seed=seed, workers=workers,
-                            episode_fn=functools.partial(run_episode, config=base), progress=progress)
+    oracle = run_experiment([scenario], ["oracle"], episodes=episodes, seed=seed, config=base, workers=workers,
+                            progress=progress)
     oracle_return = {r.seed: r.discounted_return for r in oracle.records}
     rows = []
     for n in samples:
-        robust = run_experiment([scenario], ["robust"], episodes=episodes, seed=seed, workers=workers,
-                                episode_fn=functools.partial(run_episode, config=replace(base, prior_samples=n)),
-                                progress=progress)
+        robust = run_experiment([scenario], ["robust"], episodes=episodes, seed=seed,
+                                config=replace(base, prior_samples=n), workers=workers, progress=progress)
         gaps = [oracle_return[r.seed] - r.discounted_return for r in robust.records]
         outcomes = [r.outcome for r in robust.records]
         rows.append({"n": n, "mean": float(np.mean(gaps)), "max": float(np.max(gaps)), "min": float(np.min(gaps)),

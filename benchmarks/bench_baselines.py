@@ -3,7 +3,8 @@
 1. Closed-loop episodes of both worlds (benchmark seeds 20000+, apart from the tuning
    seeds 10000+ and the evaluation seeds 0-999): median and 90th percentile of the time
    per `plan` call (goal: DWA < 5 ms, TEB < 50 ms typical), with the final goal as the
-   scene's goal, and inside `analysis.closed_loop`, whose goal is a sliding waypoint.
+   scene's goal, and inside the episode loop of `analysis.episode` (methods of
+   `analysis.robot_methods`), whose goal is a sliding waypoint.
 2. DWA against a per-sample reference: the same window, rollouts and score written as
    plain loops over samples, sub-steps and discs with ``system.step`` (how a direct
    transcription of the algorithm runs). Same scores (to 1e-9) and same choice,
@@ -57,9 +58,9 @@ def closed_loop_latencies(make_planner) -> tuple[np.ndarray, dict]:
 
 
 def waypoint_loop_latencies(cls) -> tuple[np.ndarray, dict]:
-    """The same, inside `minimaxplan.analysis.closed_loop.run_episode`, whose scene goal is a
+    """The same, inside `minimaxplan.analysis.episode.run_episode`, whose scene goal is a
     waypoint sliding 3 m ahead on its global path (timing wrapped around ``cls.plan``)."""
-    from minimaxplan.analysis.closed_loop import run_episode
+    from minimaxplan.analysis.episode import run_episode
 
     latencies, outcomes = [], {}
     original = cls.plan
@@ -216,9 +217,9 @@ def main() -> None:
         f"{dwa_out.get('goal', 0)}/{2 * EPISODES_PER_WORLD} | {dwa_out} | < 5 ms |",
         f"| TEB | {teb_lat.size} | {1e3 * np.median(teb_lat):.2f} | {1e3 * np.percentile(teb_lat, 90):.2f} | "
         f"{teb_out.get('goal', 0)}/{2 * EPISODES_PER_WORLD} | {teb_out} | < 50 ms |",
-        f"| DWA, waypoint goal (analysis.closed_loop) | {dwa_way.size} | {1e3 * np.median(dwa_way):.2f} | "
+        f"| DWA, waypoint goal (analysis.episode) | {dwa_way.size} | {1e3 * np.median(dwa_way):.2f} | "
         f"{1e3 * np.percentile(dwa_way, 90):.2f} | {dwa_way_out.get('goal', 0)}/{2 * EPISODES_PER_WORLD} | {dwa_way_out} | < 5 ms |",
-        f"| TEB, waypoint goal (analysis.closed_loop) | {teb_way.size} | {1e3 * np.median(teb_way):.2f} | "
+        f"| TEB, waypoint goal (analysis.episode) | {teb_way.size} | {1e3 * np.median(teb_way):.2f} | "
         f"{1e3 * np.percentile(teb_way, 90):.2f} | {teb_way_out.get('goal', 0)}/{2 * EPISODES_PER_WORLD} | {teb_way_out} | < 50 ms |",
         "",
         "| comparison | reference (ms) | ours (ms) | ratio | check |",

@@ -310,6 +310,11 @@ class RobotWorld:
         return self.outcome != "running"
 
     @property
+    def substeps(self) -> int:
+        """Sub-steps per decision (``params.substeps``): a control is held this many times."""
+        return self.params.substeps
+
+    @property
     def position(self) -> np.ndarray:
         return self.state[:2].copy()
 

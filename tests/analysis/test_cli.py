@@ -11,8 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from minimaxplan.analysis import cli
+from minimaxplan.analysis.data_file import load_data_file
 from minimaxplan.analysis.lmi_command import check_model
-from minimaxplan.analysis.model_file import format_model_file, load_data_file, load_model_file
+from minimaxplan.analysis.model_file import format_model_file, load_model_file
 from minimaxplan.analysis.reports import lmi_matrix
 from minimaxplan.verify import check_assumption4, eliminate_models, feasible_parameter_box
 

@@ -9,8 +9,9 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from minimaxplan.analysis.data_file import load_data_file
 from minimaxplan.analysis.elimination_history import elimination_history, parameter_set_history
-from minimaxplan.analysis.model_file import load_data_file, load_model_file
+from minimaxplan.analysis.model_file import load_model_file
 from minimaxplan.models import Box, InputError, UncertainLinearSystem, confidence_ellipsoid
 from minimaxplan.verify import eliminate_models, feasible_parameter_box
 

@@ -1,0 +1,352 @@
+"""Scenario and method registries: what `run_experiment` and the CLI can run.
+
+A *scenario* makes seeded worlds; a *method* drives one world through an episode. Both
+are registered under a name by a factory, so that adding a world or a planner touches
+no file of the package::
+
+    from minimaxplan.analysis import register_method, register_scenario
+
+    register_scenario("corridor", CorridorScenario)        # factory() -> Scenario
+    register_method("bang-bang", BangBang)                 # factory(scenario, config) -> Method
+
+The episode loop (`minimaxplan.analysis.episode.run_episode`) is written once for every
+scenario and uses only the interfaces below: `Scenario`, the `World` it makes, `Method`
+and the `Policy` a method returns at each decision. ``docs/extending.md`` pins them.
+
+Factories travel with each job to the worker processes (a local pool or Dask): a factory
+is a picklable callable (a module-level function or class, a `functools.partial` of one)
+or a string ``"package.module:qualname"`` resolved where it is called.
+
+One method name may serve several scenarios: `register_method` called again with the same
+name and a new factory adds it, and a run picks the newest factory of that name that does
+not raise `UnsupportedScenario` for the scenario at hand.
+"""
+
+from __future__ import annotations
+
+import abc
+import importlib
+import pickle
+import re
+from collections.abc import Callable
+from typing import Any, NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+from minimaxplan.models.errors import InputError, MinimaxplanError
+
+__all__ = [
+    "Scenario",
+    "World",
+    "Method",
+    "Policy",
+    "Transition",
+    "UnknownScenario",
+    "UnknownMethod",
+    "UnsupportedScenario",
+    "EpisodeFailure",
+    "register_scenario",
+    "register_method",
+    "scenario_names",
+    "method_names",
+    "scenario_factory",
+    "method_factory",
+    "resolve",
+]
+
+#: A factory: a picklable callable or an importable ``"module:qualname"``.
+Factory = Callable[..., Any] | str
+
+#: Modules that register the built-in scenarios and methods when imported (loaded on the
+#: first use of a registry, so that ``import minimaxplan.analysis`` stays light).
+BUILTIN_MODULES = ("minimaxplan.analysis.robot_scenario", "minimaxplan.analysis.robot_methods")
+
+_QUALIFIED_NAME = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
+
+
+# ------------------------------------------------------------------------ errors
+class UnknownScenario(InputError):
+    """No scenario is registered under the name asked for (the message lists the known names)."""
+
+
+class UnknownMethod(InputError):
+    """No method is registered under the name asked for (the message lists the known names)."""
+
+
+class UnsupportedScenario(InputError):
+    """A method factory does not support the scenario it was given.
+
+    Method factories raise it for a scenario they cannot drive; the registry then tries
+    the next factory registered under the same name.
+    """
+
+
+class EpisodeFailure(MinimaxplanError, RuntimeError):
+    """Raised by `Method.decide` when the method cannot go on: the episode ends with ``outcome``.
+
+    A failure of the episode (counted in the results), not an error of the run; e.g. the
+    robust method raises it with outcome ``"no_consistent_model"`` once the data has
+    eliminated every hypothesis.
+    """
+
+    def __init__(self, outcome: str, message: str = ""):
+        super().__init__(message or outcome)
+        self.outcome = outcome
+
+
+# -------------------------------------------------------------------- interfaces
+class Transition(NamedTuple):
+    """One sub-step as the method saw it: measurement, applied control, next measurement."""
+
+    measured: np.ndarray
+    control: np.ndarray
+    next_measured: np.ndarray
+
+
+@runtime_checkable
+class World(Protocol):
+    """One seeded episode of a scenario, as the episode loop drives it.
+
+    Attributes
+    ----------
+    substeps
+        Sub-steps per decision: the policy of a decision is applied this many times.
+    done
+        True once the episode has ended.
+    outcome
+        "running" while not done; then e.g. "goal", "collision" or "timeout" (only
+        "goal" counts as a success).
+    time
+        Simulated time, s.
+    position
+        Where the agent is, a 1-D array (recorded, rounded, as the trajectory).
+    """
+
+    substeps: int
+    done: bool
+    outcome: str
+    time: float
+    position: np.ndarray
+
+    def measure(self) -> np.ndarray:
+        """A (noisy) measurement of the state; the only thing the method sees of it."""
+
+    def apply(self, u: np.ndarray) -> str:
+        """Apply the control ``u`` for one sub-step; returns the outcome."""
+
+    def reward(self) -> float:
+        """The true reward in [0, 1] of the current state."""
+
+    def to_dict(self) -> dict:
+        """The episode's setup (stored in ``EpisodeRecord.extra["world"]``)."""
+
+
+@runtime_checkable
+class Policy(Protocol):
+    """What a method decided: a feedback law held for one decision period."""
+
+    def control(self, measurement: np.ndarray) -> np.ndarray:
+        """The control to apply now, admissible for the world (e.g. saturated)."""
+
+
+class Scenario(abc.ABC):
+    """A family of seeded worlds, registered with ``register_scenario(name, factory)``.
+
+    ``factory()`` returns the scenario; it should be cheap (it is also called in the
+    main process to check that every method asked for supports it).
+    """
+
+    @abc.abstractmethod
+    def make_world(self, seed: int, config: Any) -> World:
+        """A new world for episode ``seed`` under the loop settings ``config`` (a `LoopConfig`).
+
+        The same seed must give the same world: records depend only on
+        ``(scenario, method, seed, config)``.
+        """
+
+
+class Method(abc.ABC):
+    """A planner driving a world, registered with ``register_method(name, factory)``.
+
+    ``factory(scenario, config)`` returns a fresh method for one episode, or raises
+    `UnsupportedScenario` for a scenario it cannot drive; it should be cheap (heavy
+    set-up belongs in `start`). The episode loop then calls, in this order::
+
+        method.start(world)
+        x = world.measure()
+        while not world.done:
+            policy = method.decide(x)                       # may raise EpisodeFailure
+            for each of world.substeps sub-steps:
+                u = policy.control(x); world.apply(u); x_next = world.measure()
+                method.observe(Transition(x, u, x_next)); x = x_next
+        record.extra = {**method.report(), "world": world.to_dict()}
+    """
+
+    @abc.abstractmethod
+    def start(self, world: World) -> None:
+        """Begin an episode in ``world`` (before its first measurement)."""
+
+    @abc.abstractmethod
+    def decide(self, measurement: np.ndarray) -> Policy:
+        """Plan on the current measurement; the returned policy runs for one decision period.
+
+        Raises
+        ------
+        EpisodeFailure
+            If the method cannot go on (the episode ends with ``outcome``).
+        """
+
+    def observe(self, transition: Transition) -> None:  # noqa: B027 (optional hook)
+        """Learn from one sub-step (default: ignore it)."""
+
+    def report(self) -> dict:
+        """Per-episode data for ``EpisodeRecord.extra`` (default: none)."""
+        return {}
+
+
+# -------------------------------------------------------------------- registries
+_SCENARIOS: dict[str, Factory] = {}
+_METHODS: dict[str, list[Factory]] = {}
+_builtins_loaded = False
+
+
+def _load_builtins() -> None:
+    global _builtins_loaded
+    if not _builtins_loaded:
+        _builtins_loaded = True  # first: the built-in modules register through this module
+        for module in BUILTIN_MODULES:
+            importlib.import_module(module)
+
+
+def _checked_factory(kind: str, name: str, factory: Factory) -> Factory:
+    if not isinstance(name, str) or not name.strip() or "," in name:
+        raise InputError(f"{kind} name must be a non-empty string without commas, got {name!r}")
+    if isinstance(factory, str):
+        if not _QUALIFIED_NAME.match(factory):
+            raise InputError(f"{kind} factory {factory!r} must be a callable or a 'package.module:qualname' string")
+        return factory
+    if not callable(factory):
+        raise InputError(f"{kind} factory must be callable or a 'module:qualname' string, got {type(factory).__name__}")
+    try:
+        pickle.dumps(factory)
+    except Exception as exc:  # noqa: BLE001 (pickle raises many types)
+        raise InputError(
+            f"{kind} factory {factory!r} for {name!r} cannot be sent to worker processes ({exc}); register a "
+            "module-level function or class, a functools.partial of one, or a 'module:qualname' string"
+        ) from None
+    return factory
+
+
+def register_scenario(name: str, factory: Factory) -> None:
+    """Make the scenario ``name`` available to `run_experiment` and to ``--scenario``.
+
+    Parameters
+    ----------
+    name
+        The scenario's name in records, tables and on the command line.
+    factory
+        ``factory() -> Scenario``: a picklable callable or ``"module:qualname"``.
+
+    Raises
+    ------
+    InputError
+        If ``name`` is taken by another factory, or ``factory`` cannot reach a worker.
+    """
+    _load_builtins()
+    factory = _checked_factory("scenario", name, factory)
+    known = _SCENARIOS.get(name)
+    if known is not None and known is not factory and known != factory:
+        raise InputError(f"scenario {name!r} is already registered (factory {known!r})")
+    _SCENARIOS[name] = factory
+
+
+def register_method(name: str, factory: Factory) -> None:
+    """Make the method ``name`` available to `run_experiment` and to ``--methods``.
+
+    Parameters
+    ----------
+    name
+        The method's name in records, tables and on the command line.
+    factory
+        ``factory(scenario, config) -> Method``, raising `UnsupportedScenario` for a
+        scenario it does not support: a picklable callable or ``"module:qualname"``.
+        Registering a second factory under a name already known adds it; the newest
+        factory that supports a scenario is used for it.
+
+    Raises
+    ------
+    InputError
+        If ``factory`` cannot reach a worker.
+    """
+    _load_builtins()
+    factory = _checked_factory("method", name, factory)
+    factories = _METHODS.setdefault(name, [])
+    if not any(known is factory or known == factory for known in factories):
+        factories.append(factory)
+
+
+def scenario_names() -> list[str]:
+    """The registered scenario names, in registration order."""
+    _load_builtins()
+    return list(_SCENARIOS)
+
+
+def method_names() -> list[str]:
+    """The registered method names, in registration order."""
+    _load_builtins()
+    return list(_METHODS)
+
+
+def resolve(factory: Factory) -> Callable[..., Any]:
+    """The callable a factory names (``"module:qualname"`` imported, a callable as is)."""
+    if not isinstance(factory, str):
+        return factory
+    module_name, qualname = factory.split(":")
+    try:
+        target: Any = importlib.import_module(module_name)
+        for part in qualname.split("."):
+            target = getattr(target, part)
+    except (ImportError, AttributeError) as exc:
+        raise InputError(f"factory {factory!r} cannot be imported: {exc}") from None
+    return target
+
+
+def scenario_factory(name: str) -> Factory:
+    """The factory registered for scenario ``name``.
+
+    Raises
+    ------
+    UnknownScenario
+        If none is (the message names the registered scenarios).
+    """
+    _load_builtins()
+    if name not in _SCENARIOS:
+        raise UnknownScenario(f"scenario must be one of the registered scenarios {list(_SCENARIOS)}, got {name!r}")
+    return _SCENARIOS[name]
+
+
+def method_factory(name: str, scenario: Scenario, config: Any) -> Factory:
+    """The newest factory registered for method ``name`` that supports ``scenario``.
+
+    Each candidate is called once, ``factory(scenario, config)``, to find out.
+
+    Raises
+    ------
+    UnknownMethod
+        If no method is registered as ``name`` (the message names the registered ones).
+    UnsupportedScenario
+        If every factory of that name rejects ``scenario``.
+    """
+    _load_builtins()
+    if name not in _METHODS:
+        raise UnknownMethod(f"method must be one of the registered methods {list(_METHODS)}, got {name!r}")
+    reasons = []
+    for factory in reversed(_METHODS[name]):
+        try:
+            resolve(factory)(scenario, config)
+        except UnsupportedScenario as exc:
+            reasons.append(str(exc))
+            continue
+        return factory
+    raise UnsupportedScenario(f"method {name!r} supports no scenario of type {type(scenario).__name__}: "
+                              + "; ".join(reasons))

@@ -1,0 +1,371 @@
+"""The methods that drive the robot scenarios (`RobotScenario`): robust, nominal, oracle, dwa, teb.
+
+Each is a `Method` of `minimaxplan.analysis.registry`, run by the one episode loop of
+`minimaxplan.analysis.episode`; importing this module registers them, in this order.
+
+Methods
+-------
+robust
+    The proposed planner: `ModelSelector` over `robot_hypotheses` (with the errata's
+    inflation for the bounded measurement noise), the LP `feasible_parameter_box` of
+    every survivor as its parameter polytope, and `RobustTreePlanner` over one
+    `IntervalModel` per survivor (K = 100, gamma = 0.9). The Assumption 4 report is
+    made once per episode (see `assumption4_report`).
+nominal
+    Certainty equivalence: OPD on the least-squares friction estimate (w = 0), the
+    pedestrians at their announced velocities.
+oracle
+    OPD on the true friction (w = 0): the reference of the suboptimality study
+    (`minimaxplan.analysis.suboptimality`).
+dwa, teb
+    The baselines of `minimaxplan.planners`, given the same noisy measurements and the
+    pedestrians' current positions and announced velocities. Like the ROS local
+    planners of the paper they do not learn the friction: their rollouts use the
+    nominal model at the centre of the prior box.
+
+The low-level controllers (one per discrete action) track a velocity reference,
+``u = sat(k (v_ref - v))``: the four diagonal directions of the paper, each axis at
+``LoopConfig.speed`` (the control set is the box [-1, 1]^2, so each axis runs at its
+own speed; alternating two diagonals moves along an axis at full speed), plus "stop". They act on *measured* states, so the applied
+control differs from the model's by at most ``k * v_bar`` per axis; that difference
+enters the robust planner's model as an extra bounded disturbance through ``B``,
+which keeps the interval prediction sound.
+
+Every method chases the same waypoint, ``LoopConfig.lookahead`` metres along a grid
+path to the goal around the static discs (`NavigationFunction`, the global planner of
+a navigation stack): the paper's goal reward ``1 / (1 + ||pos - goal||)`` is myopic,
+and with K = 100 every local planner, robust or not, stalled or crashed in front of
+concave obstacle clusters without it (tuning seeds 10000-10009: 6/10 robust
+timeouts, 4/10 nominal collisions). Pedestrians are left to the local planners.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, NoConsistentModel, UncertainLinearSystem
+from minimaxplan.planners.comparison import multi_model_robust_planner, nominal_planner, root_state
+from minimaxplan.planners.controllers import LinearFeedback
+from minimaxplan.planners.dwa import DynamicWindowPlanner
+from minimaxplan.planners.teb import TimedElasticBand
+from minimaxplan.scenarios import RobotWorld
+from minimaxplan.verify.selection import ModelSelector, feasible_parameter_box
+
+from .episode import LoopConfig
+from .registry import EpisodeFailure, Method, Policy, Transition, UnsupportedScenario, register_method
+from .robot_scenario import RobotScenario, assumption4_report, excitation_data
+
+__all__ = [
+    "RobotMethod",
+    "RobustMethod",
+    "NominalMethod",
+    "OracleMethod",
+    "DWAMethod",
+    "TEBMethod",
+    "velocity_controllers",
+    "planning_system",
+    "measurement_box",
+]
+
+
+def velocity_controllers(config: LoopConfig, control_bound: float = 1.0) -> list[LinearFeedback]:
+    """One saturated velocity-tracking controller per direction: ``v_ref = speed * direction``."""
+    K = np.zeros((2, 4))
+    K[0, 2] = K[1, 3] = config.gain
+    controllers = []
+    for direction in config.directions:
+        v_ref = config.speed * np.asarray(direction, dtype=float)
+        controllers.append(
+            LinearFeedback(K, np.concatenate([np.zeros(2), v_ref]), u_low=-control_bound, u_high=control_bound)
+        )
+    return controllers
+
+
+def planning_system(system: UncertainLinearSystem, control_error: float) -> UncertainLinearSystem:
+    """``system`` with the control error ``|e| <= control_error`` added as a disturbance through B.
+
+    ``x+ = A(theta) x + B (u + e) + D w = A(theta) x + B u + [D B] (w, e)``.
+    """
+    D = np.hstack([system.D, system.B])
+    w = Box(
+        np.concatenate([system.w.low, np.full(system.ninputs, -control_error)]),
+        np.concatenate([system.w.high, np.full(system.ninputs, control_error)]),
+    )
+    return UncertainLinearSystem(system.A0, system.phi, system.B, D=D, w=w, theta=system.theta)
+
+
+def measurement_box(measured: np.ndarray, noise: float) -> tuple[np.ndarray, np.ndarray]:
+    """The box ``measured +- noise`` that holds the true state, rounded outward.
+
+    The measurement itself was rounded (``fl(x + v)``, error up to half an ulp of
+    ``|measured|``) and so is ``measured -+ noise``: a margin of ``2 eps (|measured| +
+    noise)`` covers both, whatever the magnitudes of x and v.
+    """
+    margin = 2 * np.finfo(float).eps * (np.abs(measured) + noise)
+    return np.nextafter(measured - noise - margin, -np.inf), np.nextafter(measured + noise + margin, np.inf)
+
+
+class _LeastSquares:
+    """Least-squares friction estimate of the true structure from measured transitions (nominal planner)."""
+
+    def __init__(self, system: UncertainLinearSystem, regularisation: float):
+        self.system = system
+        self.estimator = ConfidenceEllipsoidEstimator(
+            system.nparams, sigma=1.0, lam=regularisation, delta=0.1, bound=float(np.linalg.norm(system.theta.high))
+        )
+
+    def add(self, x, u, x_next) -> None:
+        target = x_next - self.system.A0 @ x - self.system.B @ u
+        self.estimator.update(self.system.regressor(x), target)
+
+    def estimate(self) -> np.ndarray:
+        """The regularised least-squares centre, projected onto the prior box (a friction
+        outside it is physically excluded; the prior centre before any data)."""
+        prior = self.system.theta
+        if self.estimator.nsamples == 0:
+            return prior.center
+        return np.clip(self.estimator.ellipsoid().center, prior.low, prior.high)
+
+
+class _Learner:
+    """What the robust planner knows: surviving hypotheses and their parameter boxes.
+
+    Online (``frozen`` False) it is fed every measured transition; frozen, it is fitted
+    once on prior data and never changes.
+
+    The LP boxes are refitted on all the data only when it has grown by a factor
+    ``refit_growth`` since the last fit (or the survivors changed), so the total LP
+    work over an episode is O(N log N) instead of O(N^2). In between, the last box is
+    used: still sound, because the set of parameters consistent with more data is a
+    subset of the set consistent with less.
+    """
+
+    refit_growth = 1.25
+
+    def __init__(self, hypotheses, noise: float, prior: tuple | None):
+        self.hypotheses = hypotheses
+        self.noise = noise
+        self.selector = ModelSelector([h.system for h in hypotheses], measurement_noise=noise)
+        self.states: list = []
+        self.controls: list = []
+        self.frozen = prior is not None
+        if prior is not None:
+            X, U = prior
+            self.states, self.controls = list(X), list(U)
+            for n in range(U.shape[0]):
+                self.selector.add(X[n], U[n], X[n + 1])
+        self._boxes = None
+        self._fitted_on = 0  # transitions behind the current boxes
+
+    def add(self, x, u, x_next) -> None:
+        if self.frozen:
+            return
+        if not self.states:
+            self.states.append(x)
+        self.controls.append(u)
+        self.states.append(x_next)
+        self.selector.add(x, u, x_next)
+
+    def survivors_with_boxes(self) -> list[tuple[int, Box]]:
+        """``(index, feasible parameter box)`` of every surviving hypothesis.
+
+        Raises `NoConsistentModel` when the data contradicts every hypothesis.
+        """
+        if not self.selector.survivors:
+            names = ", ".join(h.name for h in self.hypotheses)
+            raise NoConsistentModel(
+                f"every hypothesis ({names}) is contradicted by the {len(self.controls)} transitions observed"
+            )
+        n = len(self.controls)
+        stale = self._boxes is None or [i for i, _ in self._boxes] != self.selector.survivors
+        if stale or n >= self.refit_growth * self._fitted_on + 1:
+            X, U = np.array(self.states).reshape(-1, 4), np.array(self.controls).reshape(-1, 2)
+            self._fitted_on = n
+            self._boxes = [
+                (i, feasible_parameter_box(self.hypotheses[i].system, X, U, measurement_noise=self.noise)
+                 if U.shape[0] else self.hypotheses[i].system.theta)
+                for i in self.selector.survivors
+            ]
+        return self._boxes
+
+
+class _HeldControl:
+    """A baseline's control, held for one decision period."""
+
+    def __init__(self, u):
+        self.u = np.asarray(u, dtype=float)
+
+    def control(self, x):
+        return self.u
+
+
+
+class _Saturated:
+    """A policy's control clipped to the robot's control box ``[-bound, bound]^2``."""
+
+    def __init__(self, policy, bound: float):
+        self.policy = policy
+        self.bound = bound
+
+    def control(self, measurement: np.ndarray) -> np.ndarray:
+        return np.clip(self.policy.control(measurement), -self.bound, self.bound)
+
+
+class RobotMethod(Method):
+    """What every robot method shares: the velocity controllers and the global path's waypoint.
+
+    Parameters
+    ----------
+    scenario
+        A `RobotScenario`; anything else raises `UnsupportedScenario`.
+    config
+        The loop settings (budget, gamma, speed, gain, lookahead, path clearance, ...).
+
+    Notes
+    -----
+    A subclass implements `plan`, which gets the measurement and the waypoint of this
+    decision and returns the (unsaturated) policy; `decide` saturates it.
+    """
+
+    def __init__(self, scenario: RobotScenario, config: LoopConfig):
+        if not isinstance(scenario, RobotScenario):
+            raise UnsupportedScenario(f"{type(self).__name__} drives only RobotScenario worlds, "
+                                      f"got {type(scenario).__name__}")
+        self.scenario = scenario
+        self.config = config
+
+    def start(self, world: RobotWorld) -> None:
+        """Keep the world; build the velocity controllers and the global path of its map."""
+        self.world = world
+        self.params = world.params
+        self.controllers = velocity_controllers(self.config, self.params.control_bound)
+        self.global_path = self.scenario.global_path(world, self.params.robot_radius + self.config.path_clearance)
+
+    def decide(self, measurement: np.ndarray) -> Policy:
+        """`plan` towards the waypoint ``lookahead`` m along the global path, saturated."""
+        waypoint = self.global_path.waypoint(measurement[:2], self.config.lookahead)
+        return _Saturated(self.plan(measurement, waypoint), self.params.control_bound)
+
+    def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:  # pragma: no cover - abstract
+        """The policy for this decision, towards ``waypoint``."""
+        raise NotImplementedError
+
+    def report(self) -> dict:
+        """No Assumption 4 report and no predicted boxes (the robust method has both)."""
+        return {"lmi": None, "plans": []}
+
+
+class RobustMethod(RobotMethod):
+    """The proposed planner: model elimination, LP parameter boxes, robust tree search.
+
+    Notes
+    -----
+    `ModelSelector` over the scenario's hypotheses (with the errata's inflation for the
+    bounded measurement noise), the LP `feasible_parameter_box` of every survivor as its
+    parameter polytope, and `RobustTreePlanner` over one `IntervalModel` per survivor
+    (eqs. (16)-(18)), rooted at the measurement box. The Assumption 4 report is made once
+    per episode, on the first survivor's box.
+    """
+
+    def start(self, world: RobotWorld) -> None:
+        super().start(world)
+        self.noise = self.params.measurement_noise
+        hypotheses = self.scenario.hypotheses(world)
+        prior = None if self.config.prior_samples is None else excitation_data(world, self.config.prior_samples)
+        self.learner = _Learner(hypotheses, self.noise, prior)
+        self.planning = [planning_system(h.system, self.config.gain * self.noise) for h in hypotheses]
+        self.lmi = None
+        self.plans: list = []
+
+    def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:
+        world, config = self.world, self.config
+        t = world.step_index
+        try:
+            survivors = self.learner.survivors_with_boxes()
+        except NoConsistentModel as exc:
+            raise EpisodeFailure("no_consistent_model", str(exc)) from exc
+        pairs = [(self.planning[i], box) for i, box in survivors]
+        if self.lmi is None:
+            self.lmi = assumption4_report(world.system, pairs[0][1])
+        planner = multi_model_robust_planner(pairs, self.scenario.objective(world, waypoint, uncertain=True),
+                                             self.controllers, gamma=config.gamma, budget=config.budget,
+                                             substeps=self.params.substeps)
+        root = root_state(planner, *measurement_box(measurement, self.noise), time=t)
+        decision = planner.plan(root)
+        lower, upper, _, _ = planner.models[0].rollout(root, decision.sequence)
+        self.plans.append((t, lower[:, :2].tolist(), upper[:, :2].tolist()))
+        return self.controllers[decision.action]
+
+    def observe(self, transition: Transition) -> None:
+        self.learner.add(*transition)
+
+    def report(self) -> dict:
+        plans = self.plans
+        return {"lmi": self.lmi, "plans": plans[:: max(1, len(plans) // 8)] if plans else []}
+
+
+class OracleMethod(RobotMethod):
+    """OPD on the true friction (w = 0): the reference of the suboptimality study."""
+
+    def theta(self) -> np.ndarray:
+        """The friction the planner's model uses."""
+        return self.world.true_theta
+
+    def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:
+        world, config = self.world, self.config
+        planner = nominal_planner(world.system, self.theta(), self.scenario.objective(world, waypoint, uncertain=False),
+                                  self.controllers, gamma=config.gamma, budget=config.budget,
+                                  substeps=self.params.substeps)
+        return self.controllers[planner.plan(root_state(planner, measurement, time=world.step_index)).action]
+
+
+class NominalMethod(OracleMethod):
+    """Certainty equivalence: OPD on the least-squares friction estimate (w = 0), the
+    pedestrians at their announced velocities."""
+
+    def start(self, world: RobotWorld) -> None:
+        super().start(world)
+        self.lsq = _LeastSquares(world.system, self.config.lsq_regularisation)
+        self.learning = self.config.prior_samples is None
+        if not self.learning:
+            X, U = excitation_data(world, self.config.prior_samples)
+            for n in range(U.shape[0]):
+                self.lsq.add(X[n], U[n], X[n + 1])
+
+    def theta(self) -> np.ndarray:
+        return self.lsq.estimate()
+
+    def observe(self, transition: Transition) -> None:
+        if self.learning:
+            self.lsq.add(*transition)
+
+
+class DWAMethod(RobotMethod):
+    """The dynamic window baseline on the nominal model at the centre of the prior box.
+
+    It gets the same noisy measurements and the pedestrians' current positions and
+    announced velocities, and does not learn the friction (like the ROS local planners).
+    """
+
+    baseline = DynamicWindowPlanner
+
+    def start(self, world: RobotWorld) -> None:
+        super().start(world)
+        self.planner = self.baseline(world.system, theta=world.system.theta.center, substeps=self.params.substeps,
+                                     robot_radius=self.params.robot_radius, control_bound=self.params.control_bound)
+
+    def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:
+        return _HeldControl(self.planner.plan(measurement, self.scenario.scene(self.world, waypoint)))
+
+
+class TEBMethod(DWAMethod):
+    """The timed elastic band baseline; see `DWAMethod`."""
+
+    baseline = TimedElasticBand
+
+
+register_method("robust", RobustMethod)
+register_method("nominal", NominalMethod)
+register_method("oracle", OracleMethod)
+register_method("dwa", DWAMethod)
+register_method("teb", TEBMethod)
