@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validation import as_finite_array, as_positive_scalar, check_shape
+from .validation import as_finite_array, as_positive_scalar, check_shape
 from .errors import DimensionError, InputError
 from .polytope import parameter_vertices
 from .prediction import Tube, _check_no_overflow, interval_matvec

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg.lapack import dtrtrs
 
-from ._validation import as_finite_array, as_positive_scalar, check_shape
+from .validation import as_finite_array, as_positive_scalar, check_shape
 from .errors import DimensionError, InputError, SolverFailure
 from .sets import Ellipsoid
 

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.optimize import linprog
 from scipy.spatial import HalfspaceIntersection, QhullError
 
-from ._validation import as_finite_array
+from .validation import as_finite_array
 from .errors import DimensionError, EmptySetError, InputError, SolverFailure
 from .sets import Box, Ellipsoid, hypercube_signs
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ._validation import as_finite_array, check_shape, frozen_copy
+from .validation import as_finite_array, check_shape, frozen_copy
 from .errors import DimensionError, InputError, NonFiniteError
 from .polytope import parameter_vertices
 from .sets import Box

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validation import as_finite_array, check_shape, frozen_copy
+from .validation import as_finite_array, check_shape, frozen_copy
 from .errors import DimensionError, EmptySetError, InputError
 from .sets import Box, Ellipsoid
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
+from .validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from .errors import DimensionError, EmptySetError, InputError
 
 __all__ = ["Box", "Ellipsoid", "hypercube_signs"]

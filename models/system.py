@@ -6,7 +6,7 @@ from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
 
-from ._validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
+from .validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from .errors import DimensionError, InputError
 from .sets import Box
 

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import minimize_scalar
 
-from minimaxplan.models._validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError, SolverFailure
 
 __all__ = ["check_assumption4", "LMIResult", "FORMS", "SOLVERS"]

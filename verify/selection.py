@@ -30,7 +30,7 @@ import scipy.sparse as sp
 from scipy.optimize import linprog
 
 from minimaxplan.models import Box, UncertainLinearSystem
-from minimaxplan.models._validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError, NoConsistentModel, SolverFailure
 
 __all__ = [
