@@ -8,7 +8,7 @@
   certificates of inconsistency.
 """
 
-from .lmi import LMIResult, check_assumption4
+from .lmi import LMIResult, LMIStatus, check_assumption4, lmi_matrix
 from .selection import (
     EliminationCertificate,
     ModelSelector,
@@ -20,6 +20,8 @@ from .selection import (
 __all__ = [
     "check_assumption4",
     "LMIResult",
+    "LMIStatus",
+    "lmi_matrix",
     "eliminate_models",
     "ModelSelector",
     "feasible_parameter_box",
