@@ -223,7 +223,8 @@ class IntervalPredictor:
     system
         The discrete-time `UncertainLinearSystem`.
     parameters
-        A `Box`, an `Ellipsoid` or a vertex array (k, d); default ``system.theta``.
+        A `ParameterSet` (`Box`, `Ellipsoid`, `VertexPolytope`) or a vertex array (k, d);
+        default ``system.theta``.
         The guarantee covers every theta in this set (it is not intersected with
         ``system.theta``; use `parameter_vertices` with ``prior=`` for that).
     basis
@@ -438,7 +439,8 @@ def predict_tube(system: UncertainLinearSystem, x0: Box, controls, parameters=No
     controls
         Array of shape (H, q): the known control sequence.
     parameters
-        `Box`, `Ellipsoid` or vertex array (k, d); default ``system.theta``.
+        A `ParameterSet` (`Box`, `Ellipsoid`, `VertexPolytope`) or a vertex array (k, d);
+        default ``system.theta``.
     basis
         None, ``"auto"`` or an invertible (p, p) matrix, see `IntervalPredictor`.
 
