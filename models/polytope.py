@@ -17,7 +17,7 @@ from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 
 from .errors import DimensionError, EmptySetError, SolverFailure
 from .sets import Box, Ellipsoid, Membership, ParameterSet, hypercube_signs
-from .validation import as_finite_array, check_dimension, check_instance, frozen_copy
+from .validation import as_finite_array, as_points, check_dimension, check_instance, frozen_copy
 
 __all__ = [
     "VertexPolytope",
@@ -271,9 +271,7 @@ class VertexPolytope:
         With ``witness=True``, a `Membership` naming the first point outside and that
         distance beyond the allowance.
         """
-        pts = as_finite_array("x", x)
-        if pts.shape[-1:] != (self.dim,) or pts.ndim > 2:
-            raise DimensionError(f"x must have shape ({self.dim},) or (k, {self.dim}), got shape {pts.shape}")
+        pts = as_points("x", x, self.dim)
         for index, point in enumerate(np.atleast_2d(pts)):
             distance = self._distance(point)
             allowance = tol + HULL_MEMBERSHIP_TOLERANCE * (1.0 + max(float(np.max(np.abs(point))), float(np.max(np.abs(self.vertices)))))

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from .validation import as_finite_array, check_shape, frozen_copy
+from .validation import as_finite_array, check_dimension, check_instance, check_same_shape, check_shape, frozen_copy
 from .errors import DimensionError, InputError, NonFiniteError
 from .polytope import parameter_vertices
 from .sets import Box
@@ -106,8 +106,7 @@ class Tube:
     def __post_init__(self) -> None:
         lower = as_finite_array("lower", self.lower, ndim=2)
         upper = as_finite_array("upper", self.upper, ndim=2)
-        if lower.shape != upper.shape:
-            raise DimensionError(f"lower and upper must have the same shape, got {lower.shape} and {upper.shape}")
+        check_same_shape("lower", lower, "upper", upper)
         object.__setattr__(self, "lower", frozen_copy(lower))
         object.__setattr__(self, "upper", frozen_copy(upper))
         object.__setattr__(self, "guaranteed", bool(self.guaranteed))
@@ -279,8 +278,7 @@ class IntervalPredictor:
     """
 
     def __init__(self, system: UncertainLinearSystem, parameters=None, *, basis=None) -> None:
-        if not isinstance(system, UncertainLinearSystem):
-            raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+        check_instance("system", system, UncertainLinearSystem)
         p = system.nstates
         vertices = parameter_vertices(system.theta if parameters is None else parameters)
         if vertices.shape[1] != system.nparams:
@@ -460,12 +458,9 @@ def predict_tube(system: UncertainLinearSystem, x0: Box, controls, parameters=No
 
     Raises `NonFiniteError` if the bounds overflow the float range.
     """
-    if not isinstance(system, UncertainLinearSystem):
-        raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
-    if not isinstance(x0, Box):
-        raise InputError(f"x0 must be a Box, got {type(x0).__name__}")
-    if x0.dim != system.nstates:
-        raise DimensionError(f"x0 must have dimension {system.nstates} (A0 has shape {system.A0.shape}), got {x0.dim}")
+    check_instance("system", system, UncertainLinearSystem)
+    check_instance("x0", x0, Box)
+    check_dimension("x0", x0.dim, system.nstates, f"A0 has shape {system.A0.shape}")
     u = as_finite_array("controls", controls, ndim=2)
     check_shape("controls", u, (None, system.ninputs))
     predictor = IntervalPredictor(system, parameters, basis=basis)

@@ -16,7 +16,15 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from .errors import DimensionError, EmptySetError, InputError
-from .validation import as_finite_array, as_positive_scalar, check_dimension, check_same_shape, check_shape, frozen_copy
+from .validation import (
+    as_finite_array,
+    as_points,
+    as_positive_scalar,
+    check_dimension,
+    check_same_shape,
+    check_shape,
+    frozen_copy,
+)
 
 __all__ = ["Box", "Ellipsoid", "Membership", "ParameterSet", "hypercube_signs"]
 
@@ -88,12 +96,6 @@ class ParameterSet(Protocol):
         ...
 
 
-def _points(name: str, x, dim: int) -> np.ndarray:
-    """``x`` as a finite array of shape (dim,) or (k, dim)."""
-    pts = as_finite_array(name, x)
-    if pts.shape[-1:] != (dim,) or pts.ndim > 2:
-        raise DimensionError(f"{name} must have shape ({dim},) or (k, {dim}), got shape {pts.shape}")
-    return pts
 
 
 def hypercube_signs(dim: int) -> np.ndarray:
@@ -161,7 +163,7 @@ class Box:
         first point (in order) and, within it, the first coordinate outside, with the
         distance beyond ``low - tol`` or ``high + tol``.
         """
-        pts = _points("x", x, self.dim)
+        pts = as_points("x", x, self.dim)
         if not witness:
             return bool(np.all(pts >= self.low - tol) and np.all(pts <= self.high + tol))
         rows = np.atleast_2d(pts)
@@ -266,7 +268,7 @@ class Ellipsoid:
         ``witness=True``, a `Membership` naming the first point outside and by how much
         its quadratic form exceeds ``radius^2 (1 + tol)``.
         """
-        pts = _points("t", t, self.dim)
+        pts = as_points("t", t, self.dim)
         delta = np.atleast_2d(pts) - self.center
         q = np.einsum("ki,ij,kj->k", delta, self.gramian, delta)
         limit = self.radius**2 * (1 + tol)

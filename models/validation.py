@@ -23,6 +23,7 @@ __all__ = [
     "as_positive_scalar",
     "as_count",
     "as_choice",
+    "as_points",
     "as_discount",
     "as_probability",
     "check_instance",
@@ -123,6 +124,17 @@ def as_finite_array(
     return array
 
 
+def as_points(name: str, value, dim: int, *, batch: str = "k") -> np.ndarray:
+    """A finite float array of one point, shape (dim,), or a batch of points, shape (k, dim).
+
+    ``batch`` names the batch length in the error message (e.g. ``"N"``).
+    """
+    points = as_finite_array(name, value)
+    if points.shape[-1:] != (dim,) or points.ndim > 2:
+        raise DimensionError(f"{name} must have shape ({dim},) or ({batch}, {dim}), got shape {points.shape}")
+    return points
+
+
 def frozen_copy(array: np.ndarray) -> np.ndarray:
     """A read-only copy, so that immutable values never alias a caller's array."""
     out = np.array(array, dtype=float, copy=True)
@@ -154,9 +166,11 @@ def as_probability(name: str, value) -> float:
     """Check that ``value`` is a real scalar in the open interval (0, 1); return it as a float.
 
     Used for confidence levels (``delta``: the set holds with probability >= 1 - delta).
+    A value <= 0 is reported as by `as_positive_scalar` (``"must be > 0"``), one >= 1 as
+    ``"must lie in (0, 1)"``.
     """
-    x = _as_real_scalar(name, value)
-    if not 0.0 < x < 1.0:
+    x = as_positive_scalar(name, value)
+    if not x < 1:
         raise InputError(f"{name} must lie in (0, 1), got {x}")
     return x
 
@@ -168,10 +182,24 @@ def as_discount(name: str, value) -> float:
     -----
     The paper allows eta = 1 (its discount); the value bounds of eqs. (12) and
     (16)-(18) need ``gamma < 1`` (DESIGN errata).
+
+    Raises
+    ------
+    InputError
+        If ``value`` is not a real number, or not in the open interval (0, 1).
+    NonFiniteError
+        If it is NaN or infinite.
     """
-    x = _as_real_scalar(name, value)
+    if isinstance(value, (bool, np.bool_)) or np.iscomplexobj(value):
+        raise InputError(f"{name} must be a real number in (0, 1), got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a real number in (0, 1), got {value!r}") from None
+    if not np.isfinite(x):
+        raise NonFiniteError(f"{name} must be finite and in (0, 1), got {x}")
     if not 0.0 < x < 1.0:
-        raise InputError(f"{name} must satisfy 0 < {name} < 1, got {x}")
+        raise InputError(f"{name} must be in the open interval (0, 1), got {x}")
     return x
 
 
