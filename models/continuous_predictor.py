@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .validation import as_finite_array, as_positive_scalar, check_dimension, check_instance, check_shape
 from .errors import DimensionError
 from .polytope import parameter_vertices
 from .prediction import Tube, _check_no_overflow, interval_matvec
 from .sets import Box
+from .validation import as_finite_array, as_positive_scalar, check_dimension, check_instance, check_shape
 
 __all__ = ["predict_tube_continuous", "euler_keeps_inclusion"]
 

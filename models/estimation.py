@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg.lapack import dtrtrs
 
-from .validation import as_count, as_finite_array, as_positive_scalar, as_probability, check_shape
 from .errors import DimensionError, InputError, SolverFailure
 from .sets import Ellipsoid
+from .validation import as_count, as_finite_array, as_positive_scalar, as_probability, check_shape
 
 __all__ = ["confidence_ellipsoid", "ConfidenceEllipsoidEstimator", "MAX_CONDITION"]
 

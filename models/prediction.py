@@ -13,11 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from .validation import as_finite_array, check_dimension, check_instance, check_same_shape, check_shape, frozen_copy
 from .errors import DimensionError, InputError, NonFiniteError
 from .polytope import parameter_vertices
 from .sets import Box
 from .system import UncertainLinearSystem
+from .validation import as_finite_array, check_dimension, check_instance, check_same_shape, check_shape, frozen_copy
 
 __all__ = ["Tube", "IntervalPredictor", "predict_tube", "ROUNDING_TOL", "UNIT_ROUNDOFF", "interval_matvec", "summation_error_bound"]
 

@@ -79,15 +79,15 @@ class ParameterSet(Protocol):
         """The dimension d of the parameter space."""
         ...
 
-    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> "bool | Membership":
+    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
         """Whether every point of ``x`` ((d,) or (k, d)) lies in the set; a `Membership` with ``witness=True``."""
         ...
 
-    def bounding_box(self) -> "Box":
+    def bounding_box(self) -> Box:
         """A box that contains the set."""
         ...
 
-    def enclosing_vertices(self, prior: "Box | None" = None) -> np.ndarray:
+    def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
         """Vertices (k, d) of a polytope containing the set (intersected with ``prior`` if given)."""
         ...
 
@@ -130,7 +130,7 @@ class Box:
         object.__setattr__(self, "high", frozen_copy(high))
 
     @classmethod
-    def from_center(cls, center, radius) -> "Box":
+    def from_center(cls, center, radius) -> Box:
         """The box ``center +- radius``; ``radius`` is a scalar or an array, >= 0."""
         c = as_finite_array("center", center, ndim=1)
         r = as_finite_array("radius", radius)
@@ -183,16 +183,16 @@ class Box:
         """
         return np.where(hypercube_signs(self.dim) > 0, self.high, self.low)
 
-    def intersect(self, other: "Box") -> "Box":
+    def intersect(self, other: Box) -> Box:
         """The intersection with another box; raises `EmptySetError` if empty."""
         check_dimension("other", other.dim, self.dim)
         return Box(np.maximum(self.low, other.low), np.minimum(self.high, other.high))
 
-    def bounding_box(self) -> "Box":
+    def bounding_box(self) -> Box:
         """The box itself (a `ParameterSet` method)."""
         return self
 
-    def enclosing_vertices(self, prior: "Box | None" = None) -> np.ndarray:
+    def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
         """The 2^n corners (exactly ``low`` or ``high``), of ``self ∩ prior`` when a prior is given.
 
         Box ∩ box is exact. Raises `EmptySetError` if the intersection is empty.

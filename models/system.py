@@ -6,6 +6,8 @@ from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
 
+from .errors import InputError
+from .sets import Box
 from .validation import (
     as_finite_array,
     as_points,
@@ -15,8 +17,6 @@ from .validation import (
     check_shape,
     frozen_copy,
 )
-from .errors import InputError
-from .sets import Box
 
 __all__ = ["UncertainLinearSystem"]
 
@@ -113,7 +113,7 @@ class UncertainLinearSystem:
 
     # --------------------------------------------------------- constructors
     @classmethod
-    def from_continuous(cls, A, phi, B, *, D=None, w: Box, theta: Box, dt: float) -> "UncertainLinearSystem":
+    def from_continuous(cls, A, phi, B, *, D=None, w: Box, theta: Box, dt: float) -> UncertainLinearSystem:
         """Discretise eq. (1), ``dx/dt = A(theta) x + B u + D w``, by forward Euler.
 
         Notes
@@ -132,7 +132,7 @@ class UncertainLinearSystem:
         return cls(np.eye(p) + dt * A, dt * phi, dt * B, D=dt * Dm, w=w, theta=theta)
 
     @classmethod
-    def from_statespace(cls, sys, phi, *, D=None, w: Box, theta: Box, dt: float | None = None) -> "UncertainLinearSystem":
+    def from_statespace(cls, sys, phi, *, D=None, w: Box, theta: Box, dt: float | None = None) -> UncertainLinearSystem:
         """Build from a python-control ``StateSpace``.
 
         Its ``A`` is the nominal matrix and its ``B`` the input matrix. Its ``D`` (the

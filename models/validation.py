@@ -12,7 +12,8 @@ raise on a bad value (``check_*``).
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 

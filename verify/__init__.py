@@ -14,8 +14,8 @@ only `linprog` call and its status map) and `_generation` (constraint generation
 the weak-duality bound).
 """
 
-from .lmi import LMIResult, LMIStatus, check_assumption4, lmi_matrix
 from .certificates import EliminationCertificate, SelectionResult
+from .lmi import LMIResult, LMIStatus, check_assumption4, lmi_matrix
 from .selection import ModelSelector, eliminate_models, feasible_parameter_box
 
 __all__ = [

@@ -346,7 +346,7 @@ def _build_program(form: str, p: int, k: int, q0_given: bool) -> _Program:
     return _Program(problem, A, q0_param, P, Q, slack, sigma)
 
 
-_PROGRAMS: "OrderedDict[tuple, _Program]" = OrderedDict()
+_PROGRAMS: OrderedDict[tuple, _Program] = OrderedDict()
 # The cached problems' parameters are set per call: one call at a time per process.
 _LOCK = threading.Lock()
 

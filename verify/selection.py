@@ -22,8 +22,8 @@ How the decision is made (see `eliminate_models`, Notes):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -32,7 +32,14 @@ from minimaxplan.models.errors import NoConsistentModel, SolverFailure
 from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, check_instance
 
 from ._generation import GENERATION_TOLERANCE, generate, initial_rows, lagrangian_bound
-from ._regression import HypothesisData, Structure, check_hypotheses, check_trajectory, measurement_noise_bound, noise_vector
+from ._regression import (
+    HypothesisData,
+    Structure,
+    check_hypotheses,
+    check_trajectory,
+    measurement_noise_bound,
+    noise_vector,
+)
 from .certificates import ELIMINATION_MARGIN, EliminationCertificate, SelectionResult
 
 __all__ = [

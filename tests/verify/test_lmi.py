@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 
 import minimaxplan.verify.lmi as lmi
 from minimaxplan.models.errors import DimensionError, InputError, NonFiniteError, SolverFailure
-from minimaxplan.verify import LMIResult, LMIStatus, check_assumption4, lmi_matrix as library_lmi_matrix
+from minimaxplan.verify import LMIResult, LMIStatus, check_assumption4
+from minimaxplan.verify import lmi_matrix as library_lmi_matrix
 
 # ----------------------------------------------------------------- helpers
 

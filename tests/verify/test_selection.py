@@ -18,8 +18,7 @@ from minimaxplan.models.errors import (
     NonFiniteError,
     SolverFailure,
 )
-from minimaxplan.verify import ModelSelector, eliminate_models, feasible_parameter_box
-from minimaxplan.verify import _highs
+from minimaxplan.verify import ModelSelector, _highs, eliminate_models, feasible_parameter_box
 from minimaxplan.verify.selection import ELIMINATION_MARGIN, PARAMETER_BOX_ALLOWANCE, measurement_noise_bound
 
 D_KINDS = ("identity", "scaled", "square", "tall", "wide")
