@@ -18,6 +18,12 @@ How the decision is made (see `eliminate_models`, Notes):
   so a small LP is solved, every row is checked vectorised in numpy, the most violated
   rows are added, and so on; the last round (after ``max_rounds``) takes every row,
   so the margin is the one of the full LP either way.
+
+This module is the public API; the pieces live in `minimaxplan.verify.certificates`
+(the result values) and the internal modules ``_regression`` (input checks, the
+measurement-noise bound, the per-hypothesis regression data), ``_highs`` (the only
+`linprog` call and its status map) and ``_generation`` (constraint generation and the
+weak-duality bound).
 """
 
 from __future__ import annotations
