@@ -11,17 +11,18 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
-from minimaxplan.models import Box, InputError
+from minimaxplan.models import Box
+from minimaxplan.verify import LMIResult, LMIStatus, SelectionResult, lmi_matrix
 
 __all__ = [
     "LMIReport",
     "SelectionReport",
-    "lmi_matrix",
     "render_lmi_reports",
     "lmi_reports_to_dict",
     "to_json",
@@ -88,27 +89,6 @@ def _sorted_eigenvalues(matrix: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- LMI reports
-def lmi_matrix(A, P, Q0, rho: float, D, form: str) -> np.ndarray:
-    """The matrix that Assumption 4 requires to be negative definite, at a given certificate.
-
-    Notes
-    -----
-    Continuous form (Assumption 4, with the disturbance matrix D):
-    ``[[A^T P + P A + Q0, P D], [D^T P, -rho I]]``. Discrete form, for
-    ``e+ = A e + D w``: ``[[A^T P A - P + Q0, A^T P D], [D^T P A, D^T P D - rho I]]``.
-    """
-    A, P, Q0, D = (np.asarray(m, dtype=float) for m in (A, P, Q0, D))
-    r = D.shape[1]
-    if form == "continuous":
-        top_left, top_right, bottom_right = A.T @ P + P @ A + Q0, P @ D, -rho * np.eye(r)
-    elif form == "discrete":
-        top_left, top_right, bottom_right = A.T @ P @ A - P + Q0, A.T @ P @ D, D.T @ P @ D - rho * np.eye(r)
-    else:
-        raise InputError(f"form must be 'discrete' or 'continuous', got {form!r}")
-    matrix = np.block([[top_left, top_right], [top_right.T, bottom_right]])
-    return (matrix + matrix.T) / 2
-
-
 @dataclass(frozen=True, eq=False)
 class LMIReport:
     """The outcome of checking Assumption 4 on one model, with independent numpy figures.
@@ -138,7 +118,7 @@ class LMIReport:
     matrices: np.ndarray
     parameters: np.ndarray
     D: np.ndarray
-    result: Any
+    result: LMIResult
     wall_time: float
     vertices: bool = False
 
@@ -149,19 +129,19 @@ class LMIReport:
     @property
     def holds(self) -> bool:
         """True iff the LMI is feasible and its certificate passed the numpy re-check."""
-        return self.result.status == "feasible" and bool(self.result.certified)
+        return self.result.holds
 
     @property
     def verdict(self) -> str:
         status = self.result.status
-        if status == "feasible" and self.result.certified:
+        if self.result.holds:
             return "Assumption 4 holds: feasible, certificate re-checked"
-        if status == "feasible":
+        if status is LMIStatus.FEASIBLE:
             return "not certified: the solver reports feasible but the certificate fails the numpy re-check"
-        if status == "infeasible":
+        if status is LMIStatus.INFEASIBLE:
             return "Assumption 4 fails: the LMI is infeasible"
         reason = getattr(self.result, "reason", "")
-        return f"inconclusive: {reason}" if reason else f"inconclusive (status {status!r})"
+        return f"inconclusive: {reason}" if reason else f"inconclusive (status {status.value!r})"
 
     def state_eigenvalues(self) -> list[np.ndarray]:
         return [_sorted_eigenvalues(a) for a in self.matrices]
@@ -339,7 +319,7 @@ class SelectionReport:
     """
 
     names: tuple[str, ...]
-    result: Any
+    result: SelectionResult
     feasible_boxes: dict[int, Box]
     ntransitions: int
     nstates: int

@@ -13,16 +13,19 @@ from .errors import (
     RewardRangeError,
     SolverFailure,
 )
-from .sets import Box, Ellipsoid
-from .system import UncertainLinearSystem
 from .estimation import ConfidenceEllipsoidEstimator, confidence_ellipsoid
-from .set_membership import SetMembershipEstimator
-from .polytope import parameter_vertices
+from .polytope import VertexPolytope, parameter_vertices
 from .prediction import IntervalPredictor, Tube, predict_tube
+from .set_membership import SetMembershipEstimator
+from .sets import Box, Ellipsoid, Membership, ParameterSet
+from .system import UncertainLinearSystem
 
 __all__ = [
     "Box",
     "Ellipsoid",
+    "VertexPolytope",
+    "ParameterSet",
+    "Membership",
     "UncertainLinearSystem",
     "confidence_ellipsoid",
     "ConfidenceEllipsoidEstimator",

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validation import as_finite_array, as_positive_scalar, check_shape
-from .errors import DimensionError, InputError
+from .errors import DimensionError
 from .polytope import parameter_vertices
 from .prediction import Tube, _check_no_overflow, interval_matvec
 from .sets import Box
+from .validation import as_finite_array, as_positive_scalar, check_dimension, check_instance, check_shape
 
 __all__ = ["predict_tube_continuous", "euler_keeps_inclusion"]
 
@@ -83,12 +83,10 @@ def predict_tube_continuous(A, phi, B, *, D=None, w: Box, x0: Box, controls, dt:
     check_shape("B", B, (p, None))
     D = np.eye(p) if D is None else as_finite_array("D", D, ndim=2)
     check_shape("D", D, (p, None))
-    if not isinstance(w, Box) or not isinstance(x0, Box):
-        raise InputError(f"w and x0 must be Boxes, got {type(w).__name__} and {type(x0).__name__}")
-    if w.dim != D.shape[1]:
-        raise DimensionError(f"w must have dimension {D.shape[1]} (columns of D, shape {D.shape}), got {w.dim}")
-    if x0.dim != p:
-        raise DimensionError(f"x0 must have dimension {p} (A has shape {A.shape}), got {x0.dim}")
+    check_instance("w", w, Box)
+    check_instance("x0", x0, Box)
+    check_dimension("w", w.dim, D.shape[1], f"columns of D, shape {D.shape}")
+    check_dimension("x0", x0.dim, p, f"A has shape {A.shape}")
     u = as_finite_array("controls", controls, ndim=2)
     check_shape("controls", u, (None, B.shape[1]))
     vertices = parameter_vertices(parameters)

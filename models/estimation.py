@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg.lapack import dtrtrs
 
-from ._validation import as_finite_array, as_positive_scalar, check_shape
 from .errors import DimensionError, InputError, SolverFailure
 from .sets import Ellipsoid
+from .validation import as_count, as_finite_array, as_positive_scalar, as_probability, check_shape
 
 __all__ = ["confidence_ellipsoid", "ConfidenceEllipsoidEstimator", "MAX_CONDITION"]
 
@@ -24,13 +24,6 @@ MAX_CONDITION = 1e13
 # Sums of the Gramian and moment are kept in extended precision (80-bit on x86-64 Linux).
 _EXTENDED = np.longdouble
 _REFINEMENT_STEPS = 2
-
-
-def _as_probability(name: str, value) -> float:
-    x = as_positive_scalar(name, value)
-    if not x < 1:
-        raise InputError(f"{name} must lie in (0, 1), got {x}")
-    return x
 
 
 def _confidence_radius(logdet_gramian: float, nparams: int, *, lam: float, delta: float, bound: float) -> float:
@@ -84,7 +77,7 @@ def confidence_ellipsoid(regressors, targets, *, sigma: float, lam: float, delta
     """
     sigma = as_positive_scalar("sigma", sigma)
     lam = as_positive_scalar("lam", lam)
-    delta = _as_probability("delta", delta)
+    delta = as_probability("delta", delta)
     bound = as_positive_scalar("bound", bound)
     E = as_finite_array("regressors", regressors, ndim=3)
     n, p, d = E.shape
@@ -208,12 +201,10 @@ class ConfidenceEllipsoidEstimator:
     """
 
     def __init__(self, nparams: int, *, sigma: float, lam: float, delta: float, bound: float) -> None:
-        if isinstance(nparams, bool) or not isinstance(nparams, (int, np.integer)) or nparams < 1:
-            raise InputError(f"nparams must be a positive integer, got {nparams!r}")
-        self._d = int(nparams)
+        self._d = as_count("nparams", nparams)
         self._sigma = as_positive_scalar("sigma", sigma)
         self._lam = as_positive_scalar("lam", lam)
-        self._delta = _as_probability("delta", delta)
+        self._delta = as_probability("delta", delta)
         self._bound = as_positive_scalar("bound", bound)
         self._gramian = _EXTENDED(self._lam) * np.eye(self._d, dtype=_EXTENDED)
         self._factor = np.sqrt(self._lam) * np.eye(self._d)

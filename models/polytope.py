@@ -9,15 +9,28 @@ approximates it.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.optimize import linprog
-from scipy.spatial import HalfspaceIntersection, QhullError
+from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 
-from ._validation import as_finite_array
-from .errors import DimensionError, EmptySetError, InputError, SolverFailure
-from .sets import Box, Ellipsoid, hypercube_signs
+from .errors import DimensionError, EmptySetError, SolverFailure
+from .sets import Box, Ellipsoid, Membership, ParameterSet, hypercube_signs
+from .validation import as_finite_array, as_points, check_dimension, check_instance, frozen_copy
 
-__all__ = ["parameter_vertices", "box_corners", "box_halfspaces", "parallelotope_halfspaces", "polytope_vertices"]
+__all__ = [
+    "VertexPolytope",
+    "as_parameter_set",
+    "parameter_vertices",
+    "box_halfspaces",
+    "parallelotope_halfspaces",
+    "polytope_vertices",
+    "intersect_boxes",
+    "dilated_parallelotope_vertices",
+    "ellipsoid_in_box_vertices",
+    "HULL_MEMBERSHIP_TOLERANCE",
+]
 
 #: Absolute error budget of qhull's vertices, relative to the coordinates' magnitude.
 #: The returned vertices are dilated about an interior point so that their hull
@@ -27,6 +40,12 @@ VERTEX_ERROR = 1e-11
 #: A Chebyshev radius below this (relative to the set's size) means the polytope is
 #: flat (lower-dimensional), where qhull cannot enumerate vertices.
 FLAT_RADIUS = 1e-9
+
+#: `VertexPolytope.contains` counts a point as inside when its distance (infinity norm)
+#: to the hull, computed by an LP, is at most ``tol`` plus this times the coordinates'
+#: magnitude (the LP solver's own feasibility tolerance; points on a facet may otherwise
+#: come out a few ulps outside).
+HULL_MEMBERSHIP_TOLERANCE = 1e-9
 
 
 def box_halfspaces(box: Box) -> tuple[np.ndarray, np.ndarray]:
@@ -147,15 +166,7 @@ def _drop_near_duplicates(points: np.ndarray, tol: float) -> np.ndarray:
     return np.array(kept)
 
 
-def box_corners(box: Box) -> np.ndarray:
-    """The 2^d corners of a box, each coordinate exactly ``low`` or ``high`` (no rounding).
-
-    `Box.vertices` computes ``center +- radius``, which can land one ulp inside the box.
-    """
-    return np.where(hypercube_signs(box.dim) > 0, box.high, box.low)
-
-
-def _dilated_parallelotope_vertices(ellipsoid: Ellipsoid) -> np.ndarray:
+def dilated_parallelotope_vertices(ellipsoid: Ellipsoid) -> np.ndarray:
     """The parallelotope's 2^d vertices ``c + P diag(h) s`` (as `Ellipsoid.vertices`), rounding-safe.
 
     The half-widths come from `_parallelotope`; the vertices are then dilated about c
@@ -168,24 +179,23 @@ def _dilated_parallelotope_vertices(ellipsoid: Ellipsoid) -> np.ndarray:
     return ellipsoid.center + (1.0 + vertex_error / np.min(support)) * (vertices - ellipsoid.center)
 
 
-def _intersect_boxes(box: Box, prior: Box, what: str) -> Box:
+def intersect_boxes(box: Box, prior: Box, what: str) -> Box:
+    """``box ∩ prior``; an empty intersection raises `EmptySetError` naming ``what`` and both boxes."""
     try:
         return box.intersect(prior)
     except EmptySetError:
         raise EmptySetError(f"{what} {box!r} does not meet the prior {prior!r}: the parameter set is empty") from None
 
 
-def _ellipsoid_in_box_vertices(ellipsoid: Ellipsoid, prior: Box) -> np.ndarray:
+def ellipsoid_in_box_vertices(ellipsoid: Ellipsoid, prior: Box) -> np.ndarray:
     """Vertices of (parallelotope ∩ bounding box ∩ prior), a sound enclosure of ellipsoid ∩ prior."""
-    if prior.dim != ellipsoid.dim:
-        raise DimensionError(f"prior must have dimension {ellipsoid.dim} (the ellipsoid's), got {prior.dim}")
-    box = _intersect_boxes(_bounding_box(ellipsoid), prior, "the ellipsoid's bounding box")
+    box = intersect_boxes(_bounding_box(ellipsoid), prior, "the ellipsoid's bounding box")
     a_par, b_par = parallelotope_halfspaces(ellipsoid)
     a_box, b_box = box_halfspaces(box)
     vertices = polytope_vertices(np.vstack([a_par, a_box]), np.concatenate([b_par, b_box]))
     if vertices is None:
         # Flat intersection (e.g. a prior side of zero width): the box, which contains it, is enumerable.
-        return box_corners(box)
+        return box.vertices()
     return vertices
 
 
@@ -193,16 +203,121 @@ def _array_in_box_vertices(vertices: np.ndarray, prior: Box) -> np.ndarray:
     """Vertices of a sound enclosure of co{vertices} ∩ prior."""
     if np.all(vertices >= prior.low) and np.all(vertices <= prior.high):
         return vertices  # the hull already lies in the prior box
-    hull_box = _intersect_boxes(Box(vertices.min(axis=0), vertices.max(axis=0)), prior, "the vertices' bounding box")
+    hull_box = intersect_boxes(Box(vertices.min(axis=0), vertices.max(axis=0)), prior, "the vertices' bounding box")
     d = vertices.shape[1]
     if vertices.shape[0] <= d or np.linalg.matrix_rank(vertices[1:] - vertices[0]) < d:
-        return box_corners(hull_box)  # a flat hull: its bounding box (∩ prior) contains co{V} ∩ prior
-    from scipy.spatial import ConvexHull
-
+        return hull_box.vertices()  # a flat hull: its bounding box (∩ prior) contains co{V} ∩ prior
     equations = ConvexHull(vertices).equations
     a_box, b_box = box_halfspaces(hull_box)
     clipped = polytope_vertices(np.vstack([equations[:, :-1], a_box]), np.concatenate([-equations[:, -1], b_box]))
-    return box_corners(hull_box) if clipped is None else clipped
+    return hull_box.vertices() if clipped is None else clipped
+
+
+@dataclass(frozen=True, eq=False)
+class VertexPolytope:
+    """The polytope ``co{v_1, ..., v_k}``, given by its vertices (any k >= 1): a `ParameterSet`.
+
+    Parameters
+    ----------
+    vertices
+        Array of shape (k, d), k, d >= 1; stored as a read-only copy and taken as is
+        (rows need not be extreme points).
+
+    Notes
+    -----
+    The form of the parameter polytope of eq. (8). Arrays of vertices given to
+    `parameter_vertices`, `~minimaxplan.models.predict_tube` or the planners are wrapped
+    in this value at the boundary.
+    """
+
+    vertices: np.ndarray
+
+    def __post_init__(self) -> None:
+        v = as_finite_array("vertices", self.vertices, ndim=2)
+        if v.shape[0] == 0 or v.shape[1] == 0:
+            raise DimensionError(f"vertices must have shape (k, d) with k, d >= 1, got shape {v.shape}")
+        object.__setattr__(self, "vertices", frozen_copy(v))
+
+    @property
+    def dim(self) -> int:
+        """The dimension d."""
+        return self.vertices.shape[1]
+
+    @property
+    def nvertices(self) -> int:
+        """The number k of vertices given."""
+        return self.vertices.shape[0]
+
+    def bounding_box(self) -> Box:
+        """The tightest enclosing box: the vertices' coordinate-wise minima and maxima."""
+        return Box(self.vertices.min(axis=0), self.vertices.max(axis=0))
+
+    def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
+        """The vertices themselves, or those of a sound enclosure of ``co{V} ∩ prior``.
+
+        With a prior: unchanged if every vertex lies in the prior; otherwise the exact
+        vertices of co{V} ∩ bounding box ∩ prior (the box when co{V} is flat).
+        """
+        if prior is None:
+            return self.vertices
+        check_dimension("prior", prior.dim, self.dim, f"the polytope's vertices have shape {self.vertices.shape}")
+        return _array_in_box_vertices(self.vertices, prior)
+
+    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """True iff every point of ``x`` ((d,) or (k, d)) lies in the convex hull, within ``tol``.
+
+        A point counts as inside when its infinity-norm distance to the hull (an LP,
+        HiGHS) is at most ``tol + HULL_MEMBERSHIP_TOLERANCE * (1 + max |coordinate|)``.
+        With ``witness=True``, a `Membership` naming the first point outside and that
+        distance beyond the allowance.
+        """
+        pts = as_points("x", x, self.dim)
+        for index, point in enumerate(np.atleast_2d(pts)):
+            distance = self._distance(point)
+            allowance = tol + HULL_MEMBERSHIP_TOLERANCE * (1.0 + max(float(np.max(np.abs(point))), float(np.max(np.abs(self.vertices)))))
+            if distance > allowance:
+                if not witness:
+                    return False
+                return Membership(False, index, "distance to co{vertices} <= tol", float(distance - allowance))
+        return Membership(True) if witness else True
+
+    def _distance(self, point: np.ndarray) -> float:
+        """``min ||V^T lam - point||_inf`` over the simplex, by an LP."""
+        k, d = self.vertices.shape
+        # variables: lam (k) >= 0, s >= 0;  -s <= V^T lam - x <= s,  sum lam = 1;  minimise s
+        cost = np.zeros(k + 1)
+        cost[-1] = 1.0
+        V_T = self.vertices.T
+        A_ub = np.block([[V_T, -np.ones((d, 1))], [-V_T, -np.ones((d, 1))]])
+        b_ub = np.concatenate([point, -point])
+        A_eq = np.concatenate([np.ones(k), [0.0]])[None]
+        result = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=[1.0], bounds=[(0, None)] * (k + 1), method="highs")
+        if result.status != 0:
+            raise SolverFailure(f"hull-membership LP failed with status {result.status}: {result.message}")
+        return float(result.x[-1])
+
+    def to_dict(self) -> dict:
+        """``{"vertices": [[...], ...]}``."""
+        return {"vertices": self.vertices.tolist()}
+
+    def __repr__(self) -> str:
+        return f"VertexPolytope(nvertices={self.nvertices}, dim={self.dim})"
+
+
+def as_parameter_set(parameters) -> ParameterSet:
+    """``parameters`` as a `ParameterSet`: a set is returned as is, an array (k, d) of vertices is wrapped.
+
+    Raises
+    ------
+    DimensionError, NonFiniteError, InputError
+        For an array that is not a finite (k, d) array with k, d >= 1 (named ``parameters``).
+    """
+    if isinstance(parameters, ParameterSet):
+        return parameters
+    vertices = as_finite_array("parameters", parameters, ndim=2)
+    if vertices.shape[0] == 0 or vertices.shape[1] == 0:
+        raise DimensionError(f"parameters must have shape (k, d) with k, d >= 1, got shape {vertices.shape}")
+    return VertexPolytope(vertices)
 
 
 def parameter_vertices(parameters, prior: Box | None = None) -> np.ndarray:
@@ -211,8 +326,9 @@ def parameter_vertices(parameters, prior: Box | None = None) -> np.ndarray:
     Parameters
     ----------
     parameters
-        A `Box`, an `Ellipsoid`, or an array of shape (k, d) whose rows are the
-        vertices of a polytope (any k >= 1; taken as is).
+        A `ParameterSet` (`Box`, `Ellipsoid`, `VertexPolytope`), or an array of shape
+        (k, d) whose rows are the vertices of a polytope (any k >= 1; taken as is,
+        wrapped in a `VertexPolytope`).
     prior
         Optional prior `Box` (the set D of Assumption 1); the result then contains
         ``parameters ∩ prior``.
@@ -249,26 +365,8 @@ def parameter_vertices(parameters, prior: Box | None = None) -> np.ndarray:
 
     Emptiness is decided on the enclosing polytope, so an ellipsoid that misses the
     prior only between the parallelotope's corners is not reported as empty.
+
+    Each case is the set's own `ParameterSet.enclosing_vertices` method.
     """
-    if isinstance(prior, (Box, type(None))) is False:
-        raise InputError(f"prior must be a Box or None, got {type(prior).__name__}")
-    if isinstance(parameters, Box):
-        if prior is not None:
-            if prior.dim != parameters.dim:
-                raise DimensionError(f"prior must have dimension {parameters.dim} (the parameter box's), got {prior.dim}")
-            return box_corners(_intersect_boxes(parameters, prior, "the parameter box"))
-        return box_corners(parameters)
-    if isinstance(parameters, Ellipsoid):
-        if prior is not None:
-            return _ellipsoid_in_box_vertices(parameters, prior)
-        return _dilated_parallelotope_vertices(parameters)
-    vertices = as_finite_array("parameters", parameters, ndim=2)
-    if vertices.shape[0] == 0 or vertices.shape[1] == 0:
-        raise DimensionError(f"parameters must have shape (k, d) with k, d >= 1, got shape {vertices.shape}")
-    if prior is not None:
-        if prior.dim != vertices.shape[1]:
-            raise DimensionError(
-                f"prior must have dimension {vertices.shape[1]} (parameters has shape {vertices.shape}), got {prior.dim}"
-            )
-        return _array_in_box_vertices(vertices, prior)
-    return vertices
+    check_instance("prior", prior, (Box, type(None)), "a Box or None")
+    return as_parameter_set(parameters).enclosing_vertices(prior)

@@ -13,13 +13,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ._validation import as_finite_array, check_shape, frozen_copy
 from .errors import DimensionError, InputError, NonFiniteError
 from .polytope import parameter_vertices
 from .sets import Box
 from .system import UncertainLinearSystem
+from .validation import as_finite_array, check_dimension, check_instance, check_same_shape, check_shape, frozen_copy
 
-__all__ = ["Tube", "IntervalPredictor", "predict_tube", "ROUNDING_TOL", "interval_matvec"]
+__all__ = ["Tube", "IntervalPredictor", "predict_tube", "ROUNDING_TOL", "UNIT_ROUNDOFF", "interval_matvec", "summation_error_bound"]
 
 #: Default relative tolerance of `Tube.contains`: a state x counts as inside when
 #: ``lower - tol (1 + |x|) <= x <= upper + tol (1 + |x|)``. The tube's own bounds are
@@ -46,10 +46,27 @@ AUTO_BASIS_HORIZON = 20
 UNIT_ROUNDOFF = np.finfo(float).eps / 2
 
 
-def _gamma(n: int) -> float:
-    """Twice the classical bound ``n u / (1 - n u)`` on the relative rounding error of an n-term sum.
+def summation_error_bound(n: int) -> float:
+    """A bound on the relative rounding error of an n-term floating-point sum or dot product.
 
-    The factor 2 leaves room for the rounding of the error bound itself.
+    Parameters
+    ----------
+    n
+        The number of terms (products count as terms), n u < 1.
+
+    Returns
+    -------
+    float
+        ``gamma_n = 2 n u / (1 - n u)`` with u = 2^-53 (`UNIT_ROUNDOFF`): twice the
+        classical bound ``n u / (1 - n u)`` (Higham, *Accuracy and Stability of
+        Numerical Algorithms*, Lemma 3.1), the factor 2 leaving room for the rounding of
+        the error bound itself.
+
+    Notes
+    -----
+    ``|fl(sum_i a_i b_i) - sum_i a_i b_i| <= gamma_n sum_i |a_i b_i|``; the interval
+    predictor rounds every bound outward by such margins, so that its tubes contain the
+    exact trajectories (eq. (7)).
     """
     return 2.0 * n * UNIT_ROUNDOFF / (1.0 - n * UNIT_ROUNDOFF)
 
@@ -89,8 +106,7 @@ class Tube:
     def __post_init__(self) -> None:
         lower = as_finite_array("lower", self.lower, ndim=2)
         upper = as_finite_array("upper", self.upper, ndim=2)
-        if lower.shape != upper.shape:
-            raise DimensionError(f"lower and upper must have the same shape, got {lower.shape} and {upper.shape}")
+        check_same_shape("lower", lower, "upper", upper)
         object.__setattr__(self, "lower", frozen_copy(lower))
         object.__setattr__(self, "upper", frozen_copy(upper))
         object.__setattr__(self, "guaranteed", bool(self.guaranteed))
@@ -206,7 +222,8 @@ class IntervalPredictor:
     system
         The discrete-time `UncertainLinearSystem`.
     parameters
-        A `Box`, an `Ellipsoid` or a vertex array (k, d); default ``system.theta``.
+        A `ParameterSet` (`Box`, `Ellipsoid`, `VertexPolytope`) or a vertex array (k, d);
+        default ``system.theta``.
         The guarantee covers every theta in this set (it is not intersected with
         ``system.theta``; use `parameter_vertices` with ``prior=`` for that).
     basis
@@ -261,8 +278,7 @@ class IntervalPredictor:
     """
 
     def __init__(self, system: UncertainLinearSystem, parameters=None, *, basis=None) -> None:
-        if not isinstance(system, UncertainLinearSystem):
-            raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+        check_instance("system", system, UncertainLinearSystem)
         p = system.nstates
         vertices = parameter_vertices(system.theta if parameters is None else parameters)
         if vertices.shape[1] != system.nparams:
@@ -272,7 +288,7 @@ class IntervalPredictor:
             )
         raw = system.A(vertices)
         # Rounding in forming A(v) = A0 + sum_i v_i phi_i (d + 1 terms), one bound for all vertices.
-        formation_error = _gamma(system.nparams + 1) * np.max(
+        formation_error = summation_error_bound(system.nparams + 1) * np.max(
             np.abs(system.A0) + np.tensordot(np.abs(vertices), np.abs(system.phi), axes=1), axis=0
         )
         matrices = np.unique(raw.reshape(len(vertices), p * p), axis=0).reshape(-1, p, p)
@@ -303,24 +319,24 @@ class IntervalPredictor:
             abs_t, abs_inv = np.abs(transform), np.abs(inverse)
             # The internal state is z = inverse @ x exactly, so x = S z with S the exact
             # inverse of `inverse`; bound |S - T| from the residual R = I - inverse @ T.
-            residual = np.abs(np.eye(p) - inverse @ transform) + _gamma(p + 1) * (np.eye(p) + abs_inv @ abs_t)
+            residual = np.abs(np.eye(p) - inverse @ transform) + summation_error_bound(p + 1) * (np.eye(p) + abs_inv @ abs_t)
             r = float(np.max(residual.sum(axis=1)))
             if not r < 0.5:
                 raise InputError(f"basis is too ill-conditioned for rigorous bounds: ||I - T^-1 T|| bound {r:.3g}")
             inverse_error = abs_t @ residual
             inverse_error = inverse_error + (r / (1 - r)) * inverse_error.sum(axis=1, keepdims=True)
-            self._leave_error = _gamma(2 * p + 1) * abs_t + inverse_error
-            self._enter_error = _gamma(2 * p + 1) * abs_inv
+            self._leave_error = summation_error_bound(2 * p + 1) * abs_t + inverse_error
+            self._enter_error = summation_error_bound(2 * p + 1) * abs_inv
             matrices = inverse @ matrices @ transform
             # Target: inverse @ A_exact(v) @ S. Error: rounding of the triple product, of
             # forming A(v), and of using T for S.
             matrix_error = (
-                _gamma(2 * p + 1) * abs_inv @ abs_matrices @ abs_t
+                summation_error_bound(2 * p + 1) * abs_inv @ abs_matrices @ abs_t
                 + abs_inv @ formation_error @ abs_t
                 + abs_inv @ (abs_matrices + formation_error) @ inverse_error
             )
             B, D = inverse @ system.B, inverse @ system.D
-            B_error, D_error = _gamma(p) * abs_inv @ np.abs(system.B), _gamma(p) * abs_inv @ np.abs(system.D)
+            B_error, D_error = summation_error_bound(p) * abs_inv @ np.abs(system.B), summation_error_bound(p) * abs_inv @ np.abs(system.D)
             abs_matrices = np.max(np.abs(matrices), axis=0)
         self.vertex_matrices = frozen_copy(matrices)
         #: Elementwise bound on |vertex_matrices[v] - (the exact matrix they round)|, one for all v
@@ -337,12 +353,12 @@ class IntervalPredictor:
         self._B_T = np.ascontiguousarray(B.T)
         w_lo, w_hi = interval_matvec(D, system.w.low, system.w.high)
         w_max = np.maximum(np.abs(system.w.low), np.abs(system.w.high))
-        w_error = _gamma(2 * system.ndisturbances + 1) * np.abs(D) @ w_max + D_error @ w_max
+        w_error = summation_error_bound(2 * system.ndisturbances + 1) * np.abs(D) @ w_max + D_error @ w_max
         self._w_lo, self._w_hi = w_lo, w_hi
         # Outward rounding: the step's error is at most  m @ G.T + |u| @ H.T + g  with
         # m = max(|z_lo|, |z_hi|); see the class Notes. The n-term sum counts the 2p
         # products, the q control terms, the constant, the margin and the final rounding.
-        gamma_step = _gamma(2 * p + system.ninputs + 5)
+        gamma_step = summation_error_bound(2 * p + system.ninputs + 5)
         safety = 1.0 + 1e-10  # covers the rounding in evaluating the bound itself
         self._error_state_T = np.ascontiguousarray(safety * (matrix_error + gamma_step * abs_matrices).T)
         self._error_input_T = np.ascontiguousarray(safety * (B_error + gamma_step * np.abs(B)).T)
@@ -421,7 +437,8 @@ def predict_tube(system: UncertainLinearSystem, x0: Box, controls, parameters=No
     controls
         Array of shape (H, q): the known control sequence.
     parameters
-        `Box`, `Ellipsoid` or vertex array (k, d); default ``system.theta``.
+        A `ParameterSet` (`Box`, `Ellipsoid`, `VertexPolytope`) or a vertex array (k, d);
+        default ``system.theta``.
     basis
         None, ``"auto"`` or an invertible (p, p) matrix, see `IntervalPredictor`.
 
@@ -441,12 +458,9 @@ def predict_tube(system: UncertainLinearSystem, x0: Box, controls, parameters=No
 
     Raises `NonFiniteError` if the bounds overflow the float range.
     """
-    if not isinstance(system, UncertainLinearSystem):
-        raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
-    if not isinstance(x0, Box):
-        raise InputError(f"x0 must be a Box, got {type(x0).__name__}")
-    if x0.dim != system.nstates:
-        raise DimensionError(f"x0 must have dimension {system.nstates} (A0 has shape {system.A0.shape}), got {x0.dim}")
+    check_instance("system", system, UncertainLinearSystem)
+    check_instance("x0", x0, Box)
+    check_dimension("x0", x0.dim, system.nstates, f"A0 has shape {system.A0.shape}")
     u = as_finite_array("controls", controls, ndim=2)
     check_shape("controls", u, (None, system.ninputs))
     predictor = IntervalPredictor(system, parameters, basis=basis)

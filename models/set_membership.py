@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validation import as_finite_array, check_shape, frozen_copy
 from .errors import DimensionError, EmptySetError, InputError
 from .sets import Box, Ellipsoid
+from .validation import as_count, as_finite_array, check_dimension, check_instance, check_shape, frozen_copy
 
 __all__ = ["SetMembershipEstimator"]
 
@@ -124,13 +124,9 @@ class SetMembershipEstimator:
     """
 
     def __init__(self, nparams: int, *, noise_bound, prior: Box) -> None:
-        if isinstance(nparams, bool) or not isinstance(nparams, (int, np.integer)) or nparams < 1:
-            raise InputError(f"nparams must be a positive integer, got {nparams!r}")
-        d = int(nparams)
-        if not isinstance(prior, Box):
-            raise InputError(f"prior must be a Box, got {type(prior).__name__}")
-        if prior.dim != d:
-            raise DimensionError(f"prior must have dimension {d} (nparams), got {prior.dim}")
+        d = as_count("nparams", nparams)
+        check_instance("prior", prior, Box)
+        check_dimension("prior", prior.dim, d, "nparams")
         bound = as_finite_array("noise_bound", noise_bound)
         if bound.ndim > 1:
             raise DimensionError(f"noise_bound must be a scalar or have shape (p,), got shape {bound.shape}")

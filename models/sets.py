@@ -1,16 +1,101 @@
-"""Immutable set values: axis-aligned boxes and ellipsoids."""
+"""Immutable set values: axis-aligned boxes and ellipsoids, and the parameter-set protocol.
+
+Every parameter set the library accepts (a prior `Box`, a confidence `Ellipsoid`, a
+`~minimaxplan.models.polytope.VertexPolytope`) implements `ParameterSet`: dimension,
+membership (with an optional witness of the first violation, as LazySets.jl's
+``∈`` with ``witness=true``), a bounding box, the vertices of an enclosing polytope,
+and ``to_dict``.
+"""
 
 from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from ._validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from .errors import DimensionError, EmptySetError, InputError
+from .validation import (
+    as_finite_array,
+    as_points,
+    as_positive_scalar,
+    check_dimension,
+    check_same_shape,
+    check_shape,
+    frozen_copy,
+)
 
-__all__ = ["Box", "Ellipsoid", "hypercube_signs"]
+__all__ = ["Box", "Ellipsoid", "Membership", "ParameterSet", "hypercube_signs"]
+
+
+@dataclass(frozen=True)
+class Membership:
+    """The answer of ``contains(x, witness=True)``: inside or not, and the first violation.
+
+    Attributes
+    ----------
+    inside
+        True iff every point satisfies every constraint (within the tolerance).
+    point
+        Index of the first point (in the order given; 0 for a single point) that violates a
+        constraint, or None when inside.
+    constraint
+        The violated constraint, in words (e.g. ``"x[1] <= high[1] + tol"``), or "" when inside.
+    excess
+        By how much that point violates it (> 0), in the constraint's own units; 0.0 when inside.
+
+    Notes
+    -----
+    ``bool(membership)`` is ``membership.inside``.
+    """
+
+    inside: bool
+    point: int | None = None
+    constraint: str = ""
+    excess: float = 0.0
+
+    def __bool__(self) -> bool:
+        return self.inside
+
+
+@runtime_checkable
+class ParameterSet(Protocol):
+    """What the library needs of a set of uncertain parameters ``theta``.
+
+    Implemented by `Box`, `Ellipsoid` and `~minimaxplan.models.polytope.VertexPolytope`;
+    `~minimaxplan.models.polytope.parameter_vertices` and the interval predictors call
+    `enclosing_vertices` instead of dispatching on the type.
+
+    Notes
+    -----
+    The interval predictor needs the parameters as the convex hull of finitely many
+    vertices (eq. (8)); `enclosing_vertices` returns vertices of a polytope that
+    CONTAINS the set (never one that merely approximates it).
+    """
+
+    @property
+    def dim(self) -> int:
+        """The dimension d of the parameter space."""
+        ...
+
+    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """Whether every point of ``x`` ((d,) or (k, d)) lies in the set; a `Membership` with ``witness=True``."""
+        ...
+
+    def bounding_box(self) -> Box:
+        """A box that contains the set."""
+        ...
+
+    def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
+        """Vertices (k, d) of a polytope containing the set (intersected with ``prior`` if given)."""
+        ...
+
+    def to_dict(self) -> dict:
+        """The set as plain data."""
+        ...
+
+
 
 
 def hypercube_signs(dim: int) -> np.ndarray:
@@ -35,8 +120,7 @@ class Box:
     def __post_init__(self) -> None:
         low = as_finite_array("low", self.low, ndim=1)
         high = as_finite_array("high", self.high, ndim=1)
-        if low.shape != high.shape:
-            raise DimensionError(f"low and high must have the same shape, got {low.shape} and {high.shape}")
+        check_same_shape("low", low, "high", high)
         if low.size == 0:
             raise DimensionError("a Box needs at least one dimension, got shape (0,)")
         if np.any(low > high):
@@ -46,7 +130,7 @@ class Box:
         object.__setattr__(self, "high", frozen_copy(high))
 
     @classmethod
-    def from_center(cls, center, radius) -> "Box":
+    def from_center(cls, center, radius) -> Box:
         """The box ``center +- radius``; ``radius`` is a scalar or an array, >= 0."""
         c = as_finite_array("center", center, ndim=1)
         r = as_finite_array("radius", radius)
@@ -72,12 +156,25 @@ class Box:
         """``(high - low) / 2``, per coordinate."""
         return (self.high - self.low) / 2
 
-    def contains(self, x, tol: float = 0.0) -> bool:
-        """True iff every point of ``x`` ((n,) or (k, n)) lies in the box grown by ``tol``."""
-        pts = as_finite_array("x", x)
-        if pts.shape[-1:] != (self.dim,) or pts.ndim > 2:
-            raise DimensionError(f"x must have shape ({self.dim},) or (k, {self.dim}), got shape {pts.shape}")
-        return bool(np.all(pts >= self.low - tol) and np.all(pts <= self.high + tol))
+    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """True iff every point of ``x`` ((n,) or (k, n)) lies in the box grown by ``tol``.
+
+        With ``witness=True``, a `Membership` naming the first violation instead: the
+        first point (in order) and, within it, the first coordinate outside, with the
+        distance beyond ``low - tol`` or ``high + tol``.
+        """
+        pts = as_points("x", x, self.dim)
+        if not witness:
+            return bool(np.all(pts >= self.low - tol) and np.all(pts <= self.high + tol))
+        rows = np.atleast_2d(pts)
+        below, above = (self.low - tol) - rows, rows - (self.high + tol)
+        bad = np.flatnonzero(((below > 0) | (above > 0)).reshape(-1))
+        if bad.size == 0:
+            return Membership(True)
+        k, i = divmod(int(bad[0]), self.dim)
+        if below[k, i] > 0:
+            return Membership(False, k, f"x[{i}] >= low[{i}] - tol", float(below[k, i]))
+        return Membership(False, k, f"x[{i}] <= high[{i}] + tol", float(above[k, i]))
 
     def vertices(self) -> np.ndarray:
         """The 2^n corners, shape (2^n, n), ordered like `hypercube_signs`.
@@ -86,13 +183,29 @@ class Box:
         """
         return np.where(hypercube_signs(self.dim) > 0, self.high, self.low)
 
-    def intersect(self, other: "Box") -> "Box":
+    def intersect(self, other: Box) -> Box:
         """The intersection with another box; raises `EmptySetError` if empty."""
-        if other.dim != self.dim:
-            raise DimensionError(f"other must have dimension {self.dim}, got {other.dim}")
+        check_dimension("other", other.dim, self.dim)
         return Box(np.maximum(self.low, other.low), np.minimum(self.high, other.high))
 
+    def bounding_box(self) -> Box:
+        """The box itself (a `ParameterSet` method)."""
+        return self
+
+    def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
+        """The 2^n corners (exactly ``low`` or ``high``), of ``self ∩ prior`` when a prior is given.
+
+        Box ∩ box is exact. Raises `EmptySetError` if the intersection is empty.
+        """
+        if prior is None:
+            return self.vertices()
+        check_dimension("prior", prior.dim, self.dim, "the parameter box's")
+        from .polytope import intersect_boxes
+
+        return intersect_boxes(self, prior, "the parameter box").vertices()
+
     def to_dict(self) -> dict:
+        """``{"low": [...], "high": [...]}``."""
         return {"low": self.low.tolist(), "high": self.high.tolist()}
 
     def __eq__(self, other: object) -> bool:
@@ -145,19 +258,27 @@ class Ellipsoid:
 
     @property
     def dim(self) -> int:
+        """The dimension d."""
         return self.center.shape[0]
 
-    def contains(self, t, tol: float = 0.0) -> bool:
+    def contains(self, t, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
         """True iff every point of ``t`` ((d,) or (k, d)) satisfies the defining inequality.
 
-        ``tol`` relaxes it to ``(t-c)^T G (t-c) <= radius^2 (1 + tol)``.
+        ``tol`` relaxes it to ``(t-c)^T G (t-c) <= radius^2 (1 + tol)``. With
+        ``witness=True``, a `Membership` naming the first point outside and by how much
+        its quadratic form exceeds ``radius^2 (1 + tol)``.
         """
-        pts = as_finite_array("t", t)
-        if pts.shape[-1:] != (self.dim,) or pts.ndim > 2:
-            raise DimensionError(f"t must have shape ({self.dim},) or (k, {self.dim}), got shape {pts.shape}")
+        pts = as_points("t", t, self.dim)
         delta = np.atleast_2d(pts) - self.center
         q = np.einsum("ki,ij,kj->k", delta, self.gramian, delta)
-        return bool(np.all(q <= self.radius**2 * (1 + tol)))
+        limit = self.radius**2 * (1 + tol)
+        if not witness:
+            return bool(np.all(q <= limit))
+        bad = np.flatnonzero(~(q <= limit))
+        if bad.size == 0:
+            return Membership(True)
+        k = int(bad[0])
+        return Membership(False, k, "(t - c)^T G (t - c) <= radius^2 (1 + tol)", float(q[k] - limit))
 
     def semi_axes(self) -> tuple[np.ndarray, np.ndarray]:
         """Lengths ``radius / sqrt(l_i)`` and directions (columns of P), with G = P diag(l) P^T."""
@@ -182,7 +303,24 @@ class Ellipsoid:
         lengths, axes = self.semi_axes()
         return self.center + (hypercube_signs(self.dim) * lengths) @ axes.T
 
+    def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
+        """Vertices of a polytope that contains the ellipsoid (∩ ``prior`` when given), rounding-safe.
+
+        Without a prior: the 2^d vertices of the enclosing parallelotope (as `vertices`),
+        grown by rounding-level margins so that their hull contains the ellipsoid in
+        floating point too. With a prior: the vertices of parallelotope ∩ bounding box ∩
+        prior (clipping the vertices to the prior would NOT be sound; DESIGN errata).
+        See `~minimaxplan.models.polytope.parameter_vertices`, Notes.
+        """
+        from .polytope import dilated_parallelotope_vertices, ellipsoid_in_box_vertices
+
+        if prior is None:
+            return dilated_parallelotope_vertices(self)
+        check_dimension("prior", prior.dim, self.dim, "the ellipsoid's")
+        return ellipsoid_in_box_vertices(self, prior)
+
     def to_dict(self) -> dict:
+        """``{"center": [...], "gramian": [[...]], "radius": r}``."""
         return {"center": self.center.tolist(), "gramian": self.gramian.tolist(), "radius": self.radius}
 
     def __repr__(self) -> str:

@@ -6,9 +6,17 @@ from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
 
-from ._validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
-from .errors import DimensionError, InputError
+from .errors import InputError
 from .sets import Box
+from .validation import (
+    as_finite_array,
+    as_points,
+    as_positive_scalar,
+    check_dimension,
+    check_instance,
+    check_shape,
+    frozen_copy,
+)
 
 __all__ = ["UncertainLinearSystem"]
 
@@ -54,14 +62,10 @@ class UncertainLinearSystem:
         check_shape("B", B, (p, None))
         D = np.eye(p) if self.D is None else as_finite_array("D", self.D, ndim=2)
         check_shape("D", D, (p, None))
-        if not isinstance(self.w, Box):
-            raise InputError(f"w must be a Box, got {type(self.w).__name__}")
-        if not isinstance(self.theta, Box):
-            raise InputError(f"theta must be a Box, got {type(self.theta).__name__}")
-        if self.w.dim != D.shape[1]:
-            raise DimensionError(f"w must have dimension {D.shape[1]} (columns of D, shape {D.shape}), got {self.w.dim}")
-        if self.theta.dim != phi.shape[0]:
-            raise DimensionError(f"theta must have dimension {phi.shape[0]} (phi has shape {phi.shape}), got {self.theta.dim}")
+        check_instance("w", self.w, Box)
+        check_instance("theta", self.theta, Box)
+        check_dimension("w", self.w.dim, D.shape[1], f"columns of D, shape {D.shape}")
+        check_dimension("theta", self.theta.dim, phi.shape[0], f"phi has shape {phi.shape}")
         for name, value in (("A0", A0), ("phi", phi), ("B", B), ("D", D)):
             object.__setattr__(self, name, frozen_copy(value))
 
@@ -89,9 +93,7 @@ class UncertainLinearSystem:
     # ------------------------------------------------------------- dynamics
     def A(self, theta) -> np.ndarray:
         """``A(theta) = A0 + sum_i theta[i] phi[i]``; theta (d,) -> (p, p), or (k, d) -> (k, p, p)."""
-        t = as_finite_array("theta", theta)
-        if t.shape[-1:] != (self.nparams,) or t.ndim > 2:
-            raise DimensionError(f"theta must have shape ({self.nparams},) or (k, {self.nparams}), got shape {t.shape}")
+        t = as_points("theta", theta, self.nparams)
         return self.A0 + np.tensordot(t, self.phi, axes=([-1], [0]))
 
     def step(self, x, u, theta, w=None) -> np.ndarray:
@@ -106,14 +108,12 @@ class UncertainLinearSystem:
 
         ``x`` of shape (N, p) gives (N, p, d).
         """
-        x = as_finite_array("x", x)
-        if x.shape[-1:] != (self.nstates,) or x.ndim > 2:
-            raise DimensionError(f"x must have shape ({self.nstates},) or (N, {self.nstates}), got shape {x.shape}")
+        x = as_points("x", x, self.nstates, batch="N")
         return np.einsum("ipq,...q->...pi", self.phi, x)
 
     # --------------------------------------------------------- constructors
     @classmethod
-    def from_continuous(cls, A, phi, B, *, D=None, w: Box, theta: Box, dt: float) -> "UncertainLinearSystem":
+    def from_continuous(cls, A, phi, B, *, D=None, w: Box, theta: Box, dt: float) -> UncertainLinearSystem:
         """Discretise eq. (1), ``dx/dt = A(theta) x + B u + D w``, by forward Euler.
 
         Notes
@@ -132,7 +132,7 @@ class UncertainLinearSystem:
         return cls(np.eye(p) + dt * A, dt * phi, dt * B, D=dt * Dm, w=w, theta=theta)
 
     @classmethod
-    def from_statespace(cls, sys, phi, *, D=None, w: Box, theta: Box, dt: float | None = None) -> "UncertainLinearSystem":
+    def from_statespace(cls, sys, phi, *, D=None, w: Box, theta: Box, dt: float | None = None) -> UncertainLinearSystem:
         """Build from a python-control ``StateSpace``.
 
         Its ``A`` is the nominal matrix and its ``B`` the input matrix. Its ``D`` (the

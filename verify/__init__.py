@@ -6,20 +6,23 @@
 * `eliminate_models`, `ModelSelector`, `feasible_parameter_box`: LP feasibility of
   structural hypotheses against observed transitions (HiGHS through scipy), with
   certificates of inconsistency.
+
+Modules: `lmi` (the SDP and its re-check); `selection` (the public model-elimination
+API); `certificates` (`EliminationCertificate`, `SelectionResult`); and, internal,
+`_regression` (input checks and the per-hypothesis regression data), `_highs` (the
+only `linprog` call and its status map) and `_generation` (constraint generation and
+the weak-duality bound).
 """
 
-from .lmi import LMIResult, check_assumption4
-from .selection import (
-    EliminationCertificate,
-    ModelSelector,
-    SelectionResult,
-    eliminate_models,
-    feasible_parameter_box,
-)
+from .certificates import EliminationCertificate, SelectionResult
+from .lmi import LMIResult, LMIStatus, check_assumption4, lmi_matrix
+from .selection import ModelSelector, eliminate_models, feasible_parameter_box
 
 __all__ = [
     "check_assumption4",
     "LMIResult",
+    "LMIStatus",
+    "lmi_matrix",
     "eliminate_models",
     "ModelSelector",
     "feasible_parameter_box",

@@ -15,6 +15,7 @@ import time
 import warnings
 from collections import OrderedDict
 from dataclasses import dataclass
+from enum import Enum
 from typing import Any
 
 import cvxpy as cp
@@ -22,10 +23,10 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import minimize_scalar
 
-from minimaxplan.models._validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError, SolverFailure
+from minimaxplan.models.validation import as_choice, as_finite_array, as_positive_scalar, check_shape, frozen_copy
 
-__all__ = ["check_assumption4", "LMIResult", "FORMS", "SOLVERS"]
+__all__ = ["check_assumption4", "LMIResult", "LMIStatus", "lmi_matrix", "FORMS", "SOLVERS"]
 
 #: The two LMI forms: continuous time ``e' = A e + D w``, discrete time ``e+ = A e + D w``.
 FORMS = ("continuous", "discrete")
@@ -48,6 +49,30 @@ _SHIFT_FLOOR = 1e-3
 _MAX_PRECONDITIONER_CONDITION = 1e12
 
 _INACCURATE = {cp.OPTIMAL_INACCURATE, cp.INFEASIBLE_INACCURATE}
+
+
+class LMIStatus(str, Enum):
+    """The three outcomes of `check_assumption4` (the contract's strings).
+
+    A ``str`` enum: ``LMIStatus.FEASIBLE == "feasible"`` holds, ``str()`` and
+    ``format()`` give the plain string, and `LMIResult.to_dict` emits it.
+
+    Attributes
+    ----------
+    FEASIBLE
+        A certificate was found and passed the numpy re-check.
+    INFEASIBLE
+        No certificate exists with the stated margin (the normalised slack ``t* <= margin``).
+    INCONCLUSIVE
+        An inaccurate solver answer, or a certificate that failed the re-check.
+    """
+
+    FEASIBLE = "feasible"
+    INFEASIBLE = "infeasible"
+    INCONCLUSIVE = "inconclusive"
+
+    __str__ = str.__str__
+    __format__ = str.__format__
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,7 +120,7 @@ class LMIResult:
         ``margin``), or None when the solver gave no optimum.
     """
 
-    status: str
+    status: LMIStatus
     form: str
     P: np.ndarray | None
     rho: float | None
@@ -111,6 +136,14 @@ class LMIResult:
     reason: str = ""
     coordinates: str = "caller"
     slack: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "status", LMIStatus(self.status))
+
+    @property
+    def holds(self) -> bool:
+        """True iff Assumption 4 holds: the status is feasible and the certificate passed the re-check."""
+        return self.status is LMIStatus.FEASIBLE and bool(self.certified)
 
     def bound_constants(self) -> tuple[float, float]:
         """The constants ``(c0, cw)`` of the error bound that this certificate buys.
@@ -198,8 +231,8 @@ class LMIResult:
         return float(out) if out.ndim == 0 else out
 
     def _require_certificate(self) -> None:
-        if not (self.status == "feasible" and self.certified):
-            raise InputError(f"bound constants need a certified feasible LMIResult, got status {self.status!r}")
+        if not self.holds:
+            raise InputError(f"bound constants need a certified feasible LMIResult, got status {self.status.value!r}")
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dictionary (arrays as nested lists, absent values as None)."""
@@ -208,7 +241,7 @@ class LMIResult:
             return None if a is None else np.asarray(a).tolist()
 
         out = {
-            "status": self.status,
+            "status": self.status.value,
             "form": self.form,
             "P": listed(self.P),
             "rho": self.rho,
@@ -225,7 +258,7 @@ class LMIResult:
             "coordinates": self.coordinates,
             "slack": self.slack,
         }
-        if self.status == "feasible" and self.certified:
+        if self.holds:
             out["bound_constants"] = list(self.bound_constants())
         return out
 
@@ -261,9 +294,7 @@ def _as_q0(Q0, p: int) -> np.ndarray | None:
 
 
 def _as_solver(solver) -> str:
-    if not isinstance(solver, str) or solver.upper() not in SOLVERS:
-        raise InputError(f"solver must be one of {SOLVERS}, got {solver!r}")
-    name = solver.upper()
+    name = as_choice("solver", solver, SOLVERS, ignore_case=True)
     if name not in cp.installed_solvers():
         raise InputError(f"solver {name!r} is not installed for cvxpy")
     return name
@@ -315,7 +346,7 @@ def _build_program(form: str, p: int, k: int, q0_given: bool) -> _Program:
     return _Program(problem, A, q0_param, P, Q, slack, sigma)
 
 
-_PROGRAMS: "OrderedDict[tuple, _Program]" = OrderedDict()
+_PROGRAMS: OrderedDict[tuple, _Program] = OrderedDict()
 # The cached problems' parameters are set per call: one call at a time per process.
 _LOCK = threading.Lock()
 
@@ -396,8 +427,42 @@ def _rounding(M: np.ndarray) -> float:
     return EIGENVALUE_ROUNDING * M.shape[0] * np.finfo(float).eps * float(np.linalg.norm(M))
 
 
-def _lmi_matrix(form: str, A: np.ndarray, D: np.ndarray, P: np.ndarray, Q0: np.ndarray, rho: float) -> np.ndarray:
-    """The original LMI matrix at (P, Q0, rho): eq. of Assumption 4 or its discrete analogue."""
+def lmi_matrix(A, P, Q0, rho: float, D, form: str) -> np.ndarray:
+    """The matrix that Assumption 4 requires to be negative definite, at a given certificate.
+
+    Parameters
+    ----------
+    A
+        The state matrix, shape (p, p).
+    P, Q0
+        The certificate's matrices, shape (p, p).
+    rho
+        The disturbance gain.
+    D
+        The disturbance matrix, shape (p, r), or None for the identity.
+    form
+        ``"continuous"`` or ``"discrete"``.
+
+    Returns
+    -------
+    numpy.ndarray
+        The symmetrised matrix, shape (p + r, p + r).
+
+    Raises
+    ------
+    InputError
+        If ``form`` is not one of `FORMS`.
+
+    Notes
+    -----
+    Continuous form (Assumption 4, with the disturbance matrix D):
+    ``[[A^T P + P A + Q0, P D], [D^T P, -rho I]]``. Discrete form, for
+    ``e+ = A e + D w``: ``[[A^T P A - P + Q0, A^T P D], [D^T P A, D^T P D - rho I]]``
+    (the original, non-linear form, which the numpy re-check of `check_assumption4` uses).
+    """
+    form = as_choice("form", form, FORMS)
+    A, P, Q0 = (np.asarray(m, dtype=float) for m in (A, P, Q0))
+    D = np.eye(A.shape[0]) if D is None else np.asarray(D, dtype=float)
     r = D.shape[1]
     if form == "continuous":
         top, coupling, corner = A.T @ P + P @ A + Q0, P @ D, -rho * np.eye(r)
@@ -577,8 +642,7 @@ def check_assumption4(A, *, form, Q0=None, D=None, margin=1e-6, solver="CLARABEL
     (including a claim of infeasibility of this always-feasible problem), or a solver
     error -> `SolverFailure`.
     """
-    if form not in FORMS:
-        raise InputError(f"form must be one of {FORMS}, got {form!r}")
+    form = as_choice("form", form, FORMS)
     vertices = _as_vertices(A)
     p = vertices.shape[1]
     D_mat = np.eye(p) if D is None else as_finite_array("D", D, ndim=2)
@@ -599,7 +663,7 @@ def _decide(form, vertices, D_mat, q0, margin, solver) -> LMIResult:
     T, T_inv = _preconditioner(vertices, form)
     preconditioned = not np.array_equal(T, np.eye(p))
     first = _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, "preconditioned" if preconditioned else "caller")
-    if not (preconditioned and first.status == "feasible"):
+    if not (preconditioned and first.status is LMIStatus.FEASIBLE):
         return first
     # The decision is made; a certificate found in the caller's own coordinates often has
     # smaller bound constants when the problem is well conditioned there. Keep the better.
@@ -609,7 +673,7 @@ def _decide(form, vertices, D_mat, q0, margin, solver) -> LMIResult:
         second = None
     total_time = first.solve_time + (0.0 if second is None else second.solve_time)
     best = first
-    if second is not None and second.status == "feasible" and sum(second.bound_constants()) < sum(first.bound_constants()):
+    if second is not None and second.status is LMIStatus.FEASIBLE and sum(second.bound_constants()) < sum(first.bound_constants()):
         best = second
     return dataclasses.replace(best, solve_time=total_time, slack=first.slack)
 
@@ -651,13 +715,13 @@ def _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, coordinates) -
         )
 
     if status in _INACCURATE:
-        return outcome("inconclusive", inaccurate=True, reason=f"the solver's answer is inaccurate ({status})")
+        return outcome(LMIStatus.INCONCLUSIVE, inaccurate=True, reason=f"the solver's answer is inaccurate ({status})")
     if status != cp.OPTIMAL:
         raise SolverFailure(f"{solver} returned status {status!r} on the Assumption 4 LMI, which is always feasible and bounded")
     best_slack = float(program.slack.value)
     if not best_slack > margin:
         return outcome(
-            "infeasible",
+            LMIStatus.INFEASIBLE,
             slack=best_slack,
             reason=f"the largest normalised LMI slack is {best_slack:.3g} <= margin {margin:.3g}: no certificate exists",
         )
@@ -675,7 +739,7 @@ def _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, coordinates) -
     smallest = _smallest_rho(form, vertices, D_mat, P_cert, Q_cert)
     if smallest is None:
         return outcome(
-            "inconclusive",
+            LMIStatus.INCONCLUSIVE,
             P=P_cert,
             Q=Q_cert,
             slack=best_slack,
@@ -688,18 +752,18 @@ def _attempt(form, vertices, D_mat, q0, margin, solver, T, T_inv, coordinates) -
     max_eig = -np.inf
     lmi_ok = True
     for vertex in vertices:
-        M = _lmi_matrix(form, vertex, D_mat, P_cert, Q_cert, rho)
+        M = lmi_matrix(vertex, P_cert, Q_cert, rho, D_mat, form)
         top = float(np.linalg.eigvalsh(M)[-1])
         max_eig = max(max_eig, top)
         lmi_ok &= top < -_rounding(M)
     p_ok = eig_p[0] > _rounding(P_cert)
     if lmi_ok and p_ok:
         return outcome(
-            "feasible", P=P_cert, Q=Q_cert, rho=rho, max_eig=max_eig, certified=True, slack=best_slack, reason=""
+            LMIStatus.FEASIBLE, P=P_cert, Q=Q_cert, rho=rho, max_eig=max_eig, certified=True, slack=best_slack, reason=""
         )
     failed = "P is not positive definite" if not p_ok else "an LMI matrix is not negative definite"
     return outcome(
-        "inconclusive",
+        LMIStatus.INCONCLUSIVE,
         P=P_cert,
         Q=Q_cert,
         rho=rho,

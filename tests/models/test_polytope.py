@@ -167,3 +167,100 @@ def test_bad_input_is_rejected():
         parameter_vertices(np.zeros((1, 2)), np.zeros(2))
     with pytest.raises(DimensionError, match=r"shape \(k, d\) with k, d >= 1, got shape \(0, 2\)"):
         parameter_vertices(np.zeros((0, 2)))
+
+
+# ----------------------------------------------------------- the ParameterSet protocol
+def test_every_parameter_set_implements_the_protocol():
+    from minimaxplan.models import ParameterSet, VertexPolytope
+
+    sets = [
+        Box(np.zeros(2), np.ones(2)),
+        Ellipsoid(np.zeros(2), np.eye(2), 1.0),
+        VertexPolytope(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])),
+    ]
+    for parameter_set in sets:
+        assert isinstance(parameter_set, ParameterSet)
+        assert parameter_set.dim == 2
+        box = parameter_set.bounding_box()
+        assert isinstance(box, Box) and box.contains(parameter_set.enclosing_vertices(), tol=1e-9)
+        assert parameter_set.contains(np.array([0.25, 0.25])) is True
+        assert isinstance(parameter_set.to_dict(), dict)
+        # parameter_vertices is the set's own method
+        np.testing.assert_array_equal(parameter_vertices(parameter_set), parameter_set.enclosing_vertices())
+        prior = Box(np.array([0.0, 0.0]), np.array([0.5, 2.0]))
+        np.testing.assert_array_equal(parameter_vertices(parameter_set, prior), parameter_set.enclosing_vertices(prior))
+    assert not isinstance(np.zeros((3, 2)), ParameterSet)
+
+
+def test_arrays_are_wrapped_in_a_vertex_polytope_with_the_same_vertices():
+    from minimaxplan.models import VertexPolytope
+    from minimaxplan.models.polytope import as_parameter_set
+
+    vertices = np.array([[0.0, 1.0], [2.0, -1.0], [0.5, 0.5]])
+    wrapped = as_parameter_set(vertices)
+    assert isinstance(wrapped, VertexPolytope)
+    np.testing.assert_array_equal(wrapped.vertices, vertices)
+    assert not wrapped.vertices.flags.writeable and wrapped.vertices is not vertices
+    assert wrapped.nvertices == 3
+    assert wrapped.bounding_box() == Box(np.array([0.0, -1.0]), np.array([2.0, 1.0]))
+    assert wrapped.to_dict() == {"vertices": vertices.tolist()}
+    assert as_parameter_set(wrapped) is wrapped
+    with pytest.raises(DimensionError, match=r"vertices must have shape \(k, d\) with k, d >= 1, got shape \(0, 2\)"):
+        VertexPolytope(np.zeros((0, 2)))
+    with pytest.raises(NonFiniteError, match="vertices contains NaN"):
+        VertexPolytope(np.array([[np.inf, 0.0]]))
+
+
+def test_vertex_polytope_membership_is_the_convex_hull():
+    from minimaxplan.models import VertexPolytope
+
+    triangle = VertexPolytope(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
+    assert triangle.contains(np.array([[0.2, 0.2], [0.5, 0.5], [0.0, 0.0], [1.0, 0.0]]))  # inside, on a facet, vertices
+    assert not triangle.contains(np.array([0.6, 0.6]))
+    assert triangle.contains(np.array([0.6, 0.6]), tol=0.11)
+    membership = triangle.contains(np.array([[0.1, 0.1], [0.6, 0.6], [2.0, 2.0]]), witness=True)
+    assert not membership and membership.point == 1
+    assert membership.excess == pytest.approx(0.1, abs=1e-8)  # infinity-norm distance to the facet x + y = 1
+    with pytest.raises(DimensionError, match=r"x must have shape \(2,\) or \(k, 2\), got shape \(3,\)"):
+        triangle.contains(np.zeros(3))
+
+
+def test_witness_names_the_first_violation():
+    box = Box(np.array([0.0, 0.0]), np.array([1.0, 1.0]))
+    assert box.contains(np.array([0.5, 0.5]), witness=True) == box.contains(np.array([0.5, 0.5]), witness=True)
+    inside = box.contains(np.array([[0.5, 0.5], [1.0, 0.0]]), witness=True)
+    assert inside and inside.inside and inside.point is None and inside.excess == 0.0
+    outside = box.contains(np.array([[0.5, 0.5], [0.5, 1.25], [-3.0, 0.5]]), witness=True)
+    assert not outside and outside.point == 1 and outside.constraint == "x[1] <= high[1] + tol"
+    assert outside.excess == pytest.approx(0.25)
+    below = box.contains(np.array([-0.5, 2.0]), tol=0.25, witness=True)
+    assert (below.point, below.constraint, below.excess) == (0, "x[0] >= low[0] - tol", pytest.approx(0.25))
+    # without witness: plain bools, as before
+    assert box.contains(np.array([0.5, 1.25])) is False and box.contains(np.array([0.5, 1.25]), 0.25) is True
+
+    ellipsoid = Ellipsoid(np.zeros(2), np.eye(2), 1.0)
+    result = ellipsoid.contains(np.array([[0.0, 0.5], [0.0, 2.0]]), witness=True)
+    assert not result and result.point == 1 and result.excess == pytest.approx(3.0)
+    assert ellipsoid.contains(np.array([0.0, 0.5]), witness=True).inside
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_witness_agrees_with_the_plain_answer(seed):
+    from minimaxplan.models import VertexPolytope
+
+    rng = np.random.default_rng(seed)
+    d = int(rng.integers(1, 4))
+    points = rng.normal(size=(int(rng.integers(1, 5)), d))
+    sets = [
+        Box(-rng.uniform(0.5, 2, d), rng.uniform(0.5, 2, d)),
+        random_ellipsoid(rng, d),
+        VertexPolytope(rng.normal(size=(d + 2, d)) * 2),
+    ]
+    for parameter_set in sets:
+        plain = parameter_set.contains(points)
+        membership = parameter_set.contains(points, witness=True)
+        assert plain == membership.inside
+        if not plain:
+            assert membership.excess > 0
+            assert not parameter_set.contains(points[membership.point])
+            assert parameter_set.contains(points[: membership.point]) if membership.point else True

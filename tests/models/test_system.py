@@ -183,7 +183,7 @@ def test_bad_input_is_rejected():
 
 def test_ragged_and_complex_arrays_are_input_errors():
     from minimaxplan.models import InputError
-    from minimaxplan.models._validation import as_finite_array
+    from minimaxplan.models.validation import as_finite_array
 
     with pytest.raises(InputError, match="x must be a real numeric array"):
         as_finite_array("x", [[1.0, 2.0], [3.0]])

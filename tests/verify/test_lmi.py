@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace as dataclasses_replace
 
 import cvxpy as cp
 import numpy as np
@@ -13,7 +14,8 @@ from hypothesis import strategies as st
 
 import minimaxplan.verify.lmi as lmi
 from minimaxplan.models.errors import DimensionError, InputError, NonFiniteError, SolverFailure
-from minimaxplan.verify import LMIResult, check_assumption4
+from minimaxplan.verify import LMIResult, LMIStatus, check_assumption4
+from minimaxplan.verify import lmi_matrix as library_lmi_matrix
 
 # ----------------------------------------------------------------- helpers
 
@@ -286,6 +288,41 @@ def test_bound_constants_follow_their_formula():
     assert stepwise[0] == pytest.approx(2 * c0, rel=1e-12)
     assert np.all(stepwise <= 2 * c0 + 3 * cw + 1e-12)
     assert 0 < result.decay_factor() < 1
+
+
+def test_statuses_are_a_str_enum_with_the_contracts_strings():
+    assert [s.value for s in LMIStatus] == ["feasible", "infeasible", "inconclusive"]
+    feasible = check_assumption4(np.array([[0.5]]), form="discrete")
+    infeasible = check_assumption4(np.array([[1.5, 0.0], [0.0, 0.2]]), form="discrete")
+    assert feasible.status is LMIStatus.FEASIBLE and feasible.status == "feasible"
+    assert infeasible.status is LMIStatus.INFEASIBLE and infeasible.status == "infeasible"
+    assert str(feasible.status) == f"{feasible.status}" == "feasible"
+    # to_dict emits the plain string, so JSON documents are unchanged
+    document = feasible.to_dict()
+    assert type(document["status"]) is str and json.loads(json.dumps(document))["status"] == "feasible"
+    assert feasible.holds and not infeasible.holds
+
+
+def test_holds_needs_the_numpy_recheck(monkeypatch):
+    monkeypatch.setattr(lmi, "EIGENVALUE_ROUNDING", 1e30)
+    result = check_assumption4(np.array([[0.5]]), form="discrete")
+    assert result.status == "inconclusive" and not result.holds
+    assert dataclasses_replace(result, status="feasible", certified=False).holds is False
+    assert dataclasses_replace(result, status="feasible", certified=True).holds is True
+
+
+def test_library_lmi_matrix_agrees_with_the_independent_one():
+    rng = np.random.default_rng(3)
+    A, P, Q0, D = rng.normal(size=(3, 3)), rng.normal(size=(3, 3)), rng.normal(size=(3, 3)), rng.normal(size=(3, 2))
+    P, Q0 = P @ P.T, Q0 + Q0.T  # symmetric, as certificates are
+    for form in ("continuous", "discrete"):
+        # equal up to the association order of the triple products
+        np.testing.assert_allclose(library_lmi_matrix(A, P, Q0, 0.7, D, form), lmi_matrix(form, A, D, P, Q0, 0.7), rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(
+        library_lmi_matrix(A, P, Q0, 0.7, None, "discrete"), lmi_matrix("discrete", A, np.eye(3), P, Q0, 0.7), rtol=1e-14, atol=1e-14
+    )
+    with pytest.raises(InputError, match=r"form must be one of \('continuous', 'discrete'\), got 'hybrid'"):
+        library_lmi_matrix(A, P, Q0, 0.7, D, "hybrid")
 
 
 def test_bound_constants_need_a_certificate():

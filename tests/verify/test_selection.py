@@ -18,8 +18,7 @@ from minimaxplan.models.errors import (
     NonFiniteError,
     SolverFailure,
 )
-from minimaxplan.verify import ModelSelector, eliminate_models, feasible_parameter_box
-from minimaxplan.verify import selection
+from minimaxplan.verify import ModelSelector, _highs, eliminate_models, feasible_parameter_box
 from minimaxplan.verify.selection import ELIMINATION_MARGIN, PARAMETER_BOX_ALLOWANCE, measurement_noise_bound
 
 D_KINDS = ("identity", "scaled", "square", "tall", "wide")
@@ -398,6 +397,9 @@ def test_error_messages():
         eliminate_models([system], states, controls, tolerance=0.0)
     with pytest.raises(InputError, match="max_rounds must be an integer"):
         eliminate_models([system], states, controls, max_rounds=-1)
+    for not_a_count in (True, 2.0, "3"):
+        with pytest.raises(InputError, match=r"max_rounds must be an integer >= 0, got"):
+            eliminate_models([system], states, controls, max_rounds=not_a_count)
     with pytest.raises(InputError, match="hypothesis must be an UncertainLinearSystem"):
         feasible_parameter_box([system], states, controls)
     selector = ModelSelector([system])
@@ -422,6 +424,13 @@ def test_no_transition_keeps_everything_and_gives_the_prior():
     assert feasible_parameter_box(system, [[0.3]], np.zeros((0, 1))) == system.theta
 
 
+def test_highs_statuses_are_named():
+    assert [(s.name, int(s)) for s in _highs.LinprogStatus] == [
+        ("OPTIMAL", 0), ("ITERATION_LIMIT", 1), ("INFEASIBLE", 2), ("UNBOUNDED", 3), ("NUMERICAL_DIFFICULTIES", 4)
+    ]
+    assert _highs.LinprogStatus.NUMERICAL_DIFFICULTIES.reason == "numerical difficulties"
+
+
 class _FakeResult:
     def __init__(self, status):
         self.status, self.message = status, f"fake status {status}"
@@ -429,6 +438,6 @@ class _FakeResult:
 
 @pytest.mark.parametrize("status, reason", [(1, "iteration limit"), (2, "infeasible.*numerical failure"), (3, "unbounded"), (4, "numerical difficulties")])
 def test_every_highs_status_but_optimal_is_a_solver_failure(monkeypatch, status, reason):
-    monkeypatch.setattr(selection, "linprog", lambda *args, **kwargs: _FakeResult(status))
+    monkeypatch.setattr(_highs, "linprog", lambda *args, **kwargs: _FakeResult(status))
     with pytest.raises(SolverFailure, match=rf"status {status} \({reason}"):
         eliminate_models([scalar_system()], [[1.0], [1.5]], [[0.0]])

@@ -1,0 +1,232 @@
+"""Argument validators shared by every subpackage of minimaxplan.
+
+An internal module: the subpackages (``models``, ``verify``, ``planners``,
+``scenarios``, ``analysis``) check their public entry points with these functions so
+that every check raises the same typed error (`minimaxplan.models.errors`) with the
+same wording, naming the argument and, for shapes, both shapes. It is NOT part of the
+public API contract of DESIGN.md: names here may change with the library.
+
+Validators either return the checked, converted value (``as_*``) or return nothing and
+raise on a bad value (``check_*``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .errors import DimensionError, InputError, NonFiniteError
+
+__all__ = [
+    "as_finite_array",
+    "as_positive_scalar",
+    "as_count",
+    "as_choice",
+    "as_points",
+    "as_discount",
+    "as_probability",
+    "check_instance",
+    "check_shape",
+    "check_same_shape",
+    "check_dimension",
+    "frozen_copy",
+]
+
+
+def _shape_text(shape: Sequence[int | None]) -> str:
+    return "(" + ", ".join("*" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+
+
+def check_shape(name: str, array: np.ndarray, shape: Sequence[int | None]) -> None:
+    """Raise `DimensionError` unless ``array.shape`` matches ``shape`` (None = any length).
+
+    The message names the argument, the expected shape (``*`` for a free length) and
+    the shape given.
+    """
+    if array.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, array.shape)):
+        raise DimensionError(
+            f"{name} must have shape {_shape_text(shape)}, got shape {array.shape}"
+        )
+
+
+def check_same_shape(first: str, a: np.ndarray, second: str, b: np.ndarray) -> None:
+    """Raise `DimensionError` unless the arrays ``a`` (named ``first``) and ``b`` have one shape."""
+    if np.shape(a) != np.shape(b):
+        raise DimensionError(f"{first} and {second} must have the same shape, got {np.shape(a)} and {np.shape(b)}")
+
+
+def check_dimension(name: str, dim: int, expected: int, reason: str = "") -> None:
+    """Raise `DimensionError` unless a set or vector argument has dimension ``expected``.
+
+    Parameters
+    ----------
+    name
+        The argument's name.
+    dim
+        Its dimension.
+    expected
+        The dimension required.
+    reason
+        Where ``expected`` comes from (e.g. ``"A0 has shape (2, 2)"``), shown in parentheses.
+    """
+    if dim != expected:
+        why = f" ({reason})" if reason else ""
+        raise DimensionError(f"{name} must have dimension {expected}{why}, got {dim}")
+
+
+def check_instance(name: str, value: Any, types: type | tuple[type, ...], what: str | None = None) -> None:
+    """Raise `InputError` unless ``value`` is an instance of ``types``.
+
+    ``what`` describes the expected kind (default: ``"a <Type>"``, or ``"an <Type>"``
+    before a vowel); the message names the type that was given.
+    """
+    if isinstance(value, types):
+        return
+    if what is None:
+        first = types[0] if isinstance(types, tuple) else types
+        article = "an" if first.__name__[:1].upper() in "AEIOU" else "a"
+        what = f"{article} {first.__name__}"
+    raise InputError(f"{name} must be {what}, got {type(value).__name__}")
+
+
+def as_finite_array(
+    name: str, value, shape: Sequence[int | None] | None = None, *, ndim: int | None = None
+) -> np.ndarray:
+    """Convert ``value`` to a float64 array, checking its shape and finiteness.
+
+    Parameters
+    ----------
+    name
+        The argument's name, used in error messages.
+    value
+        Anything `numpy.asarray` accepts.
+    shape
+        Expected shape; ``None`` entries match any length.
+    ndim
+        Expected number of dimensions, when the lengths are free.
+    """
+    try:
+        raw = np.asarray(value)
+        if np.iscomplexobj(raw):  # a float cast would silently drop the imaginary part
+            raise InputError(f"{name} must be a real numeric array, got complex values")
+        array = raw.astype(float, copy=False)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"{name} must be a real numeric array: {exc}") from None
+    if shape is not None:
+        check_shape(name, array, shape)
+    elif ndim is not None and array.ndim != ndim:
+        raise DimensionError(f"{name} must be {ndim}-dimensional, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise NonFiniteError(f"{name} contains NaN or infinite entries")
+    return array
+
+
+def as_points(name: str, value, dim: int, *, batch: str = "k") -> np.ndarray:
+    """A finite float array of one point, shape (dim,), or a batch of points, shape (k, dim).
+
+    ``batch`` names the batch length in the error message (e.g. ``"N"``).
+    """
+    points = as_finite_array(name, value)
+    if points.shape[-1:] != (dim,) or points.ndim > 2:
+        raise DimensionError(f"{name} must have shape ({dim},) or ({batch}, {dim}), got shape {points.shape}")
+    return points
+
+
+def frozen_copy(array: np.ndarray) -> np.ndarray:
+    """A read-only copy, so that immutable values never alias a caller's array."""
+    out = np.array(array, dtype=float, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+def _as_real_scalar(name: str, value) -> float:
+    if np.iscomplexobj(value) or isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name} must be a real scalar, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a real scalar, got {value!r}") from None
+    if not np.isfinite(x):
+        raise NonFiniteError(f"{name} must be finite, got {x}")
+    return x
+
+
+def as_positive_scalar(name: str, value, *, allow_zero: bool = False) -> float:
+    """Check that ``value`` is a finite real scalar > 0 (or >= 0); return it as a float."""
+    x = _as_real_scalar(name, value)
+    if x < 0 or (x == 0 and not allow_zero):
+        raise InputError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {x}")
+    return x
+
+
+def as_probability(name: str, value) -> float:
+    """Check that ``value`` is a real scalar in the open interval (0, 1); return it as a float.
+
+    Used for confidence levels (``delta``: the set holds with probability >= 1 - delta).
+    A value <= 0 is reported as by `as_positive_scalar` (``"must be > 0"``), one >= 1 as
+    ``"must lie in (0, 1)"``.
+    """
+    x = as_positive_scalar(name, value)
+    if not x < 1:
+        raise InputError(f"{name} must lie in (0, 1), got {x}")
+    return x
+
+
+def as_discount(name: str, value) -> float:
+    """Check that a discount factor satisfies ``0 < gamma < 1``; return it as a float.
+
+    Notes
+    -----
+    The paper allows eta = 1 (its discount); the value bounds of eqs. (12) and
+    (16)-(18) need ``gamma < 1`` (DESIGN errata).
+
+    Raises
+    ------
+    InputError
+        If ``value`` is not a real number, or not in the open interval (0, 1).
+    NonFiniteError
+        If it is NaN or infinite.
+    """
+    if isinstance(value, (bool, np.bool_)) or np.iscomplexobj(value):
+        raise InputError(f"{name} must be a real number in (0, 1), got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a real number in (0, 1), got {value!r}") from None
+    if not np.isfinite(x):
+        raise NonFiniteError(f"{name} must be finite and in (0, 1), got {x}")
+    if not 0.0 < x < 1.0:
+        raise InputError(f"{name} must be in the open interval (0, 1), got {x}")
+    return x
+
+
+def as_count(name: str, value, *, minimum: int = 1) -> int:
+    """Check that ``value`` is an integer >= ``minimum``; return it as an ``int``.
+
+    Python and numpy integers are accepted; bools, floats (even integral ones) and
+    strings are rejected with `InputError`.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum:
+        what = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
+        raise InputError(f"{name} must be {what}, got {value!r}")
+    return int(value)
+
+
+def as_choice(name: str, value, choices: Sequence, *, ignore_case: bool = False):
+    """Check that ``value`` is one of ``choices``; return the matching choice.
+
+    With ``ignore_case``, strings are compared upper-cased (choices are given upper-case)
+    and the choice is returned in its canonical spelling.
+    """
+    key = value.upper() if ignore_case and isinstance(value, str) else value
+    try:
+        found = key in choices
+    except TypeError:  # an unhashable value, for a set of choices
+        found = False
+    if not found:
+        raise InputError(f"{name} must be one of {tuple(choices)}, got {value!r}")
+    return key

@@ -1,0 +1,216 @@
+"""The regression of one hypothesis on observed transitions (internal to `minimaxplan.verify`).
+
+Input checks shared by the selection API and the certificates, the bound on bounded
+measurement noise, and the per-hypothesis data ``z_n = E_n theta + D w_n + e_n`` that
+the LPs of `minimaxplan.verify.selection` are built from.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from minimaxplan.models import UncertainLinearSystem
+from minimaxplan.models.errors import DimensionError, InputError
+from minimaxplan.models.validation import as_finite_array, check_instance, check_shape
+
+__all__ = [
+    "check_hypotheses",
+    "check_trajectory",
+    "noise_vector",
+    "measurement_noise_bound",
+    "disturbance_set_is_box",
+    "Structure",
+    "HypothesisData",
+    "EPS",
+]
+
+EPS = np.finfo(float).eps
+# Radii below this count as 0 (their reciprocal would overflow), and beta spans at most
+# six orders of magnitude, so that HiGHS (which drops coefficients below 1e-9) keeps
+# every coefficient of the margin column.
+NEGLIGIBLE_RADIUS = 1e-150
+BETA_SPREAD = 1e-6
+
+
+def check_hypotheses(hypotheses) -> list[UncertainLinearSystem]:
+    """A non-empty list of `UncertainLinearSystem` with equal state and input sizes."""
+    if isinstance(hypotheses, UncertainLinearSystem):
+        raise InputError("hypotheses must be a sequence of UncertainLinearSystem, got a single system")
+    try:
+        hyps = list(hypotheses)
+    except TypeError:
+        raise InputError(f"hypotheses must be a sequence of UncertainLinearSystem, got {type(hypotheses).__name__}") from None
+    if not hyps:
+        raise InputError("hypotheses must contain at least one UncertainLinearSystem, got an empty sequence")
+    for m, h in enumerate(hyps):
+        check_instance(f"hypotheses[{m}]", h, UncertainLinearSystem)
+    p, q = hyps[0].nstates, hyps[0].ninputs
+    for m, h in enumerate(hyps[1:], start=1):
+        if (h.nstates, h.ninputs) != (p, q):
+            raise DimensionError(
+                f"hypotheses[{m}] has (nstates, ninputs) = ({h.nstates}, {h.ninputs}), "
+                f"but hypotheses[0] has ({p}, {q}): all hypotheses must share state and input dimensions"
+            )
+    return hyps
+
+
+def check_trajectory(states, controls, p: int, q: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N+1, p) states and (N, q) controls -> the N transitions (x_n, u_n, x_{n+1})."""
+    x = as_finite_array("states", states, ndim=2)
+    if x.shape[0] < 1:
+        raise DimensionError(f"states must have shape (N+1, {p}) with N+1 >= 1, got shape {x.shape}")
+    check_shape("states", x, (None, p))
+    n = x.shape[0] - 1
+    u = as_finite_array("controls", controls)
+    if u.size == 0 and n == 0:
+        u = u.reshape(0, q)
+    if u.ndim != 2 or u.shape != (n, q):
+        raise DimensionError(
+            f"controls must have shape (N, q) = ({n}, {q}) for states of shape {x.shape}, got shape {u.shape}"
+        )
+    return x[:-1], u, x[1:]
+
+
+def noise_vector(measurement_noise, p: int) -> np.ndarray:
+    """The measurement-noise bound as shape (p,), >= 0 (None means 0)."""
+    if measurement_noise is None:
+        return np.zeros(p)
+    v = as_finite_array("measurement_noise", measurement_noise)
+    if v.ndim == 0:
+        v = np.full(p, float(v))
+    check_shape("measurement_noise", v, (p,))
+    if np.any(v < 0):
+        raise InputError(f"measurement_noise must be >= 0 in every coordinate, got {v.tolist()}")
+    return v
+
+
+def measurement_noise_bound(hypothesis: UncertainLinearSystem, measurement_noise) -> np.ndarray:
+    """The bound ``v_bar + max_theta |A(theta)| v_bar`` on ``v_{n+1} - A(theta) v_n``.
+
+    Parameters
+    ----------
+    hypothesis
+        The system whose prior box ``theta`` is maximised over.
+    measurement_noise
+        ``v_bar``: a scalar or shape (p,), >= 0; ``None`` means 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (p,), rounded upwards.
+
+    Notes
+    -----
+    With measured states ``x~_n = x_n + v_n``, ``|v_n| <= v_bar``, the plant gives
+    ``x~_{n+1} = A0 x~_n + E(x~_n) theta + B u_n + D w_n + (v_{n+1} - A(theta) v_n)``:
+    the same regression with one more bounded term (DESIGN errata). Each entry of
+    ``A(theta)`` is affine in theta, so its largest modulus over the prior box is
+    attained at an end of its range; this interval bound is exact entrywise.
+    """
+    v = noise_vector(measurement_noise, hypothesis.nstates)
+    if not np.any(v):
+        return v
+    lo, hi = hypothesis.theta.low, hypothesis.theta.high
+    phi = hypothesis.phi
+    a_low = hypothesis.A0 + np.tensordot(lo, np.maximum(phi, 0), 1) + np.tensordot(hi, np.minimum(phi, 0), 1)
+    a_high = hypothesis.A0 + np.tensordot(hi, np.maximum(phi, 0), 1) + np.tensordot(lo, np.minimum(phi, 0), 1)
+    # Entrywise rounding of those sums is at most (d + 2) eps times the sum of moduli.
+    theta_max = np.maximum(np.abs(lo), np.abs(hi))
+    rounding = (phi.shape[0] + 3) * EPS * (np.abs(hypothesis.A0) + np.tensordot(theta_max, np.abs(phi), 1))
+    a_abs = np.maximum(np.abs(a_low), np.abs(a_high)) + rounding
+    return (v + a_abs @ v) * (1 + 4 * (v.size + 2) * EPS)
+
+
+def disturbance_set_is_box(D: np.ndarray, radius: np.ndarray) -> bool:
+    """True iff ``D W`` is itself a box: every column with a nonzero radius has <= 1 nonzero."""
+    return bool(np.all(np.count_nonzero(D[:, radius > 0], axis=0) <= 1))
+
+
+# --------------------------------------------------------------- one hypothesis, data
+class Structure:
+    """Everything about one hypothesis that does not depend on the data (computed once).
+
+    The inflation unit ``beta`` (per state coordinate) is the radius of the interval
+    hull of ``D W + [-ebar, ebar]``, or 1 where that radius is 0, raised to at least
+    `BETA_SPREAD` times its largest entry.
+    """
+
+    def __init__(self, hyp: UncertainLinearSystem, noise_bound: np.ndarray, allowance: float) -> None:
+        self.hyp = hyp
+        self.noise_bound = noise_bound
+        self.allowance = allowance
+        self.theta_low, self.theta_high = hyp.theta.low, hyp.theta.high
+        self.D = hyp.D
+        self.w_center, self.w_radius = hyp.w.center, hyp.w.radius
+        self.A0_T, self.B_T, self.phi = hyp.A0.T, hyp.B.T, hyp.phi
+        theta_max = np.maximum(np.abs(self.theta_low), np.abs(self.theta_high))
+        w_max = np.maximum(np.abs(hyp.w.low), np.abs(hyp.w.high))
+        self.abs_A0_T = np.abs(hyp.A0).T
+        self.abs_B_T = np.abs(hyp.B).T
+        self.abs_regression_T = np.tensordot(theta_max, np.abs(hyp.phi), 1).T
+        self.constant_magnitude = np.abs(hyp.D) @ w_max + noise_bound
+        self.hull_center = self.D @ self.w_center
+        self.hull_radius = np.abs(self.D) @ self.w_radius
+        unit = self.hull_radius + noise_bound
+        beta = np.where(unit > NEGLIGIBLE_RADIUS, unit, 1.0)
+        self.beta = np.maximum(beta, BETA_SPREAD * np.max(beta))
+        self.is_box = disturbance_set_is_box(self.D, self.w_radius)
+        self.d_pinv = None if self.is_box else np.linalg.pinv(self.D)
+
+
+class HypothesisData:
+    """The regression ``z_n = E_n theta + D w_n + e_n`` of one hypothesis on transitions.
+
+    ``z_n = x_{n+1} - A0 x_n - B u_n``, ``E_n = regressor(x_n)``, ``|e_n| <= ebar + a_n``
+    (measurement noise, rounding allowance), ``w_n`` in the box ``W = c_w +- r_w``.
+    """
+
+    def __init__(self, structure: Structure, X, U, Xn) -> None:
+        st = structure
+        self.hyp = st.hyp
+        self.theta_low, self.theta_high = st.theta_low, st.theta_high
+        self.D, self.w_center, self.w_radius = st.D, st.w_center, st.w_radius
+        self.hull_center, self.hull_radius, self.beta = st.hull_center, st.hull_radius, st.beta
+        self.is_box, self.d_pinv = st.is_box, st.d_pinv
+        self.z = Xn - X @ st.A0_T - U @ st.B_T
+        self.E = np.einsum("ipq,nq->npi", st.phi, X)
+        abs_x = np.abs(X)
+        magnitude = (
+            np.abs(Xn) + abs_x @ st.abs_A0_T + np.abs(U) @ st.abs_B_T + abs_x @ st.abs_regression_T
+            + st.constant_magnitude
+        )
+        self.e = st.noise_bound + st.allowance * magnitude
+
+    @property
+    def ntransitions(self) -> int:
+        return self.z.shape[0]
+
+    @property
+    def nparams(self) -> int:
+        return self.E.shape[2]
+
+    @property
+    def nstates(self) -> int:
+        return self.z.shape[1]
+
+    def needed_margin(self, theta: np.ndarray, idx=slice(None)) -> np.ndarray:
+        """Per transition, a margin s that suffices to explain it with this theta.
+
+        Exact (the least such s) when ``D W`` is a box; otherwise an upper bound, from
+        the disturbance ``clip(pinv(D) residual, W)``.
+        """
+        n, p, d = self.E.shape
+        fitted = (self.E.reshape(n * p, d) @ theta).reshape(n, p)
+        residual = self.z[idx] - fitted[idx]
+        if self.is_box:
+            excess = np.abs(residual - self.hull_center) - self.hull_radius - self.e[idx]
+        else:
+            w = np.clip(residual @ self.d_pinv.T, self.w_center - self.w_radius, self.w_center + self.w_radius)
+            excess = np.abs(residual - w @ self.D.T) - self.e[idx]
+        return np.max(excess / self.beta, axis=1)
+
+    def needed_margin_with(self, theta: np.ndarray, w: np.ndarray, idx) -> np.ndarray:
+        """Per transition, the least s that explains it with this theta and disturbances w (k, r)."""
+        w = np.clip(w, self.w_center - self.w_radius, self.w_center + self.w_radius)
+        excess = np.abs(self.z[idx] - self.E[idx] @ theta - w @ self.D.T) - self.e[idx]
+        return np.max(excess / self.beta, axis=1)
