@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, InputError, UncertainLinearSystem
-from minimaxplan.models._validation import as_finite_array, as_positive_scalar, check_shape
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape
 from minimaxplan.verify import eliminate_models, feasible_parameter_box
 
 __all__ = ["EliminationHistory", "ParameterSetHistory", "elimination_history", "parameter_set_history"]

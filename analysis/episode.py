@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from minimaxplan.models import InputError
-from minimaxplan.models._validation import as_positive_scalar
+from minimaxplan.models.validation import as_positive_scalar
 
 from .registry import EpisodeFailure, Factory, Transition, method_factory, resolve, scenario_factory
 

@@ -377,9 +377,3 @@ def _toml_string(text: str) -> str:
         else:
             out.append(char)
     return '"' + "".join(out) + '"'
-
-
-# TRANSITIONAL, for analysis/select_command.py only (owned by another branch, which still
-# imports the data-file names from here): the lead deletes these lines at merge time,
-# when select_command.py imports them from .data_file.
-from .data_file import DataFileError, TransitionData, load_data_file  # noqa: E402, F401

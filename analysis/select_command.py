@@ -17,7 +17,8 @@ import time
 from minimaxplan.models import MinimaxplanError
 from minimaxplan.verify import eliminate_models, feasible_parameter_box
 
-from .model_file import DataFileError, ModelFile, TransitionData, load_data_file, load_model_file
+from .data_file import DataFileError, TransitionData, load_data_file
+from .model_file import ModelFile, load_model_file
 from .reports import SelectionReport, to_json
 
 __all__ = ["register", "run", "select_models", "EXIT_SURVIVORS", "EXIT_NONE_SURVIVES", "EXIT_ERROR"]

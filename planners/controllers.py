@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models._validation import as_finite_array, check_shape, frozen_copy
+from ..models.validation import as_finite_array, check_shape, frozen_copy
 from ..models.errors import DimensionError, InputError
 from ..models.system import UncertainLinearSystem
 

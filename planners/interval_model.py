@@ -23,9 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models._validation import as_finite_array
+from ..models.validation import as_finite_array
 from ..models.errors import DimensionError, EmptySetError, InputError
-from ..models.prediction import IntervalPredictor, _gamma, interval_matvec
+from ..models.prediction import IntervalPredictor, interval_matvec, summation_error_bound
 from ..models.sets import Box
 from ..models.system import UncertainLinearSystem
 from .box_kernels import IntervalKernel, has_compiled_minimum, propagate, stack_rewards_kernel
@@ -189,7 +189,7 @@ def _rounding_errors(systems, predictors, vertices, B, bank: ControllerBank, clo
     """
     p, q = B.shape[1], B.shape[2]
     safety = 1.0 + 1e-10  # covers the rounding in evaluating the bounds themselves
-    g = _gamma(2 * p + 2 * q + 8)
+    g = summation_error_bound(2 * p + 2 * q + 8)
     tiny = (2 * p + 2 * q + 8) * 2.0 * np.finfo(float).smallest_subnormal  # underflow of every product
     abs_B = np.abs(B)  # (M, p, q)
     abs_K = np.abs(bank.gains)  # (A, q, p)
@@ -200,20 +200,20 @@ def _rounding_errors(systems, predictors, vertices, B, bank: ControllerBank, clo
         closed_error = opened_error[:, None]
     else:  # A(v) - B K: the product B K (q terms) and the subtraction round too
         product_abs = np.einsum("mpq,aqr->mapr", abs_B, abs_K)
-        closed_error = safety * (formation[:, None] + _gamma(q + 1) * (open_abs[:, None] + product_abs) + g * closed_abs)
+        closed_error = safety * (formation[:, None] + summation_error_bound(q + 1) * (open_abs[:, None] + product_abs) + g * closed_abs)
     # c_a = K x_ref + u_ff is computed in floating point for feedback controllers
     offset_error = np.zeros_like(bank.offsets)
     for a, controller in enumerate(bank.controllers):
         if isinstance(controller, LinearFeedback):
-            offset_error[a] = _gamma(p + 2) * (np.abs(controller.K) @ np.abs(controller.x_ref) + np.abs(controller.u_ff))
+            offset_error[a] = summation_error_bound(p + 2) * (np.abs(controller.K) @ np.abs(controller.x_ref) + np.abs(controller.u_ff))
     offset_error = safety * offset_error + tiny
     w_max = [np.maximum(np.abs(system.w.low), np.abs(system.w.high)) for system in systems]
-    w_rounding = np.stack([_gamma(2 * system.ndisturbances + 1) * np.abs(system.D) @ wm for system, wm in zip(systems, w_max)])
+    w_rounding = np.stack([summation_error_bound(2 * system.ndisturbances + 1) * np.abs(system.D) @ wm for system, wm in zip(systems, w_max)])
     w_error = safety * (w_rounding + g * np.maximum(np.abs(w_z[:, :p]), np.abs(w_z[:, p:]))) + tiny
     drift_abs = np.maximum(np.abs(drift_z[..., :p]), np.abs(drift_z[..., p:]))  # (M, A, p)
     c_abs = np.abs(bank.offsets) + offset_error  # (A, q)
     drift_error = safety * (
-        _gamma(q + 1) * np.einsum("mpq,aq->map", abs_B, c_abs) + np.einsum("mpq,aq->map", abs_B, offset_error)
+        summation_error_bound(q + 1) * np.einsum("mpq,aq->map", abs_B, c_abs) + np.einsum("mpq,aq->map", abs_B, offset_error)
         + w_rounding[:, None] + g * drift_abs
     ) + tiny
     gain_error = safety * g * abs_K

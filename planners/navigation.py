@@ -16,7 +16,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from minimaxplan.models._validation import as_finite_array, as_positive_scalar, check_shape
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape
 from minimaxplan.models.errors import InputError
 
 __all__ = ["NavigationFunction"]

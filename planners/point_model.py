@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..models._validation import as_finite_array
+from ..models.validation import as_finite_array
 from ..models.errors import DimensionError, InputError
 from ..models.system import UncertainLinearSystem
 from .controllers import ControllerBank

@@ -35,7 +35,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from minimaxplan.models._validation import as_finite_array, as_positive_scalar
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar
 from minimaxplan.models.errors import InputError, SolverFailure
 from minimaxplan.models.system import UncertainLinearSystem
 

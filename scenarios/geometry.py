@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from minimaxplan.models._validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError
 
 __all__ = [

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from minimaxplan.models._validation import as_finite_array, as_positive_scalar, frozen_copy
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError
 
 from .compiled_rewards import GoalParams, SpeedLaneParams, collision_params

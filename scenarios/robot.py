@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from minimaxplan.models._validation import as_positive_scalar
+from minimaxplan.models.validation import as_positive_scalar
 from minimaxplan.models.errors import InputError
 from minimaxplan.models.sets import Box
 from minimaxplan.models.system import UncertainLinearSystem

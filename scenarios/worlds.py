@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from minimaxplan.models._validation import as_finite_array
+from minimaxplan.models.validation import as_finite_array
 from minimaxplan.models.errors import InputError, MinimaxplanError
 from minimaxplan.models.system import UncertainLinearSystem
 

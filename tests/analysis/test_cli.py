@@ -14,7 +14,7 @@ from minimaxplan.analysis import cli
 from minimaxplan.analysis.data_file import load_data_file
 from minimaxplan.analysis.lmi_command import check_model
 from minimaxplan.analysis.model_file import format_model_file, load_model_file
-from minimaxplan.analysis.reports import lmi_matrix
+from minimaxplan.verify import lmi_matrix
 from minimaxplan.verify import check_assumption4, eliminate_models, feasible_parameter_box
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -271,7 +271,7 @@ def test_lmi_json_to_file_and_markdown_of_an_uncertified_result(tmp_path, capsys
 def test_lmi_matrix_rejects_an_unknown_form():
     from minimaxplan.models import InputError
 
-    with pytest.raises(InputError, match=r"form must be 'discrete' or 'continuous', got 'hybrid'"):
+    with pytest.raises(InputError, match=r"form must be one of \('continuous', 'discrete'\), got 'hybrid'"):
         lmi_matrix(np.eye(1), np.eye(1), np.eye(1), 1.0, np.eye(1), "hybrid")
 
 
