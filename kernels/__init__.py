@@ -10,7 +10,7 @@ that neither imports the other:
   (Theorem 1) is written once, as a compiled kernel on one box, and reaches the
   planners' compiled engine (`box_reward_minimum`, `register_reward_params`,
   `has_compiled_minimum`) and numpy callers (`box_minima`); the cache keys of the
-  kernels that call it (`sources_digest`, `minimum_sources`); the `BoxReward` and
+  kernels that call it (`sources_digest`, `minimum_sources`, `compile_per_params_type`); the `BoxReward` and
   `CompiledBoxReward` protocols a planner model reads.
 
 A user's reward family gets an exact box minimum and a compiled kernel by exposing a
@@ -25,6 +25,7 @@ from .reward_protocol import (
     box_minima,
     box_minima_kernel,
     box_reward_minimum,
+    compile_per_params_type,
     has_compiled_minimum,
     minimum_sources,
     register_reward_params,
@@ -39,6 +40,7 @@ __all__ = [
     "box_minima",
     "box_minima_kernel",
     "box_reward_minimum",
+    "compile_per_params_type",
     "has_compiled_minimum",
     "maximum",
     "minimum",

@@ -26,7 +26,9 @@ Cache keys: numba's on-disk cache checks only the source file of the compiled
 function itself, not the files of the functions it inlines. Kernels that call
 `box_reward_minimum` are therefore built by factories closing over
 ``sources_digest(*minimum_sources(params_type))`` (numba hashes a cached closure's
-cell contents into its cache key), so a change to any of those files recompiles them.
+cell contents into its cache key), so a change to any of those files recompiles them,
+and are compiled by `compile_per_params_type`, so that each params type has an on-disk
+index of its own.
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ __all__ = [
     "box_minima",
     "box_minima_kernel",
     "box_reward_minimum",
+    "compile_per_params_type",
     "has_compiled_minimum",
     "minimum_sources",
     "register_reward_params",
@@ -196,9 +199,26 @@ def minimum_sources(params_type: type) -> list[str]:
         ``params_type`` (where its implementation lives), then the ``sources`` it was
         registered with. A caller adds its own file in front (see
         `minimaxplan.planners.box_kernels.reward_sources`).
+
+    Raises
+    ------
+    TypeError
+        If ``params_type`` is not registered, or its module has no source file (a
+        class defined interactively): its kernel could not be keyed on disk, so define
+        it in a module file.
     """
-    extra = _REWARD_PARAMS_TYPES.get(params_type, ())
-    return [__file__, box_primitives.__file__, sys.modules[params_type.__module__].__file__, *extra]
+    if params_type not in _REWARD_PARAMS_TYPES:
+        raise TypeError(
+            f"{params_type.__name__} is not registered (see minimaxplan.kernels.register_reward_params)"
+        )
+    module = sys.modules.get(params_type.__module__)
+    source = getattr(module, "__file__", None)
+    if source is None:
+        raise TypeError(
+            f"{params_type.__name__} is defined in module {params_type.__module__!r}, which has no source file: "
+            "define compiled reward kernels in a module file (their disk cache is keyed by its contents)"
+        )
+    return [__file__, box_primitives.__file__, source, *_REWARD_PARAMS_TYPES[params_type]]
 
 
 @functools.cache
@@ -228,7 +248,34 @@ def box_minima_kernel(params_type: type):
             reward[k] = value
             collided[k] = hit
 
-    return njit(cache=True)(box_minima_loop)
+    return compile_per_params_type(box_minima_loop, params_type)
+
+
+def compile_per_params_type(function, params_type: type):
+    """``numba.njit(cache=True)`` of a kernel made for one params type, with an on-disk index of its own.
+
+    numba keeps one cache index per function (by module and qualified name) holding
+    every compiled signature, and unpickles all of them to load any one: a kernel made
+    by a factory for several params types would share one index, and a params type
+    whose module cannot be imported later (a user's reward moved or deleted) would make
+    loading fail for every type. The function's qualified name is therefore suffixed
+    with a digest of the type's module and name before compiling.
+
+    Parameters
+    ----------
+    function
+        A Python function defined in a factory (typically closing over
+        ``sources_digest(*minimum_sources(params_type))``).
+    params_type
+        The type the kernel is made for.
+
+    Returns
+    -------
+    numba dispatcher
+    """
+    tag = hashlib.sha256(f"{params_type.__module__}.{params_type.__qualname__}".encode()).hexdigest()[:12]
+    function.__qualname__ = f"{function.__qualname__}_{tag}"
+    return njit(cache=True)(function)
 
 
 def box_minima(params: Any, lower: np.ndarray, upper: np.ndarray, t: Any = 0) -> tuple[np.ndarray, np.ndarray]:

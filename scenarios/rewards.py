@@ -350,7 +350,7 @@ class GoalReward(RewardFamily):
         point[..., pos] = np.where(np.abs(lo - self.goal) >= np.abs(hi - self.goal), lo, hi)
         return point
 
-    def with_obstacles(self, obstacles=None, moving_obstacles=None) -> "GoalReward":
+    def with_obstacles(self, obstacles=None, moving_obstacles=None) -> GoalReward:
         """The same reward with other obstacles (e.g. the pedestrians observed now)."""
         return GoalReward(
             self.goal,
