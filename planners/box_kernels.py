@@ -33,8 +33,12 @@ from numba import njit
 
 from ..kernels.box_primitives import maximum as _maximum
 from ..kernels.box_primitives import minimum as _minimum
-from ..kernels.reward_protocol import has_compiled_minimum  # noqa: F401 (interval_model imports it from here)
-from ..kernels.reward_protocol import box_reward_minimum, minimum_sources, sources_digest
+from ..kernels.reward_protocol import (
+    box_reward_minimum,
+    has_compiled_minimum,  # noqa: F401 (interval_model imports it from here)
+    minimum_sources,
+    sources_digest,
+)
 
 __all__ = ["IntervalKernel", "propagate", "stack_rewards_kernel"]
 

@@ -195,7 +195,7 @@ class CircularObstacles:
         object.__setattr__(self, "radii", frozen_copy(radii))
 
     @classmethod
-    def empty(cls) -> "CircularObstacles":
+    def empty(cls) -> CircularObstacles:
         """No obstacle at all."""
         return cls(np.zeros((0, 2)), np.zeros(0))
 
@@ -287,7 +287,7 @@ class MovingObstacles:
         object.__setattr__(self, "time0", int(self.time0))
 
     @classmethod
-    def empty(cls) -> "MovingObstacles":
+    def empty(cls) -> MovingObstacles:
         return cls(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0))
 
     def __len__(self) -> int:
