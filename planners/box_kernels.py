@@ -1,4 +1,4 @@
-"""Compiled (numba) interval arithmetic of `IntervalModel` and the compiled-reward protocol.
+"""Compiled (numba) interval arithmetic of `IntervalModel` and the pessimistic rewards of its boxes.
 
 The one implementation of the box transition: `IntervalModel.expand` and `rollout`
 call `propagate`, and the compiled search (`minimaxplan.planners.compiled_search`)
@@ -16,31 +16,31 @@ tolerance.
 
 Compiled rewards
 ----------------
-A reward family offers its exact box minimum to compiled code by exposing
-``kernel_params``: a namedtuple of arrays and floats, for which the family registers
-an implementation of `box_reward_minimum` with ``numba.extending.overload`` and
-declares the type with `register_reward_params`
-(``minimaxplan.scenarios.compiled_rewards`` does so for `GoalReward` and
-`SpeedLaneReward`). The planner never imports the family: it passes the params object
-through, and numba picks the implementation from its type.
+A reward's exact box minimum reaches these kernels through the compiled-reward
+protocol of `minimaxplan.kernels.reward_protocol` (``kernel_params`` and an overload
+of `box_reward_minimum`): the planner never imports the family, it passes the params
+object through, and numba picks the implementation from its type.
 """
 
 from __future__ import annotations
 
 import functools
-import hashlib
 import math
-import pathlib
-import sys
 from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
-__all__ = [
-    "IntervalKernel", "box_reward_minimum", "has_compiled_minimum", "propagate", "register_reward_params",
-    "stack_rewards_kernel",
-]
+from ..kernels.box_primitives import maximum as _maximum
+from ..kernels.box_primitives import minimum as _minimum
+from ..kernels.reward_protocol import (
+    box_reward_minimum,
+    has_compiled_minimum,  # noqa: F401 (interval_model imports it from here)
+    minimum_sources,
+    sources_digest,
+)
+
+__all__ = ["IntervalKernel", "propagate", "stack_rewards_kernel"]
 
 
 IntervalKernel = namedtuple(
@@ -49,43 +49,6 @@ IntervalKernel = namedtuple(
      "closed_error", "drift_error", "opened_error", "w_error", "gain_error", "offset_error", "input_error", "tiny"],
 )
 IntervalKernel.__doc__ = """The precomputed arrays of `substep` (built by `IntervalModel`; see `substep` for each field)."""
-
-
-_REWARD_PARAMS_TYPES: set = set()
-
-
-def register_reward_params(params_type: type) -> type:
-    """Declare that ``params_type`` has an implementation of `box_reward_minimum` (returns the type)."""
-    _REWARD_PARAMS_TYPES.add(params_type)
-    return params_type
-
-
-def has_compiled_minimum(params) -> bool:
-    """Whether ``params``'s type was registered with `register_reward_params`."""
-    return type(params) in _REWARD_PARAMS_TYPES
-
-
-def box_reward_minimum(params, z, p, t):
-    """The exact minimum of a reward over the box ``z = [-lower | upper]`` (2p,) at sub-step t.
-
-    Returns ``(reward, collided)``. Compiled code only: a reward family registers an
-    implementation for the type of its ``kernel_params`` (see the module docstring).
-    """
-    raise NotImplementedError(
-        f"no compiled box minimum is registered for reward parameters of type {type(params).__name__}"
-    )
-
-
-@njit(cache=True, inline="always")
-def _maximum(a, b):
-    """``np.maximum`` of two floats (NaN propagates)."""
-    return a if (a >= b or a != a) else b
-
-
-@njit(cache=True, inline="always")
-def _minimum(a, b):
-    """``np.minimum`` of two floats (NaN propagates)."""
-    return a if (a <= b or a != a) else b
 
 
 @njit(cache=True, inline="always")
@@ -265,23 +228,9 @@ def propagate(z0, actions, core, stack):
                 source = stack[s, m, i]
 
 
-def sources_digest(*files: str) -> int:
-    """A 63-bit digest of source files, for the cache key of compiled code that calls into them.
-
-    numba's on-disk cache checks only the source file of the compiled function
-    itself. A kernel compiled through a factory that closes over this digest is
-    re-compiled whenever one of ``files`` changes (numba hashes a cached closure's
-    cell contents into the cache key).
-    """
-    digest = hashlib.sha256()
-    for file in files:
-        digest.update(pathlib.Path(file).read_bytes())
-    return int.from_bytes(digest.digest()[:8], "little") >> 1
-
-
 def reward_sources(params_type: type) -> list[str]:
-    """The source files a compiled reward call depends on: this module and the reward's module."""
-    return [__file__, sys.modules[params_type.__module__].__file__]
+    """The source files a compiled reward call from here depends on: this module and `minimum_sources`'s."""
+    return [__file__, *minimum_sources(params_type)]
 
 
 @njit

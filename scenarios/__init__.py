@@ -4,12 +4,13 @@
   seeded worlds (`make_world`: "static" or "pedestrian");
 * obstacle geometry (`CircularObstacles`, `MovingObstacles`; python-fcl for true
   collisions, an exact vectorised twin for planners);
-* reward families with exact box minima (`GoalReward`, `SpeedLaneReward`);
+* reward families with exact box minima (`GoalReward`, `SpeedLaneReward`, on the base
+  `RewardFamily`), each minimum one compiled kernel (`minimaxplan.kernels` protocol);
 * `RobotNavigationEnv`, the Gymnasium API (the `gym` extra), imported on demand.
 """
 
 from .geometry import CircularObstacles, MovingObstacles, fcl_disc_collisions
-from .rewards import GoalReward, SpeedLaneReward
+from .rewards import GoalReward, RewardFamily, SpeedLaneReward
 from .robot import DEFAULT_ROBOT, Hypothesis, RobotParameters, robot_hypotheses, robot_system
 from .worlds import EpisodeOver, RobotWorld, make_world
 
@@ -18,6 +19,7 @@ __all__ = [
     "MovingObstacles",
     "fcl_disc_collisions",
     "GoalReward",
+    "RewardFamily",
     "SpeedLaneReward",
     "DEFAULT_ROBOT",
     "Hypothesis",

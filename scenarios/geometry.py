@@ -2,9 +2,10 @@
 
 Two implementations answer the same questions:
 
-* vectorised numpy (``*_meet_*`` and ``*_distance`` functions, the methods of
+* vectorised (``*_meet_*`` and ``*_distance`` functions, the methods of
   `CircularObstacles` and `MovingObstacles`): many boxes against many obstacles in
-  one call, the hot path of a planner's reward;
+  one call, each pair by the project's one box-disc gap
+  `minimaxplan.kernels.box_gap_sq` (the gap the reward kernels' collision test uses);
 * python-fcl (the ``fcl_*`` functions): the authoritative cross-check used by the
   tests, and the collision test of the simulated worlds (robot disc against obstacles).
 
@@ -25,10 +26,12 @@ Closed sets throughout: touching counts as meeting.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from minimaxplan.kernels import box_gaps_sq
 from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError
 
@@ -51,6 +54,17 @@ FCL_SLAB_HEIGHT = 1.0
 
 
 # --------------------------------------------------------------------- vectorised
+def _pairwise_gaps_sq(lower, upper, other_lower, other_upper) -> np.ndarray:
+    """`box_gap_sq` of every broadcast pair of boxes (arrays (..., 2)), shape (...)."""
+    shape = np.broadcast_shapes(lower.shape, upper.shape, other_lower.shape, other_upper.shape)
+    n = math.prod(shape[:-1])
+    rows = [np.ascontiguousarray(np.broadcast_to(a, shape), dtype=float).reshape(n, 2)
+            for a in (lower, upper, other_lower, other_upper)]
+    out = np.empty(n)
+    box_gaps_sq(*rows, out)
+    return out.reshape(shape[:-1])
+
+
 def box_point_sq_distance(lower: np.ndarray, upper: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Squared distance from each box to each point.
 
@@ -64,12 +78,11 @@ def box_point_sq_distance(lower: np.ndarray, upper: np.ndarray, points: np.ndarr
     Returns
     -------
     ndarray, shape (..., n)
-        ``||c - clip(c, lower, upper)||^2`` for every box and point c.
+        ``||c - clip(c, lower, upper)||^2`` for every box and point c (`box_gap_sq`
+        against the degenerate box ``[c, c]``).
     """
-    lo = lower[..., None, :]
-    hi = upper[..., None, :]
-    gap = np.maximum(lo - points, 0.0) + np.maximum(points - hi, 0.0)
-    return np.einsum("...i,...i->...", gap, gap)
+    points = np.asarray(points)
+    return _pairwise_gaps_sq(lower[..., None, :], upper[..., None, :], points, points)
 
 
 def box_box_sq_distance(lower: np.ndarray, upper: np.ndarray, other_lower: np.ndarray, other_upper: np.ndarray) -> np.ndarray:
@@ -85,12 +98,10 @@ def box_box_sq_distance(lower: np.ndarray, upper: np.ndarray, other_lower: np.nd
     Returns
     -------
     ndarray, shape (..., n)
-        The squared Euclidean distance between each pair (0 when they intersect).
+        The squared Euclidean distance between each pair (0 when they intersect), by
+        `box_gap_sq`.
     """
-    lo = lower[..., None, :]
-    hi = upper[..., None, :]
-    gap = np.maximum(other_lower - hi, 0.0) + np.maximum(lo - other_upper, 0.0)
-    return np.einsum("...i,...i->...", gap, gap)
+    return _pairwise_gaps_sq(lower[..., None, :], upper[..., None, :], np.asarray(other_lower), np.asarray(other_upper))
 
 
 def boxes_meet_circles(
@@ -184,7 +195,7 @@ class CircularObstacles:
         object.__setattr__(self, "radii", frozen_copy(radii))
 
     @classmethod
-    def empty(cls) -> "CircularObstacles":
+    def empty(cls) -> CircularObstacles:
         """No obstacle at all."""
         return cls(np.zeros((0, 2)), np.zeros(0))
 
@@ -276,7 +287,7 @@ class MovingObstacles:
         object.__setattr__(self, "time0", int(self.time0))
 
     @classmethod
-    def empty(cls) -> "MovingObstacles":
+    def empty(cls) -> MovingObstacles:
         return cls(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0))
 
     def __len__(self) -> int:

@@ -3,16 +3,20 @@
 The interval planner needs, for every predicted box of states, the pessimistic reward
 ``min_{x in [lower, upper]} J(x, t)`` (Theorem 1: the surrogate objective (11) is a
 lower bound of the robust objective (10) exactly because each of its terms is a
-minimum of J over a box that contains the true state). Each family here gives
+minimum of J over a box that contains the true state). Each family (a `RewardFamily`)
+gives
 
 * ``value(states, t)`` / ``evaluate(states, t)``: J at points (and the collision flag);
 * ``box_minimum(lower, upper, t) -> (reward, collided)``: the EXACT minimum over the
   box, vectorised over leading dimensions, and ``box_argmin`` a point of the box that
   attains it (for tests and diagnostics);
 * ``box_minimum_raw``: the same without argument checks;
-* ``kernel_params``: the same minimum for compiled code (the planner's compiled
-  engine), implemented in `minimaxplan.scenarios.compiled_rewards` with the same
-  floating-point operations (tested bit for bit against ``box_minimum_raw``).
+* ``kernel_params``: the family's parameters for its compiled kernel.
+
+The box minimum has ONE implementation per family, the compiled kernel in
+`minimaxplan.scenarios.compiled_rewards` (the compiled-reward protocol of
+`minimaxplan.kernels`): ``box_minimum_raw`` runs it over the boxes through
+`minimaxplan.kernels.box_minima`, and the planners' compiled engine inlines it.
 
 ``t`` is the absolute sub-step index (moving obstacles' predicted boxes depend on
 it); a scalar or an array broadcasting against the leading dimensions.
@@ -33,17 +37,20 @@ only four corners).
 
 from __future__ import annotations
 
+import abc
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from minimaxplan.kernels import box_minima
 from minimaxplan.models.validation import as_finite_array, as_positive_scalar, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError
 
 from .compiled_rewards import GoalParams, SpeedLaneParams, collision_params
-from .geometry import CircularObstacles, MovingObstacles, box_point_sq_distance
+from .geometry import CircularObstacles, MovingObstacles, box_box_sq_distance, box_point_sq_distance
 
-__all__ = ["GoalReward", "SpeedLaneReward"]
+__all__ = ["GoalReward", "RewardFamily", "SpeedLaneReward"]
 
 #: Two weights "sum to one" when they do to this absolute tolerance.
 WEIGHT_SUM_TOL = 1e-12
@@ -71,7 +78,12 @@ def _selector(indices: tuple[int, ...]):
 
 
 class _CollisionTerm:
-    """beta(x) of the paper: robot disc against static discs and moving discs' predicted boxes."""
+    """beta(x) of the paper: robot disc against static discs and moving discs' predicted boxes.
+
+    Over boxes it is evaluated by the families' compiled kernels
+    (`minimaxplan.scenarios.compiled_rewards`); here: at points given the moving
+    obstacles' true positions, and the witness points of `RewardFamily.box_argmin`.
+    """
 
     def __init__(self, obstacles, moving_obstacles, robot_radius, position_indices):
         if obstacles is None:
@@ -87,81 +99,19 @@ class _CollisionTerm:
         self.robot_radius = as_positive_scalar("robot_radius", robot_radius, allow_zero=True)
         self.position_indices = _as_index_tuple("position_indices", position_indices, length=2)
         self.pos = _selector(self.position_indices)
-        self._centers = obstacles.centers
-        self._reach_sq = (obstacles.radii + self.robot_radius) ** 2
-        self._moving_reach_sq = (moving_obstacles.radii + self.robot_radius) ** 2
+        self.reach_sq = (obstacles.radii + self.robot_radius) ** 2
+        self.moving_reach_sq = (moving_obstacles.radii + self.robot_radius) ** 2
         self.has_static = len(obstacles) > 0
         self.has_moving = len(moving_obstacles) > 0
-        self._static_reach = list(zip(self._centers[:, 0].tolist(), self._centers[:, 1].tolist(), self._reach_sq.tolist()))
 
-    def boxes(self, lower, upper, t):
-        """Whether each box of positions (..., 2) holds a colliding point at sub-step t.
-
-        Planner hot path: per axis the box-to-point gap is ``max(lo - c, c - hi, 0)``
-        (at most one of the two differences is positive, as lo <= hi).
-        """
-        hit = self.boxes_or_none(lower, upper, t)
-        if hit is None:
-            return np.zeros(np.broadcast_shapes(lower.shape, upper.shape)[:-1], dtype=bool)
-        return hit
-
-    def _hull_misses_static(self, lower, upper) -> bool:
-        """Whether the bounding box of all the boxes (..., 2) is farther than reach from every disc.
-
-        Exact pre-check: each box lies in the hull, and the rounded gaps
-        ``fl(lo - c)``, ``fl(c - hi)`` are monotone in lo and hi, so every box's gap
-        (as `boxes` computes it) is at least the hull's on each axis: when the hull
-        misses every disc, so does every box, bit for bit the same verdict.
-        """
-        if lower.size == 0 or upper.size == 0:
-            return False
-        low_x, low_y = np.minimum.reduce(lower, axis=tuple(range(lower.ndim - 1))).tolist()
-        high_x, high_y = np.maximum.reduce(upper, axis=tuple(range(upper.ndim - 1))).tolist()
-        if not low_x <= high_x or not low_y <= high_y:
-            return False  # NaN (or an inverted box): leave the verdict to the full test
-        for cx, cy, reach_sq in self._static_reach:
-            # max(lo - c, c - hi, 0): with lo <= hi at most one difference is positive
-            gap_x = low_x - cx
-            if gap_x <= 0.0:
-                gap_x = cx - high_x
-                if gap_x < 0.0:
-                    gap_x = 0.0
-            gap_y = low_y - cy
-            if gap_y <= 0.0:
-                gap_y = cy - high_y
-                if gap_y < 0.0:
-                    gap_y = 0.0
-            if gap_x * gap_x + gap_y * gap_y <= reach_sq:
-                return False
-        return True
-
-    def boxes_or_none(self, lower, upper, t):
-        """`boxes`, or None when no box can collide (then every flag would be False)."""
-        hit = None
-        if self.has_static and not self._hull_misses_static(lower, upper):
-            gap = np.maximum(lower[..., None, :] - self._centers, self._centers - upper[..., None, :])
-            np.maximum(gap, 0.0, out=gap)
-            gap *= gap
-            hit = (gap[..., 0] + gap[..., 1] <= self._reach_sq).any(axis=-1)
-        if self.has_moving:
-            olo, ohi = self.moving.boxes(t)
-            gap = np.maximum(olo - upper[..., None, :], lower[..., None, :] - ohi)
-            np.maximum(gap, 0.0, out=gap)
-            gap *= gap
-            moving_hit = (gap[..., 0] + gap[..., 1] <= self._moving_reach_sq).any(axis=-1)
-            hit = moving_hit if hit is None else hit | moving_hit
-        return hit
-
-    def points(self, positions, t, moving_positions=None):
-        """Whether each position (..., 2) collides at sub-step t."""
-        if moving_positions is None:
-            return self.boxes(positions, positions, t)
+    def points(self, positions, moving_positions):
+        """Whether each position (..., 2) collides, the moving obstacles at ``moving_positions`` (m, 2)."""
         hit = np.zeros(positions.shape[:-1], dtype=bool)
         if self.has_static:
-            hit |= np.any(box_point_sq_distance(positions, positions, self._centers) <= self._reach_sq, axis=-1)
+            hit |= np.any(box_point_sq_distance(positions, positions, self.obstacles.centers) <= self.reach_sq, axis=-1)
         mp = as_finite_array("moving_positions", moving_positions, (len(self.moving), 2))
         if self.has_moving:
-            hit |= np.any(box_point_sq_distance(positions, positions, mp) <= self._moving_reach_sq, axis=-1)
+            hit |= np.any(box_point_sq_distance(positions, positions, mp) <= self.moving_reach_sq, axis=-1)
         return hit
 
     def witness(self, lower, upper, t):
@@ -176,12 +126,12 @@ class _CollisionTerm:
         found = np.zeros(shape[:-1], dtype=bool)
         candidates = []
         if self.has_static:
-            d2 = box_point_sq_distance(lower, upper, self._centers)
-            candidates.append((d2 <= self._reach_sq, np.clip(self._centers, lower[..., None, :], upper[..., None, :])))
+            centers = self.obstacles.centers
+            d2 = box_point_sq_distance(lower, upper, centers)
+            candidates.append((d2 <= self.reach_sq, np.clip(centers, lower[..., None, :], upper[..., None, :])))
         if self.has_moving:
             olo, ohi = self.moving.boxes(t)
-            gap = np.maximum(olo - upper[..., None, :], 0.0) + np.maximum(lower[..., None, :] - ohi, 0.0)
-            meets = np.einsum("...i,...i->...", gap, gap) <= self._moving_reach_sq
+            meets = box_box_sq_distance(lower, upper, olo, ohi) <= self.moving_reach_sq
             candidates.append((meets, np.clip(olo, lower[..., None, :], upper[..., None, :])))
         for meets, points in candidates:
             meets = np.broadcast_to(meets, shape[:-1] + meets.shape[-1:])
@@ -202,21 +152,63 @@ class _CollisionTerm:
         }
 
 
-class _RewardBase:
-    """Checks and plumbing shared by the families (subclasses define the raw maths)."""
+class RewardFamily(abc.ABC):
+    """The base of the reward families ``J(x, t) = beta(x, t) * f(x)``, in [0, 1].
+
+    beta is the collision term shared by every family (0 when the robot's disc meets an
+    obstacle, see the module docstring), f the family's own term. A family implements
+    the hooks below; the base derives from them the checked API (`value`, `evaluate`,
+    `box_minimum`, `box_argmin`) and `box_minimum_raw`, which runs the family's ONE
+    box-minimum implementation, its compiled kernel, through
+    `minimaxplan.kernels.box_minima`.
+
+    This is the `minimaxplan.kernels.CompiledBoxReward` protocol that `IntervalModel`
+    and `PointModel` read (``box_minimum``, ``box_minimum_raw``, ``min_state_dim``,
+    ``kernel_params``); a user's reward may implement that protocol directly instead
+    (``docs/rewards.md``).
+
+    Notes
+    -----
+    Exactness (Theorem 1 needs the true minimum over each box): when the box, grown by
+    the robot's disc, meets an obstacle, some state of the box has beta = 0 and the
+    minimum is 0; otherwise beta = 1 on the whole box and the minimum is that of f,
+    which each family derives in closed form (see its Notes).
+    """
 
     _collision: _CollisionTerm
 
     @property
+    @abc.abstractmethod
+    def kernel_params(self) -> Any:
+        """The parameters of the family's compiled box minimum (a registered namedtuple)."""
+
+    @property
+    @abc.abstractmethod
+    def used_indices(self) -> tuple[int, ...]:
+        """The state coordinates the reward reads (positions included)."""
+
+    @abc.abstractmethod
+    def free_value(self, states: np.ndarray) -> np.ndarray:
+        """f at each state (..., p): the reward where nothing collides (checked states)."""
+
+    @abc.abstractmethod
+    def free_argmin(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        """A state of each box (..., p) where f attains its minimum over the box (checked boxes)."""
+
+    @abc.abstractmethod
+    def to_dict(self) -> dict:
+        """A JSON-serialisable description, with the key ``"family"``."""
+
+    @property
     def min_state_dim(self) -> int:
         """The smallest state dimension this reward can read."""
-        return max(self._used_indices()) + 1
+        return max(self.used_indices) + 1
 
     def _check_states(self, name, states):
         x = as_finite_array(name, states)
         if x.ndim < 1 or x.shape[-1] < self.min_state_dim:
             raise DimensionError(
-                f"{name} must have shape (..., p) with p >= {self.min_state_dim} (indices {sorted(self._used_indices())}), "
+                f"{name} must have shape (..., p) with p >= {self.min_state_dim} (indices {sorted(self.used_indices)}), "
                 f"got shape {x.shape}"
             )
         return x
@@ -239,11 +231,15 @@ class _RewardBase:
 
         ``moving_positions`` (m, 2), when given, are the moving obstacles' true
         positions (a simulated world's view); otherwise a state collides when it can
-        meet a moving obstacle anywhere in its predicted box at ``t``.
+        meet a moving obstacle anywhere in its predicted box at ``t`` (the box minimum's
+        verdict on the degenerate box ``[x, x]``).
         """
         x = self._check_states("states", states)
-        collided = self._collision.points(x[..., self._collision.pos], t, moving_positions)
-        reward = np.where(collided, 0.0, self._free_value(x))
+        if moving_positions is None:
+            collided = self.box_minimum_raw(x, x, t)[1]
+        else:
+            collided = self._collision.points(x[..., self._collision.pos], moving_positions)
+        reward = np.where(collided, 0.0, self.free_value(x))
         return reward, collided
 
     def box_minimum(self, lower, upper, t=0) -> tuple[np.ndarray, np.ndarray]:
@@ -266,23 +262,19 @@ class _RewardBase:
         return self.box_minimum_raw(lo, hi, t)
 
     def box_minimum_raw(self, lower: np.ndarray, upper: np.ndarray, t=0) -> tuple[np.ndarray, np.ndarray]:
-        """`box_minimum` without argument checks (float arrays (..., p), lower <= upper)."""
-        pos = self._collision.pos
-        collided = self._collision.boxes_or_none(lower[..., pos], upper[..., pos], t)
-        free = self._free_minimum(lower, upper)
-        if collided is None and lower.shape == upper.shape and free.shape == lower.shape[:-1]:
-            # nothing can collide: np.where(False, 0, free) would be free itself
-            return free, np.zeros(free.shape, dtype=bool)
-        if collided is None:
-            collided = np.zeros(np.broadcast_shapes(lower.shape, upper.shape)[:-1], dtype=bool)
-        return np.where(collided, 0.0, free), collided
+        """`box_minimum` without argument checks (float arrays (..., p), lower <= upper).
+
+        Runs the family's compiled kernel over the boxes (`minimaxplan.kernels.box_minima`):
+        bit for bit the minima of the planners' compiled engine.
+        """
+        return box_minima(self.kernel_params, lower, upper, t)
 
     def box_argmin(self, lower, upper, t=0) -> np.ndarray:
         """A state of each box where J attains `box_minimum` (shape (..., p))."""
         lo, hi = self._check_box(lower, upper)
         pos = self._collision.pos
-        point = self._free_argmin(lo, hi)
-        collided = self._collision.boxes(lo[..., pos], hi[..., pos], t)
+        point = self.free_argmin(lo, hi)
+        collided = self.box_minimum_raw(lo, hi, t)[1]
         if np.any(collided):
             witness = self._collision.witness(lo[..., pos], hi[..., pos], t)
             sub = point[..., pos]
@@ -292,7 +284,7 @@ class _RewardBase:
 
 
 @dataclass(frozen=True, eq=False)
-class GoalReward(_RewardBase):
+class GoalReward(RewardFamily):
     """Goal reaching, ``J(x) = beta(x) / (1 + ||pos(x) - goal||_2)`` (paper, Section IV).
 
     Parameters
@@ -334,29 +326,31 @@ class GoalReward(_RewardBase):
         object.__setattr__(self, "moving_obstacles", collision.moving)
         object.__setattr__(self, "robot_radius", collision.robot_radius)
         object.__setattr__(self, "position_indices", collision.position_indices)
-        object.__setattr__(self, "kernel_params", GoalParams(collision_params(collision), self.goal))
+        object.__setattr__(self, "_kernel_params", GoalParams(collision_params(collision), self.goal))
 
-    def _used_indices(self):
+    @property
+    def kernel_params(self) -> GoalParams:
+        """`GoalParams` of the compiled box minimum."""
+        return self._kernel_params
+
+    @property
+    def used_indices(self) -> tuple[int, ...]:
+        """``position_indices``."""
         return self.position_indices
 
-    def _free_value(self, x):
-        return 1.0 / (1.0 + np.linalg.norm(x[..., self._collision.pos] - self.goal, axis=-1))
+    def free_value(self, states: np.ndarray) -> np.ndarray:
+        """``1 / (1 + ||pos(x) - goal||)`` at each state (..., p)."""
+        return 1.0 / (1.0 + np.linalg.norm(states[..., self._collision.pos] - self.goal, axis=-1))
 
-    def _free_minimum(self, lower, upper):
-        pos = self._collision.pos
-        # max(|lo - g|, |hi - g|) = max(g - lo, hi - g) as lo <= hi
-        far = self.goal - lower[..., pos]
-        np.maximum(far, upper[..., pos] - self.goal, out=far)
-        return 1.0 / (1.0 + np.hypot(far[..., 0], far[..., 1]))
-
-    def _free_argmin(self, lower, upper):
+    def free_argmin(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        """The corner of each box farthest from the goal (other coordinates at ``lower``)."""
         pos = self._collision.pos
         point = lower.copy()
         lo, hi = lower[..., pos], upper[..., pos]
         point[..., pos] = np.where(np.abs(lo - self.goal) >= np.abs(hi - self.goal), lo, hi)
         return point
 
-    def with_obstacles(self, obstacles=None, moving_obstacles=None) -> "GoalReward":
+    def with_obstacles(self, obstacles=None, moving_obstacles=None) -> GoalReward:
         """The same reward with other obstacles (e.g. the pedestrians observed now)."""
         return GoalReward(
             self.goal,
@@ -371,7 +365,7 @@ class GoalReward(_RewardBase):
 
 
 @dataclass(frozen=True, eq=False)
-class SpeedLaneReward(_RewardBase):
+class SpeedLaneReward(RewardFamily):
     """Speed tracking with a lane term, the vehicle reward of the paper's Section IV.
 
     ``J(x) = beta(x) * (speed_weight * (1 - min(|s(x) - target_speed| / speed_range, 1))
@@ -471,9 +465,16 @@ class SpeedLaneReward(_RewardBase):
             -1 if self.lateral_index is None else self.lateral_index, self.target_speed, self.speed_range,
             c1, c2, self.lane_width, float(self.n_lanes),
         )
-        object.__setattr__(self, "kernel_params", params)
+        object.__setattr__(self, "_kernel_params", params)
 
-    def _used_indices(self):
+    @property
+    def kernel_params(self) -> SpeedLaneParams:
+        """`SpeedLaneParams` of the compiled box minimum."""
+        return self._kernel_params
+
+    @property
+    def used_indices(self) -> tuple[int, ...]:
+        """Positions, speed coordinates and the lateral coordinate (when there is a lane term)."""
         extra = () if self.lateral_index is None else (self.lateral_index,)
         return self.position_indices + self.speed_indices + extra
 
@@ -496,21 +497,15 @@ class SpeedLaneReward(_RewardBase):
         far = np.maximum(np.abs(lo), np.abs(hi))
         return np.sqrt(np.einsum("...i,...i->...", near, near)), np.sqrt(np.einsum("...i,...i->...", far, far))
 
-    def _free_value(self, x):
-        reward = self.speed_weight * self._speed_term(np.abs(self._speed(x) - self.target_speed))
+    def free_value(self, states: np.ndarray) -> np.ndarray:
+        """The speed and lane terms at each state (..., p)."""
+        reward = self.speed_weight * self._speed_term(np.abs(self._speed(states) - self.target_speed))
         if self.lane_weight:
-            reward = reward + self.lane_weight * self._lane_term(x[..., self.lateral_index])
+            reward = reward + self.lane_weight * self._lane_term(states[..., self.lateral_index])
         return reward
 
-    def _free_minimum(self, lower, upper):
-        s_lo, s_hi = self._speed_interval(lower, upper)
-        worst = np.maximum(np.abs(s_lo - self.target_speed), np.abs(s_hi - self.target_speed))
-        reward = self.speed_weight * self._speed_term(worst)
-        if self.lane_weight:
-            reward = reward + self.lane_weight * self._lane_term(lower[..., self.lateral_index])
-        return reward
-
-    def _free_argmin(self, lower, upper):
+    def free_argmin(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        """A state of each box at the worst end of the speed interval (the lane term's minimiser is ``lower``)."""
         point = lower.copy()
         lo, hi = lower[..., self._speed_sel], upper[..., self._speed_sel]
         s_lo, s_hi = self._speed_interval(lower, upper)

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from minimaxplan.models.errors import DimensionError, InputError, NonFiniteError
 from minimaxplan.scenarios.geometry import CircularObstacles, MovingObstacles
-from minimaxplan.scenarios.rewards import GoalReward, SpeedLaneReward
+from minimaxplan.scenarios.rewards import GoalReward, RewardFamily, SpeedLaneReward
 
 seeds = st.integers(0, 2**31 - 1)
 
@@ -216,3 +216,17 @@ def test_with_obstacles_and_to_dict():
     assert with_moving.evaluate([3.0, 2.0], 14)[1] and not base.evaluate([3.0, 2.0], 14)[1]
     for value in (base, with_moving, SpeedLaneReward(1.0, 2.0)):
         assert json.loads(json.dumps(value.to_dict()))["family"] in ("goal", "speed_lane")
+
+
+def test_reward_family_declares_its_hooks():
+    assert RewardFamily.__abstractmethods__ == {"kernel_params", "used_indices", "free_value", "free_argmin", "to_dict"}
+
+    class Partial(RewardFamily):
+        def free_value(self, states):
+            return np.ones(np.shape(states)[:-1])
+
+    with pytest.raises(TypeError, match="abstract"):
+        Partial()
+    for reward in (GoalReward([0.0, 0.0]), SpeedLaneReward(1.0, 2.0)):
+        assert isinstance(reward, RewardFamily)
+    assert SpeedLaneReward(1.0, 2.0).min_state_dim == 3  # positions (0, 1), speed 2, lateral 1

@@ -1,0 +1,50 @@
+"""minimaxplan.kernels: box primitives and the compiled-reward protocol (numpy and numba only).
+
+The layer below `minimaxplan.planners` and `minimaxplan.scenarios` that both use, so
+that neither imports the other:
+
+* `minimaxplan.kernels.box_primitives`: `maximum`, `minimum` (NaN-propagating, as
+  numpy's) and `box_gap_sq`, the one box-disc gap of the project (the collision test
+  of a box of positions against a disc, or against a moving disc's predicted box);
+* `minimaxplan.kernels.reward_protocol`: how a reward family's exact box minimum
+  (Theorem 1) is written once, as a compiled kernel on one box, and reaches the
+  planners' compiled engine (`box_reward_minimum`, `register_reward_params`,
+  `has_compiled_minimum`) and numpy callers (`box_minima`); the cache keys of the
+  kernels that call it (`sources_digest`, `minimum_sources`, `compile_per_params_type`); the `BoxReward` and
+  `CompiledBoxReward` protocols a planner model reads.
+
+A user's reward family gets an exact box minimum and a compiled kernel by exposing a
+registered ``kernel_params`` namedtuple and an overload of `box_reward_minimum`; see
+`minimaxplan.kernels.reward_protocol` and ``docs/rewards.md``.
+"""
+
+from .box_primitives import box_gap_sq, box_gaps_sq, maximum, minimum
+from .reward_protocol import (
+    BoxReward,
+    CompiledBoxReward,
+    box_minima,
+    box_minima_kernel,
+    box_reward_minimum,
+    compile_per_params_type,
+    has_compiled_minimum,
+    minimum_sources,
+    register_reward_params,
+    sources_digest,
+)
+
+__all__ = [
+    "BoxReward",
+    "CompiledBoxReward",
+    "box_gap_sq",
+    "box_gaps_sq",
+    "box_minima",
+    "box_minima_kernel",
+    "box_reward_minimum",
+    "compile_per_params_type",
+    "has_compiled_minimum",
+    "maximum",
+    "minimum",
+    "minimum_sources",
+    "register_reward_params",
+    "sources_digest",
+]
