@@ -19,6 +19,7 @@ import pytest
 
 SUBPACKAGES = [
     "minimaxplan.models",
+    "minimaxplan.kernels",
     "minimaxplan.verify",
     "minimaxplan.planners",
     "minimaxplan.scenarios",

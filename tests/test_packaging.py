@@ -6,7 +6,7 @@ import sys
 import zipfile
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-SUBPACKAGES = ("models", "verify", "planners", "scenarios", "analysis")
+SUBPACKAGES = ("models", "kernels", "verify", "planners", "scenarios", "analysis")
 
 
 def test_wheel_contains_and_imports_every_subpackage(tmp_path):
