@@ -321,9 +321,6 @@ class ArcLane:
         }
 
 
-Lane = StraightLane | ArcLane
-
-
 # -------------------------------------------------------------------------- road
 @dataclass(frozen=True, eq=False)
 class Road:

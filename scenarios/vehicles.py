@@ -67,10 +67,6 @@ __all__ = [
     "traffic_step",
 ]
 
-#: Number of points per vehicle (centre and four corners) used for lane occupancy.
-OCCUPANCY_POINTS = 5
-
-
 @dataclass(frozen=True)
 class VehicleParameters:
     """The kinematic bicycle shared by every vehicle (the ego's are known exactly).
@@ -599,7 +595,7 @@ def _occupancy(traffic: TrafficState, road: Road, s: np.ndarray, offset: np.ndar
 
 
 def desired_speed(traffic: TrafficState, road: Road, rules: TrafficRules = TrafficRules(),
-                  vehicle: VehicleParameters = VehicleParameters()) -> np.ndarray:
+                  vehicle: VehicleParameters = VehicleParameters(), *, s: np.ndarray | None = None) -> np.ndarray:
     """The v_target of the acceleration law: the target speed, capped on and before arcs.
 
     Parameters
@@ -612,6 +608,8 @@ def desired_speed(traffic: TrafficState, road: Road, rules: TrafficRules = Traff
         ``curve_lateral_acceleration`` and ``curve_approach``.
     vehicle : VehicleParameters
         L (the approach distance is measured from the front bumper).
+    s : ndarray, shape (n,), optional
+        The agents' arc lengths on their lanes, m, if already known.
 
     Returns
     -------
@@ -626,7 +624,8 @@ def desired_speed(traffic: TrafficState, road: Road, rules: TrafficRules = Traff
     k = traffic.route_index
     has_next = k + 1 < traffic.route_lengths
     nxt = traffic.routes[rows, np.minimum(k + 1, traffic.routes.shape[1] - 1)]
-    s, _ = road.frenet(lane, traffic.states[:, 0], traffic.states[:, 1])
+    if s is None:
+        s, _ = road.frenet(lane, traffic.states[:, 0], traffic.states[:, 1])
     near = has_next & (road.lengths[lane] - s - vehicle.length / 2 <= rules.curve_approach)
     kappa = np.abs(road.curvature_at(lane, s))
     kappa_next = np.where(near, np.abs(road.curvature_at(np.where(has_next, nxt, lane), 0.0)), 0.0)
@@ -714,23 +713,25 @@ def _leaders(traffic: TrafficState, road: Road, vehicle: VehicleParameters, s_c:
     return leader, gap, np.where(has, front_speed, 0.0)
 
 
-def _progress(traffic: TrafficState, road: Road, vehicle: VehicleParameters):
-    """Advance route positions past lane ends (a controlled agent on side lanes takes the nearest one)."""
+def _progress(traffic: TrafficState, road: Road, vehicle: VehicleParameters) -> TrafficState:
+    """Advance route positions past lane ends (a controlled agent on side lanes takes the nearest one);
+    behaviour-driven agents on their route's last lane whose front bumper has passed its end leave the road."""
     n = len(traffic)
     rows = np.arange(n)
     k = traffic.route_index.copy()
     x, y = traffic.states[:, 0], traffic.states[:, 1]
     last = traffic.route_lengths - 1
+    lane = traffic.routes[rows, k]
+    s, _ = road.frenet(lane, x, y)
     for _ in range(traffic.routes.shape[1]):
-        lane = traffic.routes[rows, k]
-        s, _ = road.frenet(lane, x, y)
         move = traffic.active & (s > road.lengths[lane]) & (k < last)
         if not move.any():
             break
         k = np.where(move, k + 1, k)
-    lane = traffic.routes[rows, k]
+        lane = traffic.routes[rows, k]
+        s, _ = road.frenet(lane, x, y)
+    leaving = traffic.active & ~traffic.controlled & (k == last) & (s + vehicle.length / 2 > road.lengths[lane])
     routes = traffic.routes
-    # a controlled agent on a side group follows its nearest side lane
     side = traffic.controlled & (road.side_of[lane] >= 0)
     if side.any():
         routes = routes.copy()
@@ -738,18 +739,7 @@ def _progress(traffic: TrafficState, road: Road, vehicle: VehicleParameters):
             group = np.array(road.side_lanes(int(lane[i])))
             _, offs = road.frenet(group, x[i], y[i])
             routes[i, k[i]] = group[int(np.argmin(np.abs(offs)))]
-    return traffic.evolve(route_index=k, routes=routes)
-
-
-def _exits(traffic: TrafficState, road: Road, vehicle: VehicleParameters) -> TrafficState:
-    """Behaviour-driven agents on their route's last lane whose front bumper has passed its end leave the road."""
-    rows = np.arange(len(traffic))
-    lane = traffic.lane
-    s, _ = road.frenet(lane, traffic.states[:, 0], traffic.states[:, 1])
-    last = traffic.route_index == traffic.route_lengths - 1
-    leaving = traffic.active & ~traffic.controlled & last & (s + vehicle.length / 2 > road.lengths[lane])
-    del rows
-    return traffic.evolve(exited=traffic.exited | leaving)
+    return traffic.evolve(route_index=k, routes=routes, exited=traffic.exited | leaving)
 
 
 def _yield_gaps(traffic: TrafficState, road: Road, rules: TrafficRules, vehicle: VehicleParameters,
@@ -883,7 +873,8 @@ def traffic_step(
     s_c, off_c = s_all[:, 0, :], off_all[:, 0, :]
     routes, timer, started = _lane_changes(traffic, road, behaviour, rules, vehicle, s_c, off_c, occ, draws, dt)
     traffic = traffic.evolve(routes=routes, timer=timer)
-    occ = _occupancy(traffic, road, s_all, off_all)
+    if started.any():
+        occ = _occupancy(traffic, road, s_all, off_all)
     leader, gap, front_speed = _leaders(traffic, road, vehicle, s_c, occ)
     if road.conflicts.any():
         stop_gap, committed, yield_time = _yield_gaps(traffic, road, rules, vehicle, s_c, dt)
@@ -894,7 +885,7 @@ def traffic_step(
     front_speed = np.where(yielding, 0.0, front_speed)
     leader = np.where(yielding, -1, leader)
     speed = traffic.states[:, 2]
-    desired = desired_speed(traffic, road, rules, vehicle)
+    desired = desired_speed(traffic, road, rules, vehicle, s=s_c[rows, traffic.lane])
     features = acceleration_features(speed, desired, front_speed, gap, behaviour)
     bound = behaviour.disturbance_bound
     driven = active & ~traffic.controlled
@@ -926,7 +917,7 @@ def traffic_step(
         intention=np.where(active, lane, -1), lane_change=started,
     )
     after = traffic.evolve(states=states, committed=committed, yield_time=yield_time)
-    return _exits(_progress(after, road, vehicle), road, vehicle), record
+    return _progress(after, road, vehicle), record
 
 
 def _spawn(traffic: TrafficState, road: Road, rules: TrafficRules, step_index: int) -> TrafficState:

