@@ -579,6 +579,11 @@ class RoadWorld:
         return self.traffic.states[0].copy()
 
     @property
+    def goal_lanes(self) -> tuple[int, ...]:
+        """Lanes on which the goal is reached (at arc length >= `goal_s`, centre in the lane strip)."""
+        return self._goal_lanes
+
+    @property
     def others(self) -> np.ndarray:
         """Agent indices of the other vehicles (active or not)."""
         return np.arange(1 if self.include_ego else 0, len(self.traffic))
@@ -618,7 +623,7 @@ class RoadWorld:
         if not self.include_ego:
             return False
         x, y = self.traffic.states[0, :2]
-        lanes = np.array(self._goal_lanes)
+        lanes = np.array(self.goal_lanes)
         s, offset = self.road.frenet(lanes, x, y)
         inside = (np.abs(offset) <= self.road.widths[lanes] / 2) & (s <= self.road.lengths[lanes])
         return bool(np.any(inside & (s >= self.goal_s)))

@@ -200,6 +200,20 @@ def test_traffic_without_the_ego_keeps_to_the_road_without_collisions(kind, seed
         assert world.traffic.exited.any()  # traffic flows through the junction
 
 
+def test_intentions_are_recorded_at_every_step():
+    world = make_road_world("highway", 5, include_ego=False)
+    for _ in range(40):
+        world.step()
+    intentions = world.intentions()
+    assert intentions.shape == (world.step_index, len(world.traffic))
+    changes = np.stack([r.lane_change for r in world.records])
+    assert changes.any()
+    for k in range(1, len(intentions)):
+        switched = intentions[k] != intentions[k - 1]
+        assert np.array_equal(switched, changes[k])  # the intention switches exactly when a change starts
+    assert np.all(np.abs(np.diff(intentions, axis=0)) <= 1)  # to a neighbouring lane
+
+
 def test_highway_ego_following_its_lane_reaches_the_goal():
     world, _, _ = _trace("highway", 1, steps=80)
     assert world.outcome == "goal" and 8.0 < world.time < 40.0
@@ -239,7 +253,7 @@ def test_off_road_and_goal_outcomes():
     states[0] = (x, y, 5.0, np.pi)
     world.traffic = world.traffic.evolve(states=states)
     assert world.step([0.0, 0.0]) == "goal" and world.step_index <= 5
-    assert world.goal_reached()
+    assert world.goal_reached() and world.goal_lanes == (goal_lane,)
 
 
 def test_world_rejects_bad_input():
