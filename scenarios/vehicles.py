@@ -18,7 +18,8 @@ Behaviour (highway-env's ``LinearVehicle``, linear in its parameters theta):
 * acceleration ``a = clip(theta_a . f, -a_max, a_max) + w`` with the features
   ``f = [v_target - v, min(v_front - v, 0), min(gap - d0 - T v, 0)]`` (`acceleration_features`;
   ``gap`` is bumper to bumper, m, to the front object: the leader along the route, or a
-  stop line when the vehicle yields) and a bounded disturbance ``w ~ U[-w_bar, w_bar]``;
+  stop line when the vehicle yields; ``v_target`` is the target speed capped on and before
+  arcs, `desired_speed`) and a bounded disturbance ``w ~ U[-w_bar, w_bar]``;
 * steering ``delta = clip(theta_b . g, -delta_max, delta_max)`` with
   ``g = [wrap(h(s + tau v) - psi) L / v, -offset L / v^2]`` (`steering_features`; h the
   route's heading at the arc length reached after the pursuit time tau, offset the
