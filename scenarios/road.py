@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from minimaxplan.models.errors import DimensionError, InputError, NonFiniteError
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar
 
 __all__ = [
     "STRAIGHT",
@@ -66,30 +67,8 @@ def wrap_to_pi(angle):
     return np.mod(np.asarray(angle, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
 
 
-def _finite(name: str, value, shape: tuple | None = None) -> np.ndarray:
-    array = np.asarray(value, dtype=float)
-    if shape is not None and array.shape != shape:
-        raise DimensionError(f"{name} must have shape {shape}, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise NonFiniteError(f"{name} contains NaN or infinite entries")
-    return array
-
-
-def _positive(name: str, value, *, allow_zero: bool = False) -> float:
-    if isinstance(value, (bool, np.bool_)):
-        raise InputError(f"{name} must be a real scalar, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a real scalar, got {value!r}") from None
-    if not np.isfinite(x):
-        raise NonFiniteError(f"{name} must be finite, got {x}")
-    if x < 0 or (x == 0 and not allow_zero):
-        raise InputError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {x}")
-    return x
-
-
-def _readonly(value) -> np.ndarray:
+def readonly_copy(value) -> np.ndarray:
+    """A read-only copy of ``value`` that keeps its dtype (integer route tables stay integer)."""
     out = np.array(value, copy=True)
     out.setflags(write=False)
     return out
@@ -121,13 +100,13 @@ class StraightLane:
     width: float = 4.0
 
     def __post_init__(self) -> None:
-        start = _finite("start", self.start, (2,))
-        end = _finite("end", self.end, (2,))
+        start = as_finite_array("start", self.start, (2,))
+        end = as_finite_array("end", self.end, (2,))
         if np.linalg.norm(end - start) <= 0:
             raise InputError("a straight lane needs start != end")
-        object.__setattr__(self, "start", _readonly(start))
-        object.__setattr__(self, "end", _readonly(end))
-        object.__setattr__(self, "width", _positive("width", self.width))
+        object.__setattr__(self, "start", readonly_copy(start))
+        object.__setattr__(self, "end", readonly_copy(end))
+        object.__setattr__(self, "width", as_positive_scalar("width", self.width))
 
     @property
     def length(self) -> float:
@@ -233,16 +212,16 @@ class ArcLane:
     width: float = 4.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "center", _readonly(_finite("center", self.center, (2,))))
-        radius = _positive("radius", self.radius)
-        sweep = float(_finite("sweep", self.sweep))
+        object.__setattr__(self, "center", readonly_copy(as_finite_array("center", self.center, (2,))))
+        radius = as_positive_scalar("radius", self.radius)
+        sweep = float(as_finite_array("sweep", self.sweep))
         if not 0.0 < abs(sweep) < 2.0 * np.pi:
             raise InputError(f"sweep must satisfy 0 < |sweep| < 2 pi, got {sweep}")
-        width = _positive("width", self.width)
+        width = as_positive_scalar("width", self.width)
         if width >= 2.0 * radius:
             raise InputError(f"width must be < 2 radius, got width={width}, radius={radius}")
         object.__setattr__(self, "radius", radius)
-        object.__setattr__(self, "start_angle", float(_finite("start_angle", self.start_angle)))
+        object.__setattr__(self, "start_angle", float(as_finite_array("start_angle", self.start_angle)))
         object.__setattr__(self, "sweep", sweep)
         object.__setattr__(self, "width", width)
 
@@ -413,7 +392,7 @@ class Road:
         object.__setattr__(self, "connections", connections)
         object.__setattr__(self, "side_groups", side_groups)
         object.__setattr__(self, "areas", areas)
-        object.__setattr__(self, "conflict_distance", _positive("conflict_distance", self.conflict_distance))
+        object.__setattr__(self, "conflict_distance", as_positive_scalar("conflict_distance", self.conflict_distance))
         kinds = np.array([STRAIGHT if isinstance(lane, StraightLane) else ARC for lane in lanes], dtype=int)
         starts = np.zeros((n, 2))
         directions = np.tile([1.0, 0.0], (n, 1))
@@ -439,8 +418,8 @@ class Road:
             "side_of": side_of,
         }
         for name, value in arrays.items():
-            object.__setattr__(self, name, _readonly(value))
-        object.__setattr__(self, "conflicts", _readonly(self._find_conflicts()))
+            object.__setattr__(self, name, readonly_copy(value))
+        object.__setattr__(self, "conflicts", readonly_copy(self._find_conflicts()))
 
     # ------------------------------------------------------------ structure
     def __len__(self) -> int:
@@ -616,7 +595,7 @@ class Road:
         pts = np.asarray(points, dtype=float)
         if pts.shape[-1:] != (2,):
             raise DimensionError(f"points must have shape (..., 2), got shape {pts.shape}")
-        margin = _positive("margin", margin, allow_zero=True)
+        margin = as_positive_scalar("margin", margin, allow_zero=True)
         lanes = np.arange(len(self.lanes))
         s, offset = self.frenet(lanes, pts[..., 0:1], pts[..., 1:2])
         return (s >= -margin) & (s <= self.lengths + margin) & (np.abs(offset) <= self.widths / 2 + margin)
@@ -716,8 +695,8 @@ class HighwayGeometry:
     def __post_init__(self) -> None:
         if int(self.lane_count) != self.lane_count or self.lane_count < 1:
             raise InputError(f"lane_count must be a positive integer, got {self.lane_count!r}")
-        _positive("lane_width", self.lane_width)
-        _positive("length", self.length)
+        as_positive_scalar("lane_width", self.lane_width)
+        as_positive_scalar("length", self.length)
 
 
 def highway_road(geometry: HighwayGeometry = HighwayGeometry()) -> Road:
@@ -775,9 +754,9 @@ class TJunctionGeometry:
     access_length: float = 100.0
 
     def __post_init__(self) -> None:
-        _positive("lane_width", self.lane_width)
-        _positive("access_length", self.access_length)
-        if _positive("right_turn_radius", self.right_turn_radius) <= self.lane_width / 2:
+        as_positive_scalar("lane_width", self.lane_width)
+        as_positive_scalar("access_length", self.access_length)
+        if as_positive_scalar("right_turn_radius", self.right_turn_radius) <= self.lane_width / 2:
             raise InputError("right_turn_radius must exceed lane_width / 2")
 
     @property

@@ -26,8 +26,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from minimaxplan.models.errors import DimensionError, InputError, MinimaxplanError, NonFiniteError
+from minimaxplan.models.errors import DimensionError, InputError, NonFiniteError
 
+from .geometry import FCL_SLAB_HEIGHT, _fcl
 from .road import HighwayGeometry, Road, TJunctionGeometry, highway_road, tjunction_road
 from .vehicles import (
     DEFAULT_VEHICLE,
@@ -40,6 +41,7 @@ from .vehicles import (
     traffic_step,
     vehicle_corners,
 )
+from .worlds import EpisodeOver
 
 __all__ = [
     "ROAD_WORLD_KINDS",
@@ -57,13 +59,6 @@ ROAD_WORLD_KINDS = ("highway", "tjunction")
 ROAD_OUTCOMES = ("running", "goal", "collision", "off_road", "timeout")
 
 #: Slab height lifting the planar rectangles into fcl's 3-D world (any value > 0 works).
-FCL_SLAB_HEIGHT = 1.0
-
-
-class EpisodeOver(MinimaxplanError, RuntimeError):
-    """A control was applied to a road world whose episode has already ended."""
-
-
 def _noise_tuple(value) -> tuple:
     noise = tuple(float(v) for v in value)
     if len(noise) != 4 or min(noise) < 0 or not all(np.isfinite(noise)):
@@ -299,12 +294,6 @@ class Observation:
 
 
 # ------------------------------------------------------------------ collisions
-def _fcl():
-    import fcl  # python-fcl lives in scenarios only
-
-    return fcl
-
-
 def _fcl_rectangle(state, vehicle: VehicleParameters):
     fcl = _fcl()
     c, s = np.cos(state[3]), np.sin(state[3])

@@ -48,7 +48,7 @@ import numpy as np
 
 from minimaxplan.models.errors import DimensionError, InputError
 
-from .road import Road, wrap_to_pi
+from .road import Road, readonly_copy, wrap_to_pi
 
 __all__ = [
     "VehicleParameters",
@@ -257,12 +257,6 @@ class TrafficRules:
 DEFAULT_VEHICLE = VehicleParameters()
 
 
-def _readonly(array) -> np.ndarray:
-    out = np.array(array, copy=True)
-    out.setflags(write=False)
-    return out
-
-
 @dataclass(frozen=True, eq=False)
 class TrafficState:
     """Every agent of a world at one sub-step (row i is agent i; read-only arrays).
@@ -325,11 +319,11 @@ class TrafficState:
             value = np.asarray(getattr(self, name))
             if value.shape != shape:
                 raise DimensionError(f"{name} must have shape {shape}, got shape {value.shape}")
-            object.__setattr__(self, name, _readonly(value))
+            object.__setattr__(self, name, readonly_copy(value))
         routes = np.asarray(self.routes, dtype=int)
         if routes.ndim != 2 or routes.shape[0] != n or routes.shape[1] < 1:
             raise DimensionError(f"routes must have shape ({n}, R) with R >= 1, got shape {routes.shape}")
-        object.__setattr__(self, "routes", _readonly(routes))
+        object.__setattr__(self, "routes", readonly_copy(routes))
 
     def __len__(self) -> int:
         return self.states.shape[0]
@@ -347,7 +341,7 @@ class TrafficState:
         for name, value in changes.items():
             if name not in self.__dict__:
                 raise InputError(f"TrafficState has no field {name!r}")
-            new.__dict__[name] = _readonly(value)
+            new.__dict__[name] = readonly_copy(value)
         return new
 
     @property
