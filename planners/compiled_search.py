@@ -20,9 +20,12 @@ from numba import njit
 
 from . import tree_ops
 from .box_kernels import pessimistic_rewards, propagate, reward_sources, sources_digest
-from .tree_ops import SIZE
+from .tree_ops import N_EXPANDED, SIZE
 
-__all__ = ["BoxArrays", "allocate_boxes", "search_kernel"]
+__all__ = ["BoxArrays", "allocate_boxes", "grow_boxes", "search_kernel", "DONE", "SOLVED", "FULL"]
+
+#: The search kernel's status: budget spent, stopped because the root's bounds met, or the arrays are full.
+DONE, SOLVED, FULL = 0, 1, 2
 
 
 class BoxArrays(NamedTuple):
@@ -60,6 +63,13 @@ def allocate_boxes(capacity: int, n_models: int, n_actions: int, n_box: int, sub
     )
 
 
+def grow_boxes(boxes: BoxArrays, capacity: int, size: int) -> BoxArrays:
+    """``boxes`` with ``capacity`` node rows (the first ``size`` copied)."""
+    z = np.empty((capacity,) + boxes.z.shape[1:])
+    z[:size] = boxes.z[:size]
+    return boxes._replace(z=z)
+
+
 @functools.cache
 def search_kernel(params_type: type):
     """The compiled search for rewards whose ``kernel_params`` have type ``params_type``.
@@ -70,12 +80,15 @@ def search_kernel(params_type: type):
     version = sources_digest(__file__, tree_ops.__file__, *reward_sources(params_type))
     reset, select, expand = tree_ops.reset, tree_ops.select, tree_ops.expand
 
-    def run_search(budget, tree, boxes, kernel, params):
-        """Run up to ``budget`` expansions of ``tree`` (`tree_ops.TreeArrays`) from ``boxes.root``.
+    def run_search(budget, tree, boxes, kernel, params, resume):
+        """Expand ``tree`` (`tree_ops.TreeArrays`) from ``boxes.root`` until it holds ``budget`` expansions.
 
-        Returns ``(solved, bad)``: ``solved`` when the search stopped because the root's
-        bounds met; ``bad >= 0`` reports a reward outside [0, 1] at the flat pair
-        ``bad = a * M + m`` (value in ``tree.rewards[m, a]``), where the search stopped.
+        Starts from the root alone, or with ``resume`` continues the search the arrays
+        hold (after the caller grew them). Returns ``(status, bad)``: the status is
+        `DONE` (budget spent), `SOLVED` (stopped because the root's bounds met) or
+        `FULL` (the next expansion does not fit in the arrays: grow them and resume);
+        ``bad >= 0`` reports a reward outside [0, 1] at the flat pair ``bad = a * M +
+        m`` (value in ``tree.rewards[m, a]``), where the search stopped.
         """
         _ = version  # ties numba's cache entry to the sources it calls into
         # the arrays are read once into locals: every read of a field of a tuple costs a reference count
@@ -83,12 +96,16 @@ def search_kernel(params_type: type):
         rewards, new_terminal, terminal, depth, counts = tree.rewards, tree.new_terminal, tree.terminal, tree.depth, tree.counts
         n_models, n_actions = rewards.shape
         substeps = stack.shape[0]
-        reset(tree)
-        z[0] = boxes.root
-        for _ in range(budget):
+        capacity = tree.parent.shape[0]
+        if not resume:
+            reset(tree)
+            z[0] = boxes.root
+        while counts[N_EXPANDED] < budget:
+            if counts[SIZE] + n_actions > capacity:
+                return FULL, -1
             leaf = select(tree)
             if leaf < 0:
-                return True, -1
+                return SOLVED, -1
             first = counts[SIZE]
             alive = False
             for m in range(n_models):
@@ -105,7 +122,7 @@ def search_kernel(params_type: type):
                     z[first + a] = z[leaf]
             bad = expand(tree, leaf)
             if bad >= 0:
-                return False, bad
-        return False, -1
+                return DONE, bad
+        return DONE, -1
 
     return njit(cache=True)(run_search)

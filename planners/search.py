@@ -31,7 +31,7 @@ import numpy as np
 
 from ..models.errors import DimensionError, InputError, NonFiniteError, RewardRangeError
 from . import tree_ops
-from .compiled_search import BoxArrays, allocate_boxes, search_kernel
+from .compiled_search import FULL, SOLVED, BoxArrays, allocate_boxes, grow_boxes, search_kernel
 from .decision import Decision
 from .protocols import BatchedTransitions, CompiledTransitions, LinkedModel, TransitionModel, VectorisedModel
 from .tree import SearchTree
@@ -39,8 +39,10 @@ from .tree_ops import REWARD_ERROR, TreeArrays
 
 __all__ = ["RobustTreePlanner", "OptimisticPlanner"]
 
-#: Rows the Python engine's tree starts with (it doubles when full, up to the budget's tree).
-_INITIAL_CAPACITY = 1024
+#: Rows a search's tree arrays start with; they double when full, up to the budget's tree.
+INITIAL_TREE_ROWS = 4096
+#: The largest tree a planner may be asked to build, ``1 + budget * len(actions)`` nodes (int32 indices).
+MAX_TREE_NODES = 2**31 - 1
 
 
 class _Transitions:
@@ -263,16 +265,21 @@ class RobustTreePlanner:
             raise InputError(f"actions must be a sequence, got {type(actions).__name__}") from None
         if not actions:
             raise InputError("actions must be a non-empty sequence")
-        self.gamma = _check_gamma(gamma)
-        self.budget = _check_count("budget", budget, 1)
-        self.seed = _check_count("seed", seed, 0)
-        self.models = tuple(models)
-        self.actions = actions
+        self._gamma = _check_gamma(gamma)
+        self._budget = _check_count("budget", budget, 1)
+        if 1 + self._budget * len(actions) > MAX_TREE_NODES:
+            raise InputError(
+                f"budget must be at most {(MAX_TREE_NODES - 1) // len(actions)} with {len(actions)} actions "
+                f"(the tree holds 1 + budget * len(actions) nodes, at most {MAX_TREE_NODES}), got {budget}"
+            )
+        self._seed = _check_count("seed", seed, 0)
+        self._models = tuple(models)
+        self._actions = actions
         self._transitions = [_Transitions(m, model, actions) for m, model in enumerate(models)]
-        self._group = _linked_group(self.models)
+        self._group = _linked_group(self._models)
         if engine not in ENGINES:
             raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
-        self.engine = engine
+        self._engine = engine
         group = self._group
         self._compiled = (
             group if engine != "python" and isinstance(group, CompiledTransitions) and group.compiled else None
@@ -283,8 +290,8 @@ class RobustTreePlanner:
                 "whose reward has a compiled box minimum (kernel_params)"
             )
         self.engine_used: str | None = None
-        self._max_nodes = 1 + self.budget * len(actions)
-        self._discounts = tree_ops.discount_table(self.gamma, 2)
+        self._max_nodes = 1 + self._budget * len(actions)
+        self._discounts = tree_ops.discount_table(self._gamma, 2)
         # The arrays of the last search, reused by the next one unless `tree` handed them out.
         self._arrays: TreeArrays | None = None
         self._boxes: BoxArrays | None = None
@@ -302,9 +309,39 @@ class RobustTreePlanner:
         return self._tree
 
     @property
+    def models(self) -> tuple:
+        """The M models, in order (read-only)."""
+        return self._models
+
+    @property
+    def actions(self) -> tuple:
+        """The actions, in index order (read-only)."""
+        return self._actions
+
+    @property
+    def gamma(self) -> float:
+        """The discount factor in (0, 1) (read-only)."""
+        return self._gamma
+
+    @property
+    def budget(self) -> int:
+        """The number of expansions K per `plan` call (read-only)."""
+        return self._budget
+
+    @property
+    def seed(self) -> int:
+        """The validated seed (no effect: ties are broken by action path; read-only)."""
+        return self._seed
+
+    @property
+    def engine(self) -> str:
+        """The requested engine: ``"auto"``, ``"compiled"`` or ``"python"`` (read-only)."""
+        return self._engine
+
+    @property
     def n_models(self) -> int:
         """Number of models M."""
-        return len(self.models)
+        return len(self._models)
 
     def plan(self, state, *, per_model: bool = False) -> Decision:
         """Search from ``state`` with the full budget and return the `Decision`.
@@ -355,14 +392,19 @@ class RobustTreePlanner:
         return Decision.from_tree(self._tree, self.actions, solved=solved)
 
     # ------------------------------------------------------------ the tree arrays
-    def _tree_arrays(self, capacity: int) -> TreeArrays:
-        """The arrays of the last search if they have ``capacity`` rows (and nobody holds them), else new ones."""
+    def _tree_arrays(self) -> TreeArrays:
+        """The arrays of the last search (unless `tree` handed them out), else new ones of the first size."""
         arrays = self._arrays
-        if arrays is None or arrays.parent.shape[0] < capacity:
+        if arrays is None:
+            capacity = min(self._max_nodes, INITIAL_TREE_ROWS)
             arrays = self._arrays = tree_ops.allocate(
                 capacity, self.n_models, len(self.actions), self.gamma, self._discount_table(capacity)
             )
         return arrays
+
+    def _grown_capacity(self, tree: TreeArrays, needed: int) -> int:
+        """Twice the rows of ``tree`` (at least ``needed``), at most the budget's tree."""
+        return max(min(2 * tree.parent.shape[0], self._max_nodes), needed)
 
     def _discount_table(self, capacity: int) -> np.ndarray:
         needed = (capacity - 1) // len(self.actions) + 2
@@ -378,7 +420,7 @@ class RobustTreePlanner:
         path, then backs the bounds up to the root (`tree_ops.expand_and_select`).
         """
         n_actions, budget = len(self.actions), self.budget
-        tree = self._tree_arrays(min(self._max_nodes, _INITIAL_CAPACITY))
+        tree = self._tree_arrays()
         state_lists = [[s] for s in states]
         leaf = tree_ops.start(tree)
         for k in range(budget):
@@ -386,7 +428,7 @@ class RobustTreePlanner:
                 return tree, True, state_lists
             needed = 1 + (k + 1) * n_actions
             if needed > tree.parent.shape[0]:
-                capacity = max(min(2 * tree.parent.shape[0], self._max_nodes), needed)
+                capacity = self._grown_capacity(tree, needed)
                 tree = self._arrays = tree_ops.grow(tree, capacity, self._discount_table(capacity))
             self._transitions_of(tree, leaf, state_lists)
             leaf = tree_ops.expand_and_select(tree, leaf, k + 1 < budget)
@@ -447,18 +489,23 @@ class RobustTreePlanner:
     # ---------------------------------------------------------- compiled engine
     def _search_compiled(self, state) -> tuple[TreeArrays, bool, Any]:
         """`_search_python` with the transitions computed by the compiled box kernel (`compiled_search`)."""
-        group = self._compiled
-        problem = group.compiled_problem(state, self.actions)
-        tree = self._tree_arrays(self._max_nodes)
+        problem = self._compiled.compiled_problem(state, self.actions)
+        tree = self._tree_arrays()
         boxes = self._boxes
-        if boxes is None or boxes.z.shape[0] < self._max_nodes:
-            boxes = self._boxes = allocate_boxes(
-                self._max_nodes, self.n_models, len(self.actions), problem.root.shape[1], problem.substeps
-            )
-        boxes = boxes._replace(root=problem.root, actions=problem.actions, time=int(problem.time))
-        solved, bad = search_kernel(type(problem.params))(self.budget, tree, boxes, problem.kernel, problem.params)
+        if boxes is None or boxes.z.shape[0] != tree.parent.shape[0] or boxes.stack.shape[0] != problem.substeps:
+            boxes = allocate_boxes(tree.parent.shape[0], self.n_models, len(self.actions), problem.root.shape[1],
+                                   problem.substeps)
+        boxes = self._boxes = boxes._replace(root=problem.root, actions=problem.actions, time=int(problem.time))
+        kernel = search_kernel(type(problem.params))
+        status, bad = kernel(self.budget, tree, boxes, problem.kernel, problem.params, False)
+        while status == FULL:  # only for budgets beyond the first rows: grow, then resume where it stopped
+            capacity = self._grown_capacity(tree, tree.parent.shape[0] + len(self.actions))
+            tree = self._arrays = tree_ops.grow(tree, capacity, self._discount_table(capacity))
+            boxes = self._boxes = grow_boxes(boxes, capacity, int(tree.counts[tree_ops.SIZE]))
+            status, bad = kernel(self.budget, tree, boxes, problem.kernel, problem.params, True)
         if bad >= 0:
             self._raise_reward_error(tree, bad)
+        solved = status == SOLVED
         return tree, bool(solved), functools.partial(self._node_states, tree, boxes, state)
 
     def _node_states(self, tree: TreeArrays, boxes: BoxArrays, root_state) -> list:

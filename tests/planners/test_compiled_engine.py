@@ -257,3 +257,27 @@ def test_kernel_params_without_a_registered_minimum_are_rejected():
 
     with pytest.raises(InputError, match="reward.kernel_params has type SomethingElse, for which no compiled box minimum"):
         IntervalModel(system, None, Unregistered(GoalReward([0.0, 0.0])), [OpenLoop(np.zeros(system.ninputs))])
+
+
+def test_budgets_beyond_the_first_arrays_grow_them_on_both_engines_without_allocating_by_the_budget():
+    """The compiled search stops when its arrays are full and resumes in grown ones: the same tree as the Python engine's."""
+    import tracemalloc
+
+    rng = np.random.default_rng(8)
+    system = random_system(rng, p=4)
+    models = IntervalModel.linked([(system, None)], GoalReward([40.0, 40.0]), [OpenLoop(np.zeros(system.ninputs))] * 2)
+    root = models[0].initial_state(np.full(4, -0.01), np.full(4, 0.01))
+    (fast, general), (fast_tree, general_tree), (tree, _) = both_engines(models, root, 0.99, 2500)
+    assert fast == general and fast_tree == general_tree and tree.size == 5001 > 4096
+    # a huge budget is not allocated up front: a search solved at once stays small
+    stuck = IntervalModel.linked([(system, None)], GoalReward([0.0, 0.0], obstacles=CircularObstacles([[0.0, 0.0]], [1.0])),
+                                 [OpenLoop(np.zeros(system.ninputs))] * 4)
+    planner = RobustTreePlanner(stuck, stuck[0].actions, gamma=0.9, budget=10**7, engine="compiled")
+    tracemalloc.start()
+    try:
+        decision = planner.plan(stuck[0].initial_state(np.full(4, -0.01), np.full(4, 0.01)))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert decision.solved and decision.expansions == 1 and planner.engine_used == "compiled"
+    assert peak < 20 * 2**20, peak

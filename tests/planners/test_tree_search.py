@@ -391,3 +391,22 @@ def test_step_with_non_boolean_terminal():
 def test_expand_protocol_violations(outcome, error, text):
     with pytest.raises(error, match=text):
         RobustTreePlanner([FixedBatch(outcome)], ["a", "b"], gamma=0.9, budget=1).plan(0)
+
+
+@pytest.mark.parametrize("name, value", [("budget", 7), ("gamma", 0.5), ("models", (good,)), ("actions", (0,)),
+                                         ("seed", 1), ("engine", "python")])
+def test_planner_settings_are_read_only(name, value):
+    planner = RobustTreePlanner([good], [0, 1], gamma=0.9, budget=3)
+    before = getattr(planner, name)
+    with pytest.raises(AttributeError):
+        setattr(planner, name, value)
+    assert getattr(planner, name) == before
+
+
+def test_an_absurd_budget_is_rejected_naming_the_argument():
+    with pytest.raises(InputError, match=r"budget must be at most 1073741823 with 2 actions .* got 1000000000000"):
+        RobustTreePlanner([good], [0, 1], gamma=0.9, budget=10**12)
+    # the largest accepted budget builds its tree lazily: a search that is solved at once allocates little
+    ones = OptimisticPlanner(Fixed((0, 1.0, True)), [0, 1], gamma=0.9, budget=(2**31 - 2) // 2)
+    decision = ones.plan(0)
+    assert decision.solved and decision.expansions == 1 and decision.lower == decision.upper == 1.0
