@@ -87,54 +87,67 @@ class SearchTree:
 
     @property
     def parent(self) -> np.ndarray:
+        """Each node's parent (-1 at the root)."""
         return self._view("parent", self.size)
 
     @property
     def action(self) -> np.ndarray:
+        """The action index leading to each node (-1 at the root)."""
         return self._view("action", self.size)
 
     @property
     def depth(self) -> np.ndarray:
+        """Each node's depth (0 at the root)."""
         return self._view("depth", self.size)
 
     @property
     def first_child(self) -> np.ndarray:
+        """Each node's first child (-1 for a leaf); the children are contiguous."""
         return self._view("first_child", self.size)
 
     @property
     def returns(self) -> np.ndarray:
+        """``R_m(i)``, shape (size, M): the discounted returns along the path."""
         return self._view("returns", self.size)
 
     @property
     def terminal(self) -> np.ndarray:
+        """Shape (size, M): whether model m made a terminal transition on the path."""
         return self._view("terminal", self.size)
 
     @property
     def leaf_lower(self) -> np.ndarray:
+        """``min_m R_m`` of each node as created (eq. (18))."""
         return self._view("leaf_lower", self.size)
 
     @property
     def leaf_upper(self) -> np.ndarray:
+        """The robust b-value of each node as created (eq. (16))."""
         return self._view("leaf_upper", self.size)
 
     @property
     def lower(self) -> np.ndarray:
+        """Backed-up lower bounds (eqs. (17), (18))."""
         return self._view("lower", self.size)
 
     @property
     def upper(self) -> np.ndarray:
+        """Backed-up upper bounds (eqs. (17), (18))."""
         return self._view("upper", self.size)
 
     @property
     def any_terminated(self) -> np.ndarray:
+        """Whether some model terminated on the path to each node."""
         return self._view("any_terminated", self.size)
 
     @property
     def expanded(self) -> np.ndarray:
+        """The expanded nodes, in expansion order."""
         return self._view("expanded", int(self._arrays.counts[N_EXPANDED]))
 
     @property
     def states(self) -> list:
+        """``states[m][i]``: model m's state at node i."""
         if callable(self._states):
             self._states = self._states()
         return self._states
