@@ -133,7 +133,7 @@ class _PrecomputedModel:
 
 
 class _PrecomputedGroup:
-    """M linked models whose joint transition costs nothing (the planner's path for `IntervalModel.linked`)."""
+    """M linked models whose joint transition costs nothing (a `BatchedTransitions`, as `IntervalModel.linked`'s)."""
 
     def __init__(self, rng, n_models, n_actions):
         self.size = n_models
@@ -141,13 +141,14 @@ class _PrecomputedGroup:
         self.terminals = np.zeros((n_models, n_actions), dtype=bool)
         self.states = [None] * n_actions
 
-    def expand(self, state, actions):
+    def expand_all(self, state, actions):
         return self.states, self.rewards, self.terminals
 
 
 class _PrecomputedMember:
+    """Member ``member`` of a `_PrecomputedGroup` (a `LinkedModel`)."""
+
     def __init__(self, group, member):
-        self._joint = (group, member)
         self.group, self.member = group, member
 
     def step(self, state, action):

@@ -31,16 +31,21 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from ..kernels import box_primitives
 from ..kernels.box_primitives import maximum as _maximum
 from ..kernels.box_primitives import minimum as _minimum
 from ..kernels.reward_protocol import (
     box_reward_minimum,
-    has_compiled_minimum,  # noqa: F401 (interval_model imports it from here)
+    compile_per_params_type,
     minimum_sources,
     sources_digest,
 )
 
 __all__ = ["IntervalKernel", "propagate", "stack_rewards_kernel"]
+
+# numba's disk cache checks only a function's own source file: the kernels below inline
+# `box_primitives`, so they close over its digest and recompile when it changes.
+_PRIMITIVES_VERSION = sources_digest(box_primitives.__file__)
 
 
 IntervalKernel = namedtuple(
@@ -90,36 +95,44 @@ def _magnitudes(z, mag):
         mag[i] = _maximum(abs(z[i]), abs(z[p + i]))
 
 
-@njit(cache=True)
-def substep(z, m, a, core, out, scratch):
-    """One sub-step of hypothesis m's box ``z`` under controller a, written to ``out`` (2p,), rounded outward.
+def _make_substep(version: int):
+    """`substep`, compiled with a cache key that covers `minimaxplan.kernels.box_primitives`."""
 
-    ``core`` is the `IntervalKernel` that `IntervalModel` precomputes, in the z-form's
-    column layout (``M x`` is ``sum_i column_i x_i``):
+    def substep(z, m, a, core, out, scratch):
+        """One sub-step of hypothesis m's box ``z`` under controller a, written to ``out`` (2p,), rounded outward.
 
-    - ``closed`` (M, A or 1, k, 2p, 2p): Z-form columns of the closed-loop vertex
-      matrices ``A(v) - B_m K_a`` (one action slot when no controller has feedback);
-    - ``opened`` (M, k, 2p, 2p): the open-loop vertex matrices ``A(v)``;
-    - ``drift`` (M, A, 2p): ``B_m c_a`` plus the disturbance box ``D w``, z-form;
-    - ``w`` (M, 2p): the disturbance box alone; ``gains`` (A, 2p, 2q) and ``inputs``
-      (M, 2q, 2p): Z-form columns of ``K_a`` and ``B_m``;
-    - ``offsets``, ``low``, ``high`` (A, q): ``u = clip(c_a - K_a x, low_a, high_a)``;
-    - the ``*_error`` arrays: rigorous bounds on the rounding of each part, as columns
-      applied to the box's magnitudes (``closed_error`` (M, A or 1, p, p),
-      ``opened_error`` (M, p, p), ``gain_error`` (A, p, q), ``input_error`` (M, q, p))
-      or constants (``drift_error`` (M, A, p), ``w_error`` (M, p), ``offset_error`` (A, q),
-      ``tiny`` for underflow); see `IntervalModel` (Notes) for how they are formed.
+        ``core`` is the `IntervalKernel` that `IntervalModel` precomputes, in the z-form's
+        column layout (``M x`` is ``sum_i column_i x_i``):
 
-    Without saturation: ``Z(A(v) - B K) z`` maximised over vertices, plus the drift,
-    plus the error bound. With saturation (see `IntervalModel`): that box plus ``B
-    s(v)`` with the saturation correction's interval, intersected with the open-loop
-    box ``A(theta) x + B sat(v) + D w``; the scalar steps of the correction are moved
-    one ulp outward. ``scratch`` is a (11, max(2p, 2q)) work array.
-    """
-    n = z.shape[0]
-    error = scratch[6, : n // 2]
-    _linear_part(z, m, a if core.per_action else 0, core, out, error, scratch)
-    _finish(z, m, a, core, out, error, scratch)
+        - ``closed`` (M, A or 1, k, 2p, 2p): Z-form columns of the closed-loop vertex
+          matrices ``A(v) - B_m K_a`` (one action slot when no controller has feedback);
+        - ``opened`` (M, k, 2p, 2p): the open-loop vertex matrices ``A(v)``;
+        - ``drift`` (M, A, 2p): ``B_m c_a`` plus the disturbance box ``D w``, z-form;
+        - ``w`` (M, 2p): the disturbance box alone; ``gains`` (A, 2p, 2q) and ``inputs``
+          (M, 2q, 2p): Z-form columns of ``K_a`` and ``B_m``;
+        - ``offsets``, ``low``, ``high`` (A, q): ``u = clip(c_a - K_a x, low_a, high_a)``;
+        - the ``*_error`` arrays: rigorous bounds on the rounding of each part, as columns
+          applied to the box's magnitudes (``closed_error`` (M, A or 1, p, p),
+          ``opened_error`` (M, p, p), ``gain_error`` (A, p, q), ``input_error`` (M, q, p))
+          or constants (``drift_error`` (M, A, p), ``w_error`` (M, p), ``offset_error`` (A, q),
+          ``tiny`` for underflow); see `IntervalModel` (Notes) for how they are formed.
+
+        Without saturation: ``Z(A(v) - B K) z`` maximised over vertices, plus the drift,
+        plus the error bound. With saturation (see `IntervalModel`): that box plus ``B
+        s(v)`` with the saturation correction's interval, intersected with the open-loop
+        box ``A(theta) x + B sat(v) + D w``; the scalar steps of the correction are moved
+        one ulp outward. ``scratch`` is a (11, max(2p, 2q)) work array.
+        """
+        _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
+        n = z.shape[0]
+        error = scratch[6, : n // 2]
+        _linear_part(z, m, a if core.per_action else 0, core, out, error, scratch)
+        _finish(z, m, a, core, out, error, scratch)
+
+    return njit(cache=True)(substep)
+
+
+substep = _make_substep(_PRIMITIVES_VERSION)
 
 
 @njit(cache=True, inline="always")
@@ -195,37 +208,45 @@ def _finish(z, m, a, core, out, error, scratch):
         out[p + j] = _minimum(out[p + j], open_box[p + j] + w[m, p + j] + through[p + j] + open_rounding[j])
 
 
-@njit(cache=True)
-def propagate(z0, actions, core, stack):
-    """Every sub-step of every (hypothesis, action) from the boxes ``z0`` into ``stack``.
+def _make_propagate(version: int):
+    """`propagate`, compiled with a cache key that covers `minimaxplan.kernels.box_primitives`."""
 
-    ``z0`` (R, 2p) holds one box per hypothesis (R = M) or one shared box (R = 1);
-    ``actions`` (n,) are controller indices; ``stack`` (S, M, n, 2p) receives the box
-    after each sub-step s.
-    """
-    n_sub, n_models, n_actions, n = stack.shape
-    width = max(n, 2 * core.offsets.shape[1])
-    scratch = np.empty((11, width))
-    # Open loop without saturation: the first sub-step's product is the same for every action
-    shared = not core.per_action and not core.saturating
-    base, base_error = scratch[9, :n], scratch[10, : n // 2]
-    for m in range(n_models):
-        start = z0[m if z0.shape[0] > 1 else 0]
-        if shared:
-            _linear_part(start, m, 0, core, base, base_error, scratch)
-        for i in range(n_actions):
-            a = actions[i]
-            source = start
-            first = 0
+    def propagate(z0, actions, core, stack):
+        """Every sub-step of every (hypothesis, action) from the boxes ``z0`` into ``stack``.
+
+        ``z0`` (R, 2p) holds one box per hypothesis (R = M) or one shared box (R = 1);
+        ``actions`` (n,) are controller indices; ``stack`` (S, M, n, 2p) receives the box
+        after each sub-step s.
+        """
+        _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
+        n_sub, n_models, n_actions, n = stack.shape
+        width = max(n, 2 * core.offsets.shape[1])
+        scratch = np.empty((11, width))
+        # Open loop without saturation: the first sub-step's product is the same for every action
+        shared = not core.per_action and not core.saturating
+        base, base_error = scratch[9, :n], scratch[10, : n // 2]
+        for m in range(n_models):
+            start = z0[m if z0.shape[0] > 1 else 0]
             if shared:
-                out = stack[0, m, i]
-                out[:] = base
-                _finish(start, m, a, core, out, base_error, scratch)
-                source = out
-                first = 1
-            for s in range(first, n_sub):
-                substep(source, m, a, core, stack[s, m, i], scratch)
-                source = stack[s, m, i]
+                _linear_part(start, m, 0, core, base, base_error, scratch)
+            for i in range(n_actions):
+                a = actions[i]
+                source = start
+                first = 0
+                if shared:
+                    out = stack[0, m, i]
+                    out[:] = base
+                    _finish(start, m, a, core, out, base_error, scratch)
+                    source = out
+                    first = 1
+                for s in range(first, n_sub):
+                    substep(source, m, a, core, stack[s, m, i], scratch)
+                    source = stack[s, m, i]
+
+    return njit(cache=True)(propagate)
+
+
+propagate = _make_propagate(_PRIMITIVES_VERSION)
 
 
 def reward_sources(params_type: type) -> list[str]:
@@ -267,4 +288,4 @@ def stack_rewards_kernel(params_type: type):
         _ = version  # ties numba's cache entry to the sources it calls into
         pessimistic_rewards(stack, time, params, rewards, collided)
 
-    return njit(cache=True)(stack_rewards)
+    return compile_per_params_type(stack_rewards, params_type)

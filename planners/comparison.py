@@ -14,7 +14,7 @@ All take the paper's defaults gamma = 0.9 and K = 100 expansions. Start a search
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 from ..models.errors import InputError
 from .interval_model import IntervalModel

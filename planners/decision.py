@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .tree import SearchTree
 
 __all__ = ["Decision"]
 
@@ -77,6 +81,43 @@ class Decision:
     action_upper: tuple[float, ...]
     nodes: int
     solved: bool
+
+    @classmethod
+    def from_tree(cls, tree: SearchTree, actions: Sequence, *, solved: bool) -> Decision:
+        """The decision a search tree supports (the one builder both engines use).
+
+        Parameters
+        ----------
+        tree
+            The tree of the search (`SearchTree`), at least its root expanded.
+        actions
+            The planner's actions, in index order.
+        solved
+            Whether the search stopped early because ``lower == upper`` at the root.
+
+        Notes
+        -----
+        The action is the root child of largest lower bound (eq. (18)), the first on
+        ties, and the sequence continues down the children of largest lower bound
+        to a leaf (`SearchTree.best_path`).
+        """
+        first = int(tree.first_child[0])
+        n_actions = len(actions)
+        path = tree.best_path()
+        return cls(
+            action=actions[path[0]],
+            action_index=path[0],
+            lower=float(tree.lower[0]),
+            upper=float(tree.upper[0]),
+            expansions=len(tree.expanded),
+            depth=int(tree.max_depth),
+            sequence=tuple(actions[a] for a in path),
+            sequence_indices=path,
+            action_lower=tuple(tree.lower[first:first + n_actions].tolist()),
+            action_upper=tuple(tree.upper[first:first + n_actions].tolist()),
+            nodes=int(tree.size),
+            solved=bool(solved),
+        )
 
     @property
     def gap(self) -> float:

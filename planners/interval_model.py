@@ -9,29 +9,39 @@ the pessimistic reward of Theorem 1: the exact minimum of the reward over every
 sub-step box between the two decisions (terminal as soon as one of those boxes may
 collide).
 
-The planner never imports `minimaxplan.scenarios`: the reward is any object with
-``box_minimum(lower, upper, t) -> (reward, collided)`` (and, optionally, the
-unchecked ``box_minimum_raw`` with the same meaning). A family that also exposes
-``kernel_params`` (see `minimaxplan.planners.box_kernels`) has its minimum evaluated
-in compiled code, and lets `RobustTreePlanner` run its compiled engine.
+The planner never imports `minimaxplan.scenarios`: the reward is any object of the
+`minimaxplan.kernels.BoxReward` protocol, ``box_minimum(lower, upper, t) -> (reward,
+collided)`` (and, optionally, the unchecked ``box_minimum_raw`` with the same meaning).
+A reward of the `minimaxplan.kernels.CompiledBoxReward` protocol (its ``kernel_params``
+registered with `minimaxplan.kernels.register_reward_params`) has its minimum evaluated
+in compiled code, and lets `RobustTreePlanner` run its compiled engine
+(`docs/rewards.md`).
 
-The box arithmetic is compiled (`minimaxplan.planners.box_kernels`); this module
-precomputes its matrices and wraps its results as `BoxState`s.
+The box arithmetic is compiled (`minimaxplan.planners.box_kernels`, its matrices
+built by `minimaxplan.planners.interval_kernel`); the hypotheses of one planner are
+stepped together by an `IntervalGroup`, which this module wraps as `BoxState`s.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from ..models.validation import as_finite_array
 from ..models.errors import DimensionError, EmptySetError, InputError
-from ..models.prediction import IntervalPredictor, interval_matvec, summation_error_bound
+from ..models.prediction import IntervalPredictor
 from ..models.sets import Box
 from ..models.system import UncertainLinearSystem
-from .box_kernels import IntervalKernel, has_compiled_minimum, propagate, stack_rewards_kernel
-from .controllers import ControllerBank, LinearFeedback
+from ..kernels import has_compiled_minimum
+from .box_kernels import propagate, stack_rewards_kernel
+from .controllers import ControllerBank
+from .interval_kernel import build_interval_kernel
+from .protocols import CompiledProblem
 
-__all__ = ["BoxState", "IntervalModel"]
+__all__ = ["BoxState", "IntervalGroup", "IntervalModel"]
 
 
 class BoxState:
@@ -53,7 +63,7 @@ class BoxState:
         self._source = None
 
     @classmethod
-    def _from_batch(cls, lower, upper, z, key, time: int) -> "BoxState":
+    def _from_batch(cls, lower, upper, z, key, time: int) -> BoxState:
         """The state ``lower[key], upper[key]`` of a batched transition, its views taken on first use.
 
         Most children of the search tree are never expanded nor inspected, so the
@@ -159,141 +169,95 @@ class _SubstepTimes:
         return value
 
 
-def _z_matrix(matrices: np.ndarray) -> np.ndarray:
-    """For matrices (..., m, n): ``[[M+^T, M-^T], [M-^T, M+^T]]`` of shape (..., 2n, 2m).
 
-    With a box written ``z = [-lower | upper]`` (..., 2n), ``z @ result`` is the exact
-    box of ``M x`` in the same form.
-    """
-    pos_t = np.swapaxes(np.maximum(matrices, 0.0), -1, -2)
-    neg_t = np.swapaxes(np.maximum(-matrices, 0.0), -1, -2)
-    top = np.concatenate([pos_t, neg_t], axis=-1)
-    bottom = np.concatenate([neg_t, pos_t], axis=-1)
-    return np.ascontiguousarray(np.concatenate([top, bottom], axis=-2))
+class IntervalGroup:
+    """The hypotheses of `IntervalModel.linked`, stepped together: the models' shared computation.
 
+    Implements `minimaxplan.planners.protocols.CompiledTransitions` (so also
+    `BatchedTransitions`): ``expand_all`` steps every hypothesis under every action in
+    one compiled call, and the planner's compiled engine reads ``compiled_problem``.
+    The members' ``expand`` read their row of ``expand_all``, from a one-entry cache
+    keyed by the identity of the (immutable) state and actions objects.
 
-def _columns(matrices: np.ndarray) -> np.ndarray:
-    """`_z_matrix` as the compiled kernels read it: (..., 2n, 2m) for matrices (..., m, n), writable, contiguous."""
-    return np.array(_z_matrix(matrices), dtype=float)
+    Parameters
+    ----------
+    systems_with_parameters
+        The ``(system, parameters)`` hypotheses (``parameters`` None means
+        ``system.theta``); the systems must have equal numbers of states and inputs.
+    reward, controllers, substeps
+        As for `IntervalModel`, shared by every hypothesis.
 
-
-def _rounding_errors(systems, predictors, vertices, B, bank: ControllerBank, closed_abs, drift_z, w_z) -> tuple:
-    """The rigorous rounding-error bounds `box_kernels.substep` adds (see `IntervalModel`, Notes).
-
-    Returns ``(closed_error, drift_error, opened_error, w_error, gain_error,
-    offset_error, input_error, tiny)``. Every n-term sum of the kernel loses at most
-    ``gamma_n`` times the sum of its terms' magnitudes (``gamma_n = 2 n u / (1 - n
-    u)``, `minimaxplan.models.prediction`); with ``n`` the longest sum of a sub-step
-    (its 2p products, the drift, the input terms, the error terms and the final
-    additions), each bound below holds for every sum it covers.
-    """
-    p, q = B.shape[1], B.shape[2]
-    safety = 1.0 + 1e-10  # covers the rounding in evaluating the bounds themselves
-    g = summation_error_bound(2 * p + 2 * q + 8)
-    tiny = (2 * p + 2 * q + 8) * 2.0 * np.finfo(float).smallest_subnormal  # underflow of every product
-    abs_B = np.abs(B)  # (M, p, q)
-    abs_K = np.abs(bank.gains)  # (A, q, p)
-    formation = np.stack([predictor.vertex_matrix_error for predictor in predictors])  # (M, p, p)
-    open_abs = np.max(np.abs(vertices), axis=1)  # (M, p, p), over the vertices
-    opened_error = safety * (formation + g * open_abs)
-    if closed_abs is None:
-        closed_error = opened_error[:, None]
-    else:  # A(v) - B K: the product B K (q terms) and the subtraction round too
-        product_abs = np.einsum("mpq,aqr->mapr", abs_B, abs_K)
-        closed_error = safety * (formation[:, None] + summation_error_bound(q + 1) * (open_abs[:, None] + product_abs) + g * closed_abs)
-    # c_a = K x_ref + u_ff is computed in floating point for feedback controllers
-    offset_error = np.zeros_like(bank.offsets)
-    for a, controller in enumerate(bank.controllers):
-        if isinstance(controller, LinearFeedback):
-            offset_error[a] = summation_error_bound(p + 2) * (np.abs(controller.K) @ np.abs(controller.x_ref) + np.abs(controller.u_ff))
-    offset_error = safety * offset_error + tiny
-    w_max = [np.maximum(np.abs(system.w.low), np.abs(system.w.high)) for system in systems]
-    w_rounding = np.stack([summation_error_bound(2 * system.ndisturbances + 1) * np.abs(system.D) @ wm for system, wm in zip(systems, w_max)])
-    w_error = safety * (w_rounding + g * np.maximum(np.abs(w_z[:, :p]), np.abs(w_z[:, p:]))) + tiny
-    drift_abs = np.maximum(np.abs(drift_z[..., :p]), np.abs(drift_z[..., p:]))  # (M, A, p)
-    c_abs = np.abs(bank.offsets) + offset_error  # (A, q)
-    drift_error = safety * (
-        summation_error_bound(q + 1) * np.einsum("mpq,aq->map", abs_B, c_abs) + np.einsum("mpq,aq->map", abs_B, offset_error)
-        + w_rounding[:, None] + g * drift_abs
-    ) + tiny
-    gain_error = safety * g * abs_K
-    input_error = safety * g * abs_B
-    def columns(rows):  # the kernels apply row-indexed bounds by columns
-        return np.ascontiguousarray(np.swapaxes(rows, -1, -2), dtype=float)
-
-    def constant(values):
-        return np.ascontiguousarray(values, dtype=float)
-
-    return (
-        columns(closed_error), constant(drift_error), columns(opened_error), constant(w_error), columns(gain_error),
-        constant(offset_error), columns(input_error), float(tiny),
-    )
-
-
-class _IntervalCore:
-    """The arithmetic of one or several hypotheses under every controller.
-
-    Precomputes, per hypothesis m and action a, the Z-form columns that
-    `minimaxplan.planners.box_kernels.substep` reads (``kernel``); `propagate` runs
-    the compiled transition of every (hypothesis, action) pair and evaluates the
-    pessimistic rewards, compiled when the reward family offers ``kernel_params``.
+    Attributes
+    ----------
+    systems, parameters
+        Per hypothesis, the system and the resolved parameter set.
+    reward, bank, substeps
+        The shared reward family, controllers (`ControllerBank`) and sub-steps.
+    predictors
+        Per hypothesis, its `IntervalPredictor` (identity basis).
+    kernel
+        The `IntervalKernel` of the compiled arithmetic (`build_interval_kernel`).
+    kernel_params
+        The reward's ``kernel_params`` (its compiled box minimum), or None.
     """
 
-    def __init__(self, members, reward, reward_minimum, bank: ControllerBank, substeps: int) -> None:
-        self.reward_minimum = reward_minimum
+    def __init__(self, systems_with_parameters, reward, controllers, *, substeps: int = 1) -> None:
+        try:
+            pairs = [tuple(pair) for pair in systems_with_parameters]
+        except TypeError:
+            raise InputError("systems_with_parameters must be a sequence of (system, parameters) pairs") from None
+        if not pairs:
+            raise InputError("systems_with_parameters must hold at least one (system, parameters) pair")
+        if any(len(pair) != 2 for pair in pairs):
+            raise InputError("each item of systems_with_parameters must be a (system, parameters) pair")
+        resolved = []
+        for i, (system, parameters) in enumerate(pairs):
+            if not isinstance(system, UncertainLinearSystem):
+                raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+            first = pairs[0][0]
+            if (system.nstates, system.ninputs) != (first.nstates, first.ninputs):
+                raise InputError(
+                    f"systems_with_parameters[{i}] has {system.nstates} states and {system.ninputs} inputs, "
+                    f"but the first system has {first.nstates} and {first.ninputs}"
+                )
+            resolved.append((system, system.theta if parameters is None else parameters))
+        p, q = pairs[0][0].nstates, pairs[0][0].ninputs
+        self.reward_minimum = _check_reward(reward, p)
+        self.substeps = _check_substeps(substeps)
+        self.bank = ControllerBank(controllers, p, q)
         self.kernel_params = getattr(reward, "kernel_params", None)
         if self.kernel_params is not None and not has_compiled_minimum(self.kernel_params):
             raise InputError(
                 f"reward.kernel_params has type {type(self.kernel_params).__name__}, for which no compiled box minimum "
-                "is registered (see minimaxplan.planners.box_kernels.register_reward_params); use None for a reward "
+                "is registered (see minimaxplan.kernels.register_reward_params); use None for a reward "
                 "without a compiled form"
             )
-        self.bank = bank
-        self.substeps = substeps
-        self.times = _SubstepTimes(substeps)
-        systems = [system for system, _ in members]
-        self.M = len(members)
-        self.p = systems[0].nstates
-        predictors = [IntervalPredictor(system, parameters) for system, parameters in members]
-        self.predictors = predictors
-        k = max(pred.nvertices for pred in predictors)
-        # pad each hypothesis to k vertex matrices by repeating one (harmless under max)
-        vertices = np.stack(
-            [np.concatenate([pred.vertex_matrices, np.repeat(pred.vertex_matrices[:1], k - pred.nvertices, axis=0)])
-             for pred in predictors]
-        )  # (M, k, p, p), identity basis
-        B = np.stack([system.B for system in systems])  # (M, p, q)
-        self.k = k
-        per_action = bank.has_feedback
-        opened = _columns(vertices)  # (M, k, 2p, 2p)
-        if per_action:
-            feedback = np.einsum("mpq,aqr->mapr", B, bank.gains)  # B_m K_a
-            closed_matrices = vertices[:, None] - feedback[:, :, None]  # (M, A, k, p, p)
-            closed = _columns(closed_matrices)  # (M, A, k, 2p, 2p)
-            closed_abs = np.max(np.abs(closed_matrices), axis=2)
-        else:
-            closed = np.ascontiguousarray(opened[:, None])  # (M, 1, k, 2p, 2p)
-            closed_abs = None
-        w = [interval_matvec(system.D, system.w.low, system.w.high) for system in systems]
-        w_lo = np.stack([lo for lo, _ in w])
-        w_hi = np.stack([hi for _, hi in w])
-        w_z = np.concatenate([-w_lo, w_hi], axis=-1)  # (M, 2p)
-        drift = np.einsum("mpq,aq->map", B, bank.offsets)  # (M, A, p): B_m c_a
-        drift_z = np.concatenate([-drift, drift], axis=-1) + w_z[:, None]  # (M, A, 2p)
-        plain = [np.array(a, dtype=float) for a in (bank.offsets, bank.low, bank.high)]
-        errors = _rounding_errors(systems, predictors, vertices, B, bank, closed_abs, drift_z, w_z)
-        self.kernel = IntervalKernel(
-            closed, opened, drift_z, w_z, _columns(bank.gains), _columns(B), *plain, bool(per_action), bool(bank.saturating),
-            *errors,
-        )
+        self.reward = reward
+        self.systems = tuple(system for system, _ in resolved)
+        self.parameters = tuple(parameters for _, parameters in resolved)
+        self.p = p
+        self.times = _SubstepTimes(self.substeps)
+        self.predictors = tuple(IntervalPredictor(system, parameters) for system, parameters in resolved)
+        self.kernel = build_interval_kernel(self.systems, self.predictors, self.bank)
+        self.actions = _ActionIndex(len(self.bank))
+        self._key_state = None
+        self._key_actions = None
+        self._result = None
+
+    @property
+    def size(self) -> int:
+        """The number of hypotheses M."""
+        return len(self.systems)
 
     def state_z(self, state: BoxState) -> np.ndarray:
         """The boxes of a state as z of shape (M or 1, 2p): a writable contiguous copy (one compiled signature)."""
+        if type(state) is not BoxState:
+            raise InputError(f"state must be a BoxState (see IntervalModel.initial_state), got {type(state).__name__}")
         z = state.z
         if z.ndim == 1:
             return np.array(z[None, :], dtype=float)
-        if z.shape[0] != self.M:
-            raise DimensionError(f"state holds {z.shape[0]} boxes, expected {self.M} (one per linked hypothesis)")
+        if z.shape[0] != self.size:
+            raise DimensionError(f"state holds {z.shape[0]} boxes, expected {self.size} (one per linked hypothesis)")
         return np.array(z, dtype=float)
 
     def propagate(self, z, time, index):
@@ -304,7 +268,7 @@ class _IntervalCore:
         flags (any over the sub-steps).
         """
         p, S = self.p, self.substeps
-        stack = np.empty((S, self.M, index.shape[0], 2 * p))
+        stack = np.empty((S, self.size, index.shape[0], 2 * p))
         propagate(z, index, self.kernel, stack)
         if self.kernel_params is not None:
             rewards = np.empty(stack.shape[1:3])
@@ -315,39 +279,28 @@ class _IntervalCore:
         reward, collided = self.reward_minimum(-stack[..., :p], stack[..., p:], self.times[time])
         return stack, np.minimum.reduce(reward, axis=0), np.logical_or.reduce(collided, axis=0)
 
+    # ------------------------------------------------- BatchedTransitions
+    def expand_all(self, state: BoxState, actions) -> tuple[list, np.ndarray, np.ndarray]:
+        """Every hypothesis under every action from ``state``, in one compiled call.
 
-class _LinkedGroup:
-    """The hypotheses of a multi-model planner, stepped together.
-
-    The planner steps its M models one after the other from the same node. Linked
-    models share one `_IntervalCore`: the first model asked computes the transitions of
-    all M hypotheses in one batched call and the others read their row from a
-    one-entry cache, keyed by the identity of the (immutable) state and actions objects.
-    """
-
-    def __init__(self, core: _IntervalCore) -> None:
-        self.core = core
-        self.size = core.M
-        self.actions = _ActionIndex(len(core.bank))
-        self._key_state = None
-        self._key_actions = None
-        self._result = None
-
-    def expand(self, state: BoxState, actions):
+        Returns ``(next_states, rewards, terminals)``: a list of `BoxState` holding
+        one box per hypothesis (one box when M = 1), the pessimistic rewards and the
+        collision flags, each of shape (M, len(actions)).
+        """
         if state is self._key_state and actions is self._key_actions:
             return self._result
-        core = self.core
-        root = self._state_z(state)
+        p = self.p
+        root = self.state_z(state)
         index = self.actions(actions)
-        stack, rewards, collided = core.propagate(root, state.time, index)
+        stack, rewards, collided = self.propagate(root, state.time, index)
         z = stack[-1]  # (M, n, 2p)
         z.flags.writeable = False
-        upper = z[..., core.p:]
-        lower = -z[..., :core.p]
+        upper = z[..., p:]
+        lower = -z[..., :p]
         lower.flags.writeable = False
-        time = state.time + core.substeps
+        time = state.time + self.substeps
         batch = BoxState._from_batch
-        if core.M == 1:
+        if self.size == 1:
             next_states = [batch(lower, upper, z, (0, i), time) for i in range(len(index))]
         else:
             next_states = [batch(lower, upper, z, (slice(None), i), time) for i in range(len(index))]
@@ -355,43 +308,38 @@ class _LinkedGroup:
         self._result = (next_states, rewards, collided)
         return self._result
 
-    def _state_z(self, state) -> np.ndarray:
-        if type(state) is not BoxState:
-            raise InputError(f"state must be a BoxState (see IntervalModel.initial_state), got {type(state).__name__}")
-        return self.core.state_z(state)
-
-    # ------------------------------------------- the planner's compiled engine
+    # ------------------------------------------------- CompiledTransitions
     @property
     def compiled(self) -> bool:
         """Whether the reward has a compiled box minimum, so the compiled search can run."""
-        return self.core.kernel_params is not None
+        return self.kernel_params is not None
 
-    def search_inputs(self, state, actions) -> tuple:
-        """``(root boxes (M, 2p), time, action indices, kernel, reward params, substeps)`` for `run_search`."""
-        core = self.core
-        root = self._state_z(state)
-        if root.shape[0] != core.M:
-            root = np.repeat(root, core.M, axis=0)
-        return root, state.time, self.actions(actions), core.kernel, core.kernel_params, core.substeps
+    def compiled_problem(self, state: BoxState, actions) -> CompiledProblem:
+        """The compiled search's inputs: the root boxes (M, 2p), time, action indices, kernel, params, substeps."""
+        root = self.state_z(state)
+        if root.shape[0] != self.size:
+            root = np.repeat(root, self.size, axis=0)
+        return CompiledProblem(root, state.time, self.actions(actions), self.kernel, self.kernel_params, self.substeps)
 
-    def node_states(self, z: np.ndarray, depth: list, time: int) -> list:
+    def node_states(self, z: np.ndarray, depth: Sequence[int], time: int) -> list:
         """The joint state of each node ``i >= 1`` of a compiled search (``z`` (nodes, M, 2p), owned).
 
-        The same objects, up to identity, that `expand` creates on the Python engine:
-        ``lower``, ``upper`` and ``z`` views of one batch, a (M, 2p) box per node (2p,
-        for M = 1), at sub-step ``time + depth * substeps``.
+        The same objects, up to identity, that `expand_all` creates on the Python
+        engine: ``lower``, ``upper`` and ``z`` views of one batch, a (M, 2p) box per
+        node (2p, for M = 1), at sub-step ``time + depth * substeps``.
         """
-        core = self.core
+        p = self.p
         z.flags.writeable = False
-        lower = -z[..., :core.p]
+        lower = -z[..., :p]
         lower.flags.writeable = False
-        upper = z[..., core.p:]
-        batch, S = BoxState._from_batch, core.substeps
-        if core.M == 1:
+        upper = z[..., p:]
+        batch, S = BoxState._from_batch, self.substeps
+        if self.size == 1:
             return [None] + [batch(lower, upper, z, (i, 0), time + depth[i] * S) for i in range(1, z.shape[0])]
         return [None] + [batch(lower, upper, z, (i,), time + depth[i] * S) for i in range(1, z.shape[0])]
 
 
+@dataclass(frozen=True, eq=False)
 class IntervalModel:
     """A planner model whose state is a box containing the true state (Theorem 1).
 
@@ -413,6 +361,18 @@ class IntervalModel:
     substeps
         Sub-steps of ``system`` per decision (>= 1); the action's controller acts at
         every sub-step.
+    group, member
+        The `IntervalGroup` this model is computed with and its index there, as
+        `linked` passes them; by default (None) a group of this hypothesis alone.
+        The other arguments must then be the group's.
+
+    Attributes
+    ----------
+    system, parameters, reward, controllers, substeps
+        As given (``parameters`` resolved, ``controllers`` a tuple).
+    group, member
+        The model's `IntervalGroup` and its index in it (the
+        `minimaxplan.planners.protocols.LinkedModel` protocol).
 
     Notes
     -----
@@ -458,55 +418,67 @@ class IntervalModel:
     models; states then hold one box per hypothesis).
     """
 
-    def __init__(self, system: UncertainLinearSystem, parameters, reward, controllers, *, substeps: int = 1) -> None:
-        (model,) = self.linked([(system, parameters)], reward, controllers, substeps=substeps)
-        self.__dict__.update(model.__dict__)
+    system: UncertainLinearSystem
+    parameters: Any
+    reward: Any
+    controllers: Sequence
+    substeps: int = field(default=1, kw_only=True)
+    group: IntervalGroup | None = field(default=None, kw_only=True, repr=False)
+    member: int = field(default=0, kw_only=True)
+
+    def __post_init__(self) -> None:
+        group = self.group
+        if group is None:
+            group = IntervalGroup([(self.system, self.parameters)], self.reward, self.controllers, substeps=self.substeps)
+            object.__setattr__(self, "group", group)
+        elif not isinstance(group, IntervalGroup):
+            raise InputError(f"group must be an IntervalGroup (see IntervalModel.linked), got {type(group).__name__}")
+        else:
+            self._check_member(group)
+        m = self.member
+        object.__setattr__(self, "parameters", group.parameters[m])
+        object.__setattr__(self, "controllers", group.bank.controllers)
+        object.__setattr__(self, "substeps", group.substeps)
+
+    def _check_member(self, group: IntervalGroup) -> None:
+        m = self.member
+        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not 0 <= m < group.size:
+            raise InputError(f"member must be an integer in [0, {group.size}), got {m!r}")
+        if self.system is not group.systems[m] or self.reward is not group.reward or self.substeps != group.substeps:
+            raise InputError(f"system, reward and substeps must be those of the group's member {m}")
+        if self.parameters is not None and self.parameters is not group.parameters[m]:
+            raise InputError(f"parameters must be None or the group's member {m} parameters")
+        try:
+            controllers = tuple(self.controllers)
+        except TypeError:
+            raise InputError(f"controllers must be a sequence, got {type(self.controllers).__name__}") from None
+        if len(controllers) != len(group.bank) or any(c is not d for c, d in zip(controllers, group.bank.controllers)):
+            raise InputError("controllers must be the group's controllers")
 
     @classmethod
-    def linked(cls, systems_with_parameters, reward, controllers, *, substeps: int = 1) -> list["IntervalModel"]:
+    def linked(cls, systems_with_parameters, reward, controllers, *, substeps: int = 1) -> list[IntervalModel]:
         """One `IntervalModel` per ``(system, parameters)`` hypothesis, computing their transitions together.
 
         The systems must have the same numbers of states and inputs. Use the list as
-        the ``models`` of a `RobustTreePlanner` (in this order).
+        the ``models`` of a `RobustTreePlanner` (in this order): the planner then
+        steps all of them in one `IntervalGroup.expand_all` call per expansion, or
+        runs its compiled engine.
         """
-        try:
-            pairs = [tuple(pair) for pair in systems_with_parameters]
-        except TypeError:
-            raise InputError("systems_with_parameters must be a sequence of (system, parameters) pairs") from None
-        if not pairs:
-            raise InputError("systems_with_parameters must hold at least one (system, parameters) pair")
-        if any(len(pair) != 2 for pair in pairs):
-            raise InputError("each item of systems_with_parameters must be a (system, parameters) pair")
-        resolved = []
-        for i, (system, parameters) in enumerate(pairs):
-            if not isinstance(system, UncertainLinearSystem):
-                raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
-            first = pairs[0][0]
-            if (system.nstates, system.ninputs) != (first.nstates, first.ninputs):
-                raise InputError(
-                    f"systems_with_parameters[{i}] has {system.nstates} states and {system.ninputs} inputs, "
-                    f"but the first system has {first.nstates} and {first.ninputs}"
-                )
-            resolved.append((system, system.theta if parameters is None else parameters))
-        p, q = pairs[0][0].nstates, pairs[0][0].ninputs
-        reward_minimum = _check_reward(reward, p)
-        substeps = _check_substeps(substeps)
-        bank = ControllerBank(controllers, p, q)
-        group = _LinkedGroup(_IntervalCore(resolved, reward, reward_minimum, bank, substeps))
-        models = []
-        for m, (system, parameters) in enumerate(resolved):
-            model = cls.__new__(cls)
-            model.system = system
-            model.parameters = parameters
-            model.reward = reward
-            model.substeps = substeps
-            model.bank = bank
-            model.controllers = bank.controllers
-            model.predictor = group.core.predictors[m]
-            model.member = m
-            model._group = group
-            models.append(model)
-        return models
+        group = IntervalGroup(systems_with_parameters, reward, controllers, substeps=substeps)
+        return [
+            cls(system, parameters, reward, group.bank.controllers, substeps=group.substeps, group=group, member=m)
+            for m, (system, parameters) in enumerate(zip(group.systems, group.parameters))
+        ]
+
+    @property
+    def bank(self) -> ControllerBank:
+        """The controllers as stacked arrays (shared by the group)."""
+        return self.group.bank
+
+    @property
+    def predictor(self) -> IntervalPredictor:
+        """This hypothesis's `IntervalPredictor`."""
+        return self.group.predictors[self.member]
 
     @property
     def n_actions(self) -> int:
@@ -520,17 +492,7 @@ class IntervalModel:
     @property
     def n_linked(self) -> int:
         """How many hypotheses this model is computed together with (itself included)."""
-        return self._group.core.M
-
-    @property
-    def _joint(self):
-        """``(group, member)``: the planner's private fast path for linked models.
-
-        ``group.expand(state, actions)`` returns ``(next_states, rewards, terminals)``
-        for every hypothesis of the group at once (rewards and terminals of shape
-        (M, len(actions)), row m the result of `expand` of member m; ``group.size`` is M).
-        """
-        return self._group, self.member
+        return self.group.size
 
     # --------------------------------------------------------------- protocol
     def expand(self, state: BoxState, actions) -> tuple[list, np.ndarray, np.ndarray]:
@@ -539,7 +501,7 @@ class IntervalModel:
         Returns ``(next_states, rewards, terminals)``: a list of `BoxState`, the
         pessimistic rewards (len(actions),) and the collision flags (len(actions),).
         """
-        next_states, rewards, terminals = self._group.expand(state, actions)
+        next_states, rewards, terminals = self.group.expand_all(state, actions)
         m = self.member
         return next_states, rewards[m], terminals[m]
 
@@ -587,17 +549,17 @@ class IntervalModel:
         if type(state) is not BoxState:
             raise InputError(f"state must be a BoxState, got {type(state).__name__}")
         seq = list(actions)
-        self._group.actions(seq)
-        core, m = self._group.core, self.member
-        z = core.state_z(state)
-        p, S = core.p, self.substeps
+        group, m = self.group, self.member
+        group.actions(seq)
+        z = group.state_z(state)
+        p, S = group.p, self.substeps
         row = z[m if z.shape[0] > 1 else 0]
         lowers, uppers = [-row[:p]], [row[p:]]
         rewards = np.empty(len(seq))
         terminals = np.zeros(len(seq), dtype=bool)
         time = state.time
         for n, action in enumerate(seq):
-            stack, reward, collided = core.propagate(z, time, np.array([int(action)], dtype=np.int64))
+            stack, reward, collided = group.propagate(z, time, np.array([int(action)], dtype=np.int64))
             for s in range(S):
                 lowers.append(-stack[s, m, 0, :p])
                 uppers.append(stack[s, m, 0, p:])

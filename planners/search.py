@@ -1,67 +1,66 @@
 """Robust optimistic tree search over a finite set of models, and its M = 1 case (OPD).
 
-The planners see models only through a small transition protocol:
-
-- ``model.step(state, action) -> (next_state, reward)`` or
-  ``(next_state, reward, terminal)``, with ``reward`` in [0, 1] (maximised);
-- optionally ``model.expand(state, actions) -> (next_states, rewards, terminals)``:
-  all actions (the planner's tuple) from one state in one batched call,
-  ``next_states`` a sequence of ``len(actions)`` states, ``rewards`` a float array
-  of shape ``(len(actions),)``, ``terminals`` a bool array of the same shape. When present it is used instead of
-  ``step`` (the two must agree; the tree does not depend on which is used).
-
-Linked models (`IntervalModel.linked`) also share one batched transition of all M
-hypotheses; when the planner's models are exactly one such group, in member order,
-and a node's models share one state, the planner takes all M results from that one
-call (the same numbers `expand` returns per model).
+The planners see models only through the protocols of
+`minimaxplan.planners.protocols`: each model is a `TransitionModel`
+(``step(state, action)``), optionally a `VectorisedModel` (``expand(state, actions)``,
+used instead of ``step``); models computed together (`IntervalModel.linked`) are
+`LinkedModel`s of one `BatchedTransitions` group, and when the planner's models are
+exactly that group, in member order, and a node's models share one state, all M
+transitions come from one ``expand_all`` call (the same numbers each member's
+``expand`` returns).
 
 After a terminal transition a model is never stepped again on that branch: its
 later rewards are 0 and its state stays the terminal state.
 
-Two engines run this search: the Python one below, for every model of the protocol,
-and a compiled one (`minimaxplan.planners.compiled_search`) for linked `IntervalModel`s
-whose reward has a compiled box minimum. They build the same tree bit for bit; the
+Two engines run this search, on one tree layout with one implementation of every
+tree operation (`minimaxplan.planners.tree_ops`): the Python engine below, a Python
+loop that asks the models for each leaf's transitions, and the compiled engine
+(`minimaxplan.planners.compiled_search`), one numba kernel per search that computes
+the transitions of a `CompiledTransitions` group with the compiled box kernel. The
 ``engine`` argument of `RobustTreePlanner` chooses, ``engine_used`` reports.
-
-States are opaque to the planner and never copied: one state object may be shared
-by several tree nodes (below a terminal transition) and, when `plan` gets one
-initial state, by every model. Models must return new states, never modify a
-given state in place.
 """
 
 from __future__ import annotations
 
+import functools
 import numbers
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from ..models.errors import DimensionError, InputError, NonFiniteError, RewardRangeError
-from .compiled_search import SearchArrays, search_kernel
+from . import tree_ops
+from .compiled_search import FULL, SOLVED, BoxArrays, allocate_boxes, grow_boxes, search_kernel
 from .decision import Decision
+from .protocols import BatchedTransitions, CompiledTransitions, LinkedModel, TransitionModel, VectorisedModel
 from .tree import SearchTree
+from .tree_ops import REWARD_ERROR, TreeArrays
 
 __all__ = ["RobustTreePlanner", "OptimisticPlanner"]
 
+#: Rows a search's tree arrays start with; they double when full, up to the budget's tree.
+INITIAL_TREE_ROWS = 4096
+#: The largest tree a planner may be asked to build, ``1 + budget * len(actions)`` nodes (int32 indices).
+MAX_TREE_NODES = 2**31 - 1
+
 
 class _Transitions:
-    """Steps one model from one state by every action; checks the protocol's types."""
+    """Steps one `TransitionModel` from one state by every action (``expand`` if it has one); checks the types."""
 
     __slots__ = ("index", "model", "actions", "n_actions", "_expand", "_step")
 
     def __init__(self, index: int, model: Any, actions: tuple) -> None:
-        step = getattr(model, "step", None)
-        if not callable(step):
+        if not (isinstance(model, TransitionModel) and callable(model.step)):
             raise InputError(
                 f"models[{index}] has no callable step(state, action); got {type(model).__name__}"
             )
-        expand = getattr(model, "expand", None)
         self.index = index
         self.model = model
         self.actions = actions
         self.n_actions = len(actions)
-        self._step = step
-        self._expand = expand if callable(expand) else None
+        self._step = model.step
+        self._expand = model.expand if isinstance(model, VectorisedModel) and callable(model.expand) else None
 
     def __call__(self, state) -> tuple[list, np.ndarray, np.ndarray]:
         if self._expand is not None:
@@ -139,27 +138,18 @@ class _Transitions:
         return next_states, rewards, terminals
 
 
-def _joint_expand(models: list):
-    """The shared ``expand`` of linked models, if ``models`` are exactly one group in member order."""
-    joints = [getattr(model, "_joint", None) for model in models]
-    if any(joint is None for joint in joints):
+def _linked_group(models: Sequence) -> BatchedTransitions | None:
+    """The `BatchedTransitions` group whose members are exactly ``models``, in member order, or None."""
+    first = models[0]
+    if not isinstance(first, LinkedModel):
         return None
-    group = joints[0][0]
-    if getattr(group, "size", None) != len(models):
+    group = first.group
+    if not isinstance(group, BatchedTransitions) or group.size != len(models):
         return None
-    if any(joint[0] is not group or joint[1] != m for m, joint in enumerate(joints)):
-        return None
-    return group.expand
-
-
-def _compiled_group(models: list, joint):
-    """The linked group whose search can run compiled (see `compiled_search`), or None."""
-    if joint is None:
-        return None
-    group = models[0]._joint[0]
-    if getattr(group, "compiled", False) and callable(getattr(group, "search_inputs", None)):
-        return group
-    return None
+    for m, model in enumerate(models):
+        if not isinstance(model, LinkedModel) or model.group is not group or model.member != m:
+            return None
+    return group
 
 
 ENGINES = ("auto", "compiled", "python")
@@ -208,8 +198,8 @@ class RobustTreePlanner:
     Parameters
     ----------
     models
-        Non-empty sequence of M models following the transition protocol of this
-        module (``step``, optionally ``expand``). Rewards must lie in [0, 1].
+        Non-empty sequence of M `TransitionModel`s (``step``, optionally
+        ``expand``: `minimaxplan.planners.protocols`). Rewards must lie in [0, 1].
     actions
         Non-empty sequence of actions, passed unchanged to the models. Ties between
         actions are broken by their index in this sequence.
@@ -228,12 +218,14 @@ class RobustTreePlanner:
     engine
         ``"auto"`` (default), ``"compiled"`` or ``"python"``. The compiled engine
         (`minimaxplan.planners.compiled_search`, numba) runs the whole search when the
-        models are one `IntervalModel.linked` group (or a single `IntervalModel`)
-        whose reward has a compiled box minimum (``kernel_params``, as the
-        `minimaxplan.scenarios` families do), and every model starts from the same
-        state; ``"auto"`` uses it then and the Python engine otherwise, ``"compiled"``
-        raises `InputError` when it cannot run. Both engines build the same tree bit
-        for bit; `engine_used` says which one ran last.
+        models are the members of one `CompiledTransitions` group, in member order (an
+        `IntervalModel.linked` group, or a single `IntervalModel`, whose reward has a
+        compiled box minimum, ``kernel_params``, as the `minimaxplan.scenarios`
+        families do), and every model starts from the same state; ``"auto"`` uses it
+        then and the Python engine otherwise, ``"compiled"`` raises `InputError` when
+        it cannot run. Both engines run the same tree operations
+        (`minimaxplan.planners.tree_ops`) and differ only in where the transitions
+        come from; `engine_used` says which one ran last.
 
     Notes
     -----
@@ -273,44 +265,83 @@ class RobustTreePlanner:
             raise InputError(f"actions must be a sequence, got {type(actions).__name__}") from None
         if not actions:
             raise InputError("actions must be a non-empty sequence")
-        self.gamma = _check_gamma(gamma)
-        self.budget = _check_count("budget", budget, 1)
-        self.seed = _check_count("seed", seed, 0)
-        self.models = tuple(models)
-        self.actions = actions
+        self._gamma = _check_gamma(gamma)
+        self._budget = _check_count("budget", budget, 1)
+        if 1 + self._budget * len(actions) > MAX_TREE_NODES:
+            raise InputError(
+                f"budget must be at most {(MAX_TREE_NODES - 1) // len(actions)} with {len(actions)} actions "
+                f"(the tree holds 1 + budget * len(actions) nodes, at most {MAX_TREE_NODES}), got {budget}"
+            )
+        self._seed = _check_count("seed", seed, 0)
+        self._models = tuple(models)
+        self._actions = actions
         self._transitions = [_Transitions(m, model, actions) for m, model in enumerate(models)]
-        self._joint = _joint_expand(models)
-        self._rewards = np.zeros((len(actions), len(models)))
-        self._new_terminal = np.zeros((len(actions), len(models)), dtype=bool)
+        self._group = _linked_group(self._models)
         if engine not in ENGINES:
             raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
-        self.engine = engine
-        self._compiled = None if engine == "python" else _compiled_group(self.models, self._joint)
+        self._engine = engine
+        group = self._group
+        self._compiled = (
+            group if engine != "python" and isinstance(group, CompiledTransitions) and group.compiled else None
+        )
         if engine == "compiled" and self._compiled is None:
             raise InputError(
                 "engine='compiled' needs the models of one IntervalModel.linked group, in member order, "
                 "whose reward has a compiled box minimum (kernel_params)"
             )
         self.engine_used: str | None = None
-        self._arrays: SearchArrays | None = None
+        self._max_nodes = 1 + self._budget * len(actions)
+        self._discounts = tree_ops.discount_table(self._gamma, 2)
+        # The arrays of the last search, reused by the next one unless `tree` handed them out.
+        self._arrays: TreeArrays | None = None
+        self._boxes: BoxArrays | None = None
         self._tree: SearchTree | None = None
-        self._compiled_result = None
+        self._tree_shared = False
 
     @property
     def tree(self) -> SearchTree | None:
-        """The search tree of the last `plan` call (None before the first).
+        """The search tree of the last `plan` call (None before the first), a read-only view.
 
-        After a compiled search the tree is copied out of the engine's arrays on first
-        access.
+        After a compiled search the models' states are built from the engine's boxes on
+        first access of ``tree.states``.
         """
-        if self._tree is None and self._compiled_result is not None:
-            self._tree = self._materialise(*self._compiled_result)
+        self._tree_shared = self._tree is not None
         return self._tree
+
+    @property
+    def models(self) -> tuple:
+        """The M models, in order (read-only)."""
+        return self._models
+
+    @property
+    def actions(self) -> tuple:
+        """The actions, in index order (read-only)."""
+        return self._actions
+
+    @property
+    def gamma(self) -> float:
+        """The discount factor in (0, 1) (read-only)."""
+        return self._gamma
+
+    @property
+    def budget(self) -> int:
+        """The number of expansions K per `plan` call (read-only)."""
+        return self._budget
+
+    @property
+    def seed(self) -> int:
+        """The validated seed (no effect: ties are broken by action path; read-only)."""
+        return self._seed
+
+    @property
+    def engine(self) -> str:
+        """The requested engine: ``"auto"``, ``"compiled"`` or ``"python"`` (read-only)."""
+        return self._engine
 
     @property
     def n_models(self) -> int:
         """Number of models M."""
-        return len(self.models)
+        return len(self._models)
 
     def plan(self, state, *, per_model: bool = False) -> Decision:
         """Search from ``state`` with the full budget and return the `Decision`.
@@ -345,150 +376,144 @@ class RobustTreePlanner:
                 )
         else:
             states = [state] * n_models
-        self._tree = self._compiled_result = None
+        if self._tree_shared:  # a caller holds the last tree: search in new arrays
+            self._arrays = self._boxes = None
+            self._tree_shared = False
+        self._tree = None
         if self._compiled is not None and all(s is states[0] for s in states):
-            return self._plan_compiled(states[0])
-        if self.engine == "compiled":
+            self.engine_used = "compiled"
+            tree, solved, node_states = self._search_compiled(states[0])
+        elif self.engine == "compiled":
             raise InputError("engine='compiled' needs one initial state shared by every model")
-        self.engine_used = "python"
-        tree = SearchTree(n_models, len(self.actions), self.gamma, max_nodes=1 + self.budget * len(self.actions))
-        tree.add_root(states)
-        self._tree = tree
-        solved = self._search(tree)
-        return self._decision(tree, solved)
+        else:
+            self.engine_used = "python"
+            tree, solved, node_states = self._search_python(states)
+        self._tree = SearchTree(tree, node_states)
+        return Decision.from_tree(self._tree, self.actions, solved=solved)
 
-    # ------------------------------------------------------------------ internals
-    def _search(self, tree: SearchTree) -> bool:
-        """Run the expansions; True if stopped early because ``lower == upper`` at the root.
+    # ------------------------------------------------------------ the tree arrays
+    def _tree_arrays(self) -> TreeArrays:
+        """The arrays of the last search (unless `tree` handed them out), else new ones of the first size."""
+        arrays = self._arrays
+        if arrays is None:
+            capacity = min(self._max_nodes, INITIAL_TREE_ROWS)
+            arrays = self._arrays = tree_ops.allocate(
+                capacity, self.n_models, len(self.actions), self.gamma, self._discount_table(capacity)
+            )
+        return arrays
+
+    def _grown_capacity(self, tree: TreeArrays, needed: int) -> int:
+        """Twice the rows of ``tree`` (at least ``needed``), at most the budget's tree."""
+        return max(min(2 * tree.parent.shape[0], self._max_nodes), needed)
+
+    def _discount_table(self, capacity: int) -> np.ndarray:
+        needed = (capacity - 1) // len(self.actions) + 2
+        if self._discounts.shape[0] < needed:
+            self._discounts = tree_ops.discount_table(self.gamma, needed)
+        return self._discounts
+
+    # ------------------------------------------------------------ Python engine
+    def _search_python(self, states: list) -> tuple[TreeArrays, bool, list]:
+        """Run the expansions, asking the models; ``solved`` if stopped early because ``lower == upper`` at the root.
 
         Each round expands the leaf of largest b-value, ties to the smallest action
-        path (`SearchTree.pop_best_leaf`), then backs the bounds up to the root.
+        path, then backs the bounds up to the root (`tree_ops.expand_and_select`).
         """
-        lower, upper = tree.lower, tree.upper
-        for _ in range(self.budget):
-            if upper[0] <= lower[0]:
-                # The value is known exactly and the bounds are monotone: no expansion
-                # can change them. This is also what happens when the best leaf has
-                # every model terminated (its b-value equals its lower bound).
-                return True
-            leaf = tree.pop_best_leaf()
-            self._expand(tree, leaf)
-            tree.backup(leaf)
-        return False
+        n_actions, budget = len(self.actions), self.budget
+        tree = self._tree_arrays()
+        state_lists = [[s] for s in states]
+        leaf = tree_ops.start(tree)
+        for k in range(budget):
+            if leaf < 0:
+                return tree, True, state_lists
+            needed = 1 + (k + 1) * n_actions
+            if needed > tree.parent.shape[0]:
+                capacity = self._grown_capacity(tree, needed)
+                tree = self._arrays = tree_ops.grow(tree, capacity, self._discount_table(capacity))
+            self._transitions_of(tree, leaf, state_lists)
+            leaf = tree_ops.expand_and_select(tree, leaf, k + 1 < budget)
+            if leaf <= REWARD_ERROR:
+                self._raise_reward_error(tree, REWARD_ERROR - leaf)
+        return tree, False, state_lists
 
-    def _expand(self, tree: SearchTree, leaf: int) -> int:
-        if self._joint is not None and not tree.any_terminated[leaf]:
-            first = self._expand_jointly(tree, leaf)
-            if first is not None:
-                return first
+    def _transitions_of(self, tree: TreeArrays, leaf: int, state_lists: list) -> None:
+        """Write ``leaf``'s transitions into ``tree.rewards``/``new_terminal``; append the children's states."""
+        if self._group is not None and not tree.any_terminated[leaf] and self._transitions_jointly(tree, leaf, state_lists):
+            return
         n_actions = len(self.actions)
-        # Scratch buffers, reused: add_children copies what it keeps.
-        rewards, new_terminal = self._rewards, self._new_terminal
+        rewards, new_terminal = tree.rewards, tree.new_terminal
         terminal = tree.terminal[leaf]
         for m, transitions in enumerate(self._transitions):
-            state = tree.states[m][leaf]
+            state = state_lists[m][leaf]
             if terminal[m]:
-                tree.states[m].extend([state] * n_actions)
-                rewards[:, m] = 0.0
-                new_terminal[:, m] = True
+                # not stepped again: `tree_ops.expand` sets its rewards to 0, terminal
+                state_lists[m].extend([state] * n_actions)
                 continue
             next_states, model_rewards, model_terminals = transitions(state)
-            rewards[:, m] = model_rewards
-            new_terminal[:, m] = model_terminals
-            tree.states[m].extend(next_states)
-        if not (rewards.min() >= 0.0 and rewards.max() <= 1.0):
-            self._reward_error(rewards)
-        return tree.add_children(leaf, rewards, new_terminal)
+            rewards[m] = model_rewards
+            new_terminal[m] = model_terminals
+            state_lists[m].extend(next_states)
 
-    def _expand_jointly(self, tree: SearchTree, leaf: int) -> int | None:
-        """`_expand` for one linked group sharing the leaf's state; None to take the general path.
+    def _transitions_jointly(self, tree: TreeArrays, leaf: int, state_lists: list) -> bool:
+        """`_transitions_of` from one ``expand_all`` of the group, if the leaf's models share one state.
 
-        The general path would ask each model in turn and get row m of this same
-        cached batched result, so the children are the same; shapes and dtypes are
-        checked here once (on a mismatch the general path reports the error).
+        False to take the per-model path: the models' states differ, or the group's
+        result has unexpected types (the per-model path would ask each member in turn
+        and get row m of this same result, and reports such errors).
         """
-        state_lists = tree.states
         state = state_lists[0][leaf]
         for states in state_lists:
             if states[leaf] is not state:
-                return None
-        next_states, rewards, terminals = self._joint(state, self.actions)
-        shape = (len(state_lists), len(self.actions))
+                return False
+        next_states, rewards, terminals = self._group.expand_all(state, self.actions)
+        shape = tree.rewards.shape
         if (
             type(rewards) is not np.ndarray or rewards.dtype != np.float64 or rewards.shape != shape
             or type(terminals) is not np.ndarray or terminals.dtype != bool or terminals.shape != shape
             or len(next_states) != shape[1]
         ):
-            return None
+            return False
+        tree.rewards[:] = rewards
+        tree.new_terminal[:] = terminals
         for states in state_lists:
             states.extend(next_states)
-        rewards = rewards.T
-        if not (np.minimum.reduce(rewards, axis=None) >= 0.0 and np.maximum.reduce(rewards, axis=None) <= 1.0):
-            self._reward_error(rewards)
-        return tree.add_children(leaf, rewards, terminals.T)
+        return True
 
-    def _reward_error(self, rewards: np.ndarray) -> None:
-        bad = ~((rewards >= 0.0) & (rewards <= 1.0))
-        a, m = (int(i) for i in np.argwhere(bad)[0])
-        self._raise_reward_error(a, m, float(rewards[a, m]))
-
-    def _raise_reward_error(self, a: int, m: int, value: float) -> None:
+    def _raise_reward_error(self, tree: TreeArrays, pair: int) -> None:
+        a, m = divmod(int(pair), self.n_models)
         raise RewardRangeError(
-            f"models[{m}] returned reward {value!r} for action {self.actions[a]!r} "
+            f"models[{m}] returned reward {float(tree.rewards[m, a])!r} for action {self.actions[a]!r} "
             f"(index {a}); rewards must be finite and in [0, 1]"
         )
 
     # ---------------------------------------------------------- compiled engine
-    def _plan_compiled(self, state) -> Decision:
-        """`plan` on the compiled engine: same tree, same `Decision` (see `compiled_search`)."""
-        group = self._compiled
-        root, time, index, kernel, params, substeps = group.search_inputs(state, self.actions)
-        n_actions, n_models = len(self.actions), self.n_models
-        max_nodes = 1 + self.budget * n_actions
-        if self._arrays is None:
-            self._arrays = SearchArrays(max_nodes, n_models, n_actions, root.shape[1], substeps, self.budget)
-            self._discounts = np.array([self.gamma ** d for d in range(self.budget + 2)])
-        arrays = self._arrays
-        self.engine_used = "compiled"
-        size, n_expanded, solved, max_depth, bad_action, bad_model = search_kernel(type(params))(
-            self.budget, self.gamma, self._discounts, root, time, index, substeps, kernel, params,
-            arrays.z, arrays.returns, arrays.terminal, arrays.parent, arrays.action, arrays.depth,
-            arrays.first_child, arrays.leaf_lower, arrays.leaf_upper, arrays.lower, arrays.upper,
-            arrays.any_terminated, arrays.expanded, arrays.heap, arrays.stack, arrays.rewards, arrays.collided,
-            arrays.error,
-        )
-        if bad_action >= 0:
-            self._raise_reward_error(int(bad_action), int(bad_model), float(arrays.error[0]))
-        self._compiled_result = (state, time, size, n_expanded, max_depth)
-        first_child, lower = arrays.first_child, arrays.lower
-        first = int(first_child[0])
-        path, node = [], 0
-        while first_child[node] >= 0:
-            start = int(first_child[node])
-            a = int(np.argmax(lower[start:start + n_actions]))
-            path.append(a)
-            node = start + a
-        return Decision(
-            action=self.actions[path[0]],
-            action_index=path[0],
-            lower=float(lower[0]),
-            upper=float(arrays.upper[0]),
-            expansions=int(n_expanded),
-            depth=int(max_depth),
-            sequence=tuple(self.actions[a] for a in path),
-            sequence_indices=tuple(path),
-            action_lower=tuple(lower[first:first + n_actions].tolist()),
-            action_upper=tuple(arrays.upper[first:first + n_actions].tolist()),
-            nodes=int(size),
-            solved=bool(solved),
-        )
+    def _search_compiled(self, state) -> tuple[TreeArrays, bool, Any]:
+        """`_search_python` with the transitions computed by the compiled box kernel (`compiled_search`)."""
+        problem = self._compiled.compiled_problem(state, self.actions)
+        tree = self._tree_arrays()
+        boxes = self._boxes
+        if boxes is None or boxes.z.shape[0] != tree.parent.shape[0] or boxes.stack.shape[0] != problem.substeps:
+            boxes = allocate_boxes(tree.parent.shape[0], self.n_models, len(self.actions), problem.root.shape[1],
+                                   problem.substeps)
+        boxes = self._boxes = boxes._replace(root=problem.root, actions=problem.actions, time=int(problem.time))
+        kernel = search_kernel(type(problem.params))
+        status, bad = kernel(self.budget, tree, boxes, problem.kernel, problem.params, False)
+        while status == FULL:  # only for budgets beyond the first rows: grow, then resume where it stopped
+            capacity = self._grown_capacity(tree, tree.parent.shape[0] + len(self.actions))
+            tree = self._arrays = tree_ops.grow(tree, capacity, self._discount_table(capacity))
+            boxes = self._boxes = grow_boxes(boxes, capacity, int(tree.counts[tree_ops.SIZE]))
+            status, bad = kernel(self.budget, tree, boxes, problem.kernel, problem.params, True)
+        if bad >= 0:
+            self._raise_reward_error(tree, bad)
+        solved = status == SOLVED
+        return tree, bool(solved), functools.partial(self._node_states, tree, boxes, state)
 
-    def _materialise(self, root_state, time: int, size: int, n_expanded: int, max_depth: int) -> SearchTree:
-        """The `SearchTree` of the last compiled search, with the states the Python engine would hold."""
-        arrays = self._arrays
-        depth = arrays.depth[:size].tolist()
-        joint = self._compiled.node_states(arrays.z[:size].copy(), depth, time)
-        parent, terminal = arrays.parent[:size].tolist(), arrays.terminal
+    def _node_states(self, tree: TreeArrays, boxes: BoxArrays, root_state) -> list:
+        """``states[m][i]`` of a compiled search: the objects the Python engine would hold."""
+        size = int(tree.counts[tree_ops.SIZE])
+        depth = tree.depth[:size].tolist()
+        joint = self._compiled.node_states(boxes.z[:size].copy(), depth, boxes.time)
+        parent, terminal = tree.parent[:size].tolist(), tree.terminal
         states = []
         for m in range(self.n_models):
             # a terminated model keeps its terminal state on the rest of the branch
@@ -496,28 +521,7 @@ class RobustTreePlanner:
             for i in range(1, size):
                 column[i] = column[parent[i]] if terminal[parent[i], m] else joint[i]
             states.append(column)
-        return SearchTree.from_arrays(arrays, size, n_expanded, max_depth, self.gamma, 1 + self.budget * len(self.actions), states)
-
-    def _decision(self, tree: SearchTree, solved: bool) -> Decision:
-        n_actions = len(self.actions)
-        first = int(tree.first_child[0])
-        action_lower = tuple(float(v) for v in tree.lower[first:first + n_actions])
-        action_upper = tuple(float(v) for v in tree.upper[first:first + n_actions])
-        path = tree.best_path()
-        return Decision(
-            action=self.actions[path[0]],
-            action_index=path[0],
-            lower=float(tree.lower[0]),
-            upper=float(tree.upper[0]),
-            expansions=len(tree.expanded),
-            depth=int(tree.max_depth),
-            sequence=tuple(self.actions[a] for a in path),
-            sequence_indices=path,
-            action_lower=action_lower,
-            action_upper=action_upper,
-            nodes=int(tree.size),
-            solved=solved,
-        )
+        return states
 
 
 class OptimisticPlanner(RobustTreePlanner):

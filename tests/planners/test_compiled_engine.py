@@ -1,11 +1,13 @@
-"""The compiled search engine builds the Python engine's tree, bit for bit.
+"""The compiled engine's transitions are the models' transitions, bit for bit.
 
-Random systems (Metzler or not, random dt), open-loop and saturating feedback
-controllers, 1 to 3 linked hypotheses, 1 to 3 sub-steps, both reward families with
-static and moving obstacles placed where the boxes collide; ties forced by identical
-controllers. Also: the compiled box minima equal the families' numpy ``box_minimum_raw``
-bit for bit, a reward outside [0, 1] raises the same error on both engines, and the
-engine choice is validated.
+Both engines run the same tree operations (`minimaxplan.planners.tree_ops`); they
+differ in where a leaf's transitions come from: the compiled box kernel inside the
+search kernel, or the models' ``expand`` (and, with numpy rewards, the families'
+``box_minimum``). Random systems (Metzler or not, random dt), open-loop and saturating
+feedback controllers, 1 to 3 linked hypotheses, 1 to 3 sub-steps, both reward families
+with static and moving obstacles placed where the boxes collide. Also: the compiled
+box minima equal the families' numpy ``box_minimum_raw`` bit for bit, a reward outside
+[0, 1] raises the same error on both engines, and the engine choice is validated.
 """
 
 import numpy as np
@@ -16,7 +18,8 @@ from hypothesis import strategies as st
 from minimaxplan.models import Box, UncertainLinearSystem
 from minimaxplan.models.errors import InputError, RewardRangeError
 from minimaxplan.planners import OpenLoop, PointModel, RobustTreePlanner
-from minimaxplan.planners.box_kernels import sources_digest, stack_rewards_kernel
+from minimaxplan.kernels import box_primitives, minimum_sources, sources_digest
+from minimaxplan.planners.box_kernels import stack_rewards_kernel
 from minimaxplan.planners.interval_model import IntervalModel
 from minimaxplan.scenarios.geometry import CircularObstacles, MovingObstacles
 from minimaxplan.scenarios.rewards import GoalReward, SpeedLaneReward
@@ -67,10 +70,9 @@ def test_compiled_engine_builds_the_python_engines_tree(seed, n_models, substeps
     reward = random_reward(rng, kind, centre[:2])
     models = IntervalModel.linked(hypotheses, reward, random_controllers(rng, system), substeps=substeps)
     root = models[0].initial_state(centre - 0.05, centre + 0.05, time=int(rng.integers(0, 5)))
-    (fast, general), (fast_tree, general_tree), (tree, python_tree) = both_engines(models, root, gamma, budget)
+    (fast, general), (fast_tree, general_tree), _ = both_engines(models, root, gamma, budget)
     assert fast == general
     assert fast_tree == general_tree
-    assert tree.rank == python_tree.rank and sorted(tree._frontier) == sorted(python_tree._frontier)
 
 
 def test_compiled_engine_covers_collisions_and_terminated_models():
@@ -89,23 +91,6 @@ def test_compiled_engine_covers_collisions_and_terminated_models():
         terminal_trees += bool(terminal.any())
         partial += bool((terminal.any(axis=1) & ~terminal.all(axis=1)).any())
     assert terminal_trees >= 10 and partial >= 3, (terminal_trees, partial)
-
-
-@given(seeds, st.integers(1, 3), st.integers(1, 2))
-def test_ties_are_broken_by_action_path_on_both_engines(seed, n_models, substeps):
-    """Repeated controllers give children with equal b-values: the heap must fall back on the action path."""
-    rng = np.random.default_rng(seed)
-    system = random_system(rng, p=4)
-    hypotheses = [(system, None)] + [(random_system(rng, p=4, q=system.ninputs), None) for _ in range(n_models - 1)]
-    u = OpenLoop(rng.uniform(-1, 1, system.ninputs))
-    controllers = [u, OpenLoop(rng.uniform(-1, 1, system.ninputs)), u, u]
-    centre = rng.uniform(-3, 3, 4)
-    models = IntervalModel.linked(hypotheses, random_reward(rng, "goal", centre[:2]), controllers, substeps=substeps)
-    root = models[0].initial_state(centre - 0.05, centre + 0.05)
-    (fast, general), (fast_tree, general_tree), (tree, _) = both_engines(models, root, 0.8, 30)
-    assert fast == general and fast_tree == general_tree
-    first = tree.first_child[0]
-    assert tree.leaf_upper[first] == tree.leaf_upper[first + 2] == tree.leaf_upper[first + 3]
 
 
 class _NumpyReward:
@@ -197,15 +182,6 @@ def test_engine_validation():
     assert auto.engine_used == "compiled" and same == auto.plan(roots[0])
 
 
-def test_sources_digest_follows_file_contents(tmp_path):
-    source = tmp_path / "reward_module.py"
-    source.write_text("x = 1\n")
-    before = sources_digest(str(source))
-    assert sources_digest(str(source)) == before and 0 <= before < 2**63
-    source.write_text("x = 2\n")
-    assert sources_digest(str(source)) != before
-
-
 def test_a_pickled_planner_plans_alike_in_another_process_state():
     """Experiments ship planners to worker processes: the compiled engine's pieces must pickle."""
     import pickle
@@ -223,7 +199,7 @@ def test_a_pickled_planner_plans_alike_in_another_process_state():
 
 def test_compiled_kernels_are_keyed_by_the_sources_they_call():
     """numba's disk cache tracks only a function's own file: the kernels close over a digest of their callees'."""
-    from minimaxplan.planners import box_kernels, compiled_search
+    from minimaxplan.planners import box_kernels, compiled_search, tree_ops
     from minimaxplan.scenarios import compiled_rewards
 
     def closure_values(dispatcher):
@@ -232,8 +208,14 @@ def test_compiled_kernels_are_keyed_by_the_sources_they_call():
     for params_type in (compiled_rewards.GoalParams, compiled_rewards.SpeedLaneParams):
         rewards = stack_rewards_kernel(params_type)
         search = compiled_search.search_kernel(params_type)
-        assert sources_digest(box_kernels.__file__, compiled_rewards.__file__) in closure_values(rewards)
-        assert sources_digest(compiled_search.__file__, box_kernels.__file__, compiled_rewards.__file__) in closure_values(search)
+        assert compiled_rewards.__file__ in minimum_sources(params_type)
+        assert box_primitives.__file__ in minimum_sources(params_type)
+        assert sources_digest(box_kernels.__file__, *minimum_sources(params_type)) in closure_values(rewards)
+        search_sources = (compiled_search.__file__, tree_ops.__file__, box_kernels.__file__, *minimum_sources(params_type))
+        assert sources_digest(*search_sources) in closure_values(search)
+    # the box transition inlines the box primitives: its kernels close over their digest too
+    for kernel in (box_kernels.substep, box_kernels.propagate):
+        assert sources_digest(box_primitives.__file__) in closure_values(kernel)
 
 
 @given(seeds, st.integers(1, 3), st.sampled_from(REWARD_KINDS))
@@ -255,7 +237,8 @@ def test_compiled_bounds_are_monotone_and_trees_nest_as_the_budget_grows(seed, n
             old_decision, old_tree = previous
             assert decision.lower >= old_decision.lower and decision.upper <= old_decision.upper
             n = old_tree.size
-            assert tree.parent[:n] == old_tree.parent and tree.expanded[: len(old_tree.expanded)] == old_tree.expanded
+            assert np.array_equal(tree.parent[:n], old_tree.parent)
+            assert np.array_equal(tree.expanded[: len(old_tree.expanded)], old_tree.expanded)
             assert np.array_equal(tree.returns[:n], old_tree.returns[:n])
         previous = decision, tree
 
@@ -271,3 +254,27 @@ def test_kernel_params_without_a_registered_minimum_are_rejected():
 
     with pytest.raises(InputError, match="reward.kernel_params has type SomethingElse, for which no compiled box minimum"):
         IntervalModel(system, None, Unregistered(GoalReward([0.0, 0.0])), [OpenLoop(np.zeros(system.ninputs))])
+
+
+def test_budgets_beyond_the_first_arrays_grow_them_on_both_engines_without_allocating_by_the_budget():
+    """The compiled search stops when its arrays are full and resumes in grown ones: the same tree as the Python engine's."""
+    import tracemalloc
+
+    rng = np.random.default_rng(8)
+    system = random_system(rng, p=4)
+    models = IntervalModel.linked([(system, None)], GoalReward([40.0, 40.0]), [OpenLoop(np.zeros(system.ninputs))] * 2)
+    root = models[0].initial_state(np.full(4, -0.01), np.full(4, 0.01))
+    (fast, general), (fast_tree, general_tree), (tree, _) = both_engines(models, root, 0.99, 2500)
+    assert fast == general and fast_tree == general_tree and tree.size == 5001 > 4096
+    # a huge budget is not allocated up front: a search solved at once stays small
+    stuck = IntervalModel.linked([(system, None)], GoalReward([0.0, 0.0], obstacles=CircularObstacles([[0.0, 0.0]], [1.0])),
+                                 [OpenLoop(np.zeros(system.ninputs))] * 4)
+    planner = RobustTreePlanner(stuck, stuck[0].actions, gamma=0.9, budget=10**7, engine="compiled")
+    tracemalloc.start()
+    try:
+        decision = planner.plan(stuck[0].initial_state(np.full(4, -0.01), np.full(4, 0.01)))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert decision.solved and decision.expansions == 1 and planner.engine_used == "compiled"
+    assert peak < 20 * 2**20, peak

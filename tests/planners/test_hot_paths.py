@@ -1,11 +1,13 @@
 """The planner's fast paths give the same numbers as the general ones, bit for bit.
 
-- linked `IntervalModel`s: one joint transition per expansion vs the per-model protocol
-  (both on the Python engine);
+- linked `IntervalModel`s: one `BatchedTransitions.expand_all` per expansion vs each
+  model's own ``expand`` (both on the Python engine);
 - the rewards' bounding-box pre-check of static obstacles: a batch of boxes vs each box alone.
 
-The compiled engine against the Python engine: tests/planners/test_compiled_engine.py.
+The compiled transitions against the models': tests/planners/test_compiled_engine.py.
 """
+
+from unittest import mock
 
 import numpy as np
 from hypothesis import given
@@ -30,14 +32,30 @@ def random_goal_reward(rng, with_moving):
     return GoalReward(rng.uniform(-4, 4, 2), obstacles=obstacles, moving_obstacles=moving, robot_radius=float(rng.uniform(0, 0.4)))
 
 
+TREE_FIELDS = ("returns", "terminal", "parent", "action", "depth", "first_child", "lower", "upper", "leaf_lower",
+               "leaf_upper", "expanded", "any_terminated")
+
+
 def tree_arrays(planner):
+    """Every array of the planner's last tree and every model's state at every node, as bytes."""
     tree = planner.tree
-    n = tree.size
     return (
-        tree.returns[:n].tobytes(), tree.terminal[:n].tobytes(), tree.parent, tree.lower, tree.upper,
-        tree.leaf_lower, tree.leaf_upper, tree.expanded, tree.any_terminated,
+        [getattr(tree, name).tobytes() for name in TREE_FIELDS],
         [[np.asarray(state.z).tobytes() for state in states] for states in tree.states],
     )
+
+
+class OneModel:
+    """One model of a linked group seen through the per-model protocol only (``step``, ``expand``)."""
+
+    def __init__(self, model):
+        self.model = model
+
+    def step(self, state, action):
+        return self.model.step(state, action)
+
+    def expand(self, state, actions):
+        return self.model.expand(state, actions)
 
 
 @given(seeds, st.booleans(), st.integers(1, 3))
@@ -49,16 +67,17 @@ def test_linked_models_joint_path_equals_per_model_protocol(seed, with_moving, s
     reward = random_goal_reward(rng, with_moving)
     models = IntervalModel.linked(hypotheses, reward, controllers, substeps=substeps)
     planner = RobustTreePlanner(models, models[0].actions, gamma=0.85, budget=25, engine="python")
-    assert planner._joint is not None  # the fast path is taken
+    per_model = RobustTreePlanner([OneModel(m) for m in models], models[0].actions, gamma=0.85, budget=25)
     centre = rng.uniform(-3, 3, 4)
     root = models[0].initial_state(centre - 0.1, centre + 0.1, time=int(rng.integers(0, 5)))
-    fast = planner.plan(root)
-    fast_tree = tree_arrays(planner)
-    planner._joint = None  # the per-model protocol
-    general = planner.plan(root)
-    assert planner.engine_used == "python"
+    expand_all = models[0].group.expand_all
+    with mock.patch.object(models[0].group, "expand_all", side_effect=expand_all) as joint:
+        fast = planner.plan(root)
+    assert joint.call_count > 0  # the batched path is taken
+    general = per_model.plan(root)
+    assert planner.engine_used == per_model.engine_used == "python"
     assert fast == general
-    assert fast_tree == tree_arrays(planner)
+    assert tree_arrays(planner) == tree_arrays(per_model)
 
 
 @given(seeds, st.booleans(), st.floats(0.001, 2.0), st.integers(0, 20))

@@ -144,7 +144,7 @@ def test_tree_grows_by_prefix_and_bounds_are_monotone_in_the_budget(game, max_bu
         n = previous_tree.size
         assert tree.size >= n
         assert [tree.path(i) for i in range(n)] == [previous_tree.path(i) for i in range(n)]
-        assert tree.expanded[: len(previous_tree.expanded)] == previous_tree.expanded
+        assert np.array_equal(tree.expanded[: len(previous_tree.expanded)], previous_tree.expanded)
         for name in ("parent", "action", "depth", "returns", "terminal", "leaf_lower", "leaf_upper"):
             assert np.array_equal(getattr(tree, name)[:n], getattr(previous_tree, name)[:n]), name
         assert decision.lower >= previous.lower

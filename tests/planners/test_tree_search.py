@@ -4,7 +4,6 @@ batched vs one-by-one transitions, terminal handling, M = 1 reduction, validatio
 from __future__ import annotations
 
 import json
-from unittest import mock
 
 import numpy as np
 import pytest
@@ -13,7 +12,6 @@ from hypothesis import strategies as st
 
 from minimaxplan.models.errors import DimensionError, InputError, NonFiniteError, RewardRangeError
 from minimaxplan.planners import Decision, OptimisticPlanner, RobustTreePlanner
-from minimaxplan.planners import tree as tree_module
 
 
 class PathModel:
@@ -100,18 +98,10 @@ def best_leaf_by_enumeration(tree) -> int:
 
 
 @settings(max_examples=30)
-@given(problem=problems(), max_budget=st.integers(2, 25), rank_digits=st.sampled_from([1, 2, 64]))
-def test_heap_selection_equals_naive_descent(problem, max_budget, rank_digits):
-    # Few initial rank digits force the ranks to be widened (rescaled) during the search.
-    with mock.patch.object(tree_module, "_INITIAL_RANK_DIGITS", rank_digits):
-        check_heap_selection_equals_naive_descent(problem, max_budget)
-
-
-def check_heap_selection_equals_naive_descent(problem, max_budget):
+@given(problem=problems(), max_budget=st.integers(2, 25))
+def test_heap_selection_equals_naive_descent(problem, max_budget):
     for budget in range(1, max_budget):
         tree, decision, _ = run(problem, budget)
-        leaves = [i for i in range(tree.size) if tree.is_leaf(i)]
-        assert sorted(leaves, key=tree.rank.__getitem__) == sorted(leaves, key=tree.path)
         if decision.solved:
             # Stopped early: the root's bounds met, no further expansion.
             assert decision.lower == decision.upper and decision.expansions < budget
@@ -127,22 +117,19 @@ def check_heap_selection_equals_naive_descent(problem, max_budget):
         assert next_tree.expanded[budget] == descended
 
 
-@pytest.mark.parametrize("rank_digits", [1, 3, 64])
-def test_deep_tree_ties_follow_the_lexicographic_path(rank_digits):
+def test_deep_tree_ties_follow_the_lexicographic_path():
     # Both actions always pay 1 and gamma = 1/2, so every b-value is exactly
     # 2 = 1 / (1 - gamma) in binary floating point: all leaves tie, and the smallest
-    # path (all zeros) is expanded each time, deeper than the initial rank digits.
+    # path (all zeros) is expanded each time, down to depth 50.
     class Ones:
         def step(self, state, action):
             return state, 1.0
 
     budget = 50
-    with mock.patch.object(tree_module, "_INITIAL_RANK_DIGITS", rank_digits):
-        planner = OptimisticPlanner(Ones(), ["a", "b"], gamma=0.5, budget=budget)
-        decision = planner.plan(None)
+    planner = OptimisticPlanner(Ones(), ["a", "b"], gamma=0.5, budget=budget)
+    decision = planner.plan(None)
     tree = planner.tree
-    assert tree.leaf_upper == [2.0] * tree.size
-    assert tree.rank_digits >= budget
+    assert np.all(tree.leaf_upper == 2.0)
     assert decision.depth == budget and decision.sequence == ("a",) * budget
     assert [tree.path(i) for i in tree.expanded] == [(0,) * k for k in range(budget)]
     assert decision.lower == 2.0 - 2.0 ** (1 - budget) and decision.upper == 2.0
@@ -153,7 +140,7 @@ def test_expand_protocol_and_step_build_identical_trees(problem, budget):
     tree, decision, _ = run(problem, budget, PathModel)
     batched_tree, batched_decision, batched_models = run(problem, budget, BatchedPathModel)
     assert decision.to_dict() == batched_decision.to_dict()
-    assert tree.size == batched_tree.size and tree.rank == batched_tree.rank
+    assert tree.size == batched_tree.size
     for name in ("parent", "action", "depth", "first_child", "returns", "terminal",
                  "leaf_lower", "leaf_upper", "lower", "upper"):
         assert np.array_equal(getattr(tree, name)[: tree.size], getattr(batched_tree, name)[: tree.size]), name
@@ -171,7 +158,8 @@ def test_identical_models_reduce_to_optimistic_planning(problem, copies, budget)
                                range(n_actions), gamma=gamma, budget=budget)
     opd = OptimisticPlanner(PathModel(seeds[0], horizon, p_terminal), range(n_actions), gamma=gamma, budget=budget)
     assert robust.plan(()).to_dict() == opd.plan(()).to_dict()
-    assert robust.tree.rank == opd.tree.rank and robust.tree.parent == opd.tree.parent
+    assert np.array_equal(robust.tree.parent, opd.tree.parent)
+    assert np.array_equal(robust.tree.expanded, opd.tree.expanded)
 
 
 @given(problem=problems(), budget=st.integers(1, 40))
@@ -222,7 +210,7 @@ def test_terminated_model_is_never_stepped_and_adds_no_tail():
     tree = planner.tree
     assert crash.calls == [0, 0]  # only the root's two children
     # The crashed model adds no tail: every leaf's b-value is min(1, ...) = 1.
-    assert tree.leaf_upper[1:] == [1.0] * (tree.size - 1)
+    assert np.all(tree.leaf_upper[1:] == 1.0)
     # Halves collects 0.5 (1 + 0.9 + 0.81) = 1.355 >= 1 after three steps, so the
     # robust value 1 is known after three expansions (down the "left" branch).
     assert decision.lower == decision.upper == 1.0
@@ -403,3 +391,22 @@ def test_step_with_non_boolean_terminal():
 def test_expand_protocol_violations(outcome, error, text):
     with pytest.raises(error, match=text):
         RobustTreePlanner([FixedBatch(outcome)], ["a", "b"], gamma=0.9, budget=1).plan(0)
+
+
+@pytest.mark.parametrize("name, value", [("budget", 7), ("gamma", 0.5), ("models", (good,)), ("actions", (0,)),
+                                         ("seed", 1), ("engine", "python")])
+def test_planner_settings_are_read_only(name, value):
+    planner = RobustTreePlanner([good], [0, 1], gamma=0.9, budget=3)
+    before = getattr(planner, name)
+    with pytest.raises(AttributeError):
+        setattr(planner, name, value)
+    assert getattr(planner, name) == before
+
+
+def test_an_absurd_budget_is_rejected_naming_the_argument():
+    with pytest.raises(InputError, match=r"budget must be at most 1073741823 with 2 actions .* got 1000000000000"):
+        RobustTreePlanner([good], [0, 1], gamma=0.9, budget=10**12)
+    # the largest accepted budget builds its tree lazily: a search that is solved at once allocates little
+    ones = OptimisticPlanner(Fixed((0, 1.0, True)), [0, 1], gamma=0.9, budget=(2**31 - 2) // 2)
+    decision = ones.plan(0)
+    assert decision.solved and decision.expansions == 1 and decision.lower == decision.upper == 1.0
