@@ -16,7 +16,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 
 from .errors import DimensionError, EmptySetError, SolverFailure
-from .sets import Box, Ellipsoid, Membership, ParameterSet, hypercube_signs
+from .sets import Box, Ellipsoid, Membership, ParameterSet, _centered_support, _parallelotope
 from .validation import as_finite_array, as_points, check_dimension, check_instance, frozen_copy
 
 __all__ = [
@@ -27,7 +27,6 @@ __all__ = [
     "parallelotope_halfspaces",
     "polytope_vertices",
     "intersect_boxes",
-    "dilated_parallelotope_vertices",
     "ellipsoid_in_box_vertices",
     "HULL_MEMBERSHIP_TOLERANCE",
 ]
@@ -54,29 +53,14 @@ def box_halfspaces(box: Box) -> tuple[np.ndarray, np.ndarray]:
     return np.vstack([eye, -eye]), np.concatenate([box.high, -box.low])
 
 
-def _support(ellipsoid: Ellipsoid, directions: np.ndarray) -> np.ndarray:
-    """``radius sqrt(p^T G^-1 p)`` for each column p, grown by ``1e-12 + 16 d eps cond(G)`` for rounding."""
-    eps = np.finfo(float).eps
-    support = ellipsoid.radius * np.sqrt(np.einsum("ji,ji->i", directions, np.linalg.solve(ellipsoid.gramian, directions)))
-    return support * (1.0 + 1e-12 + 16 * ellipsoid.dim * eps * np.linalg.cond(ellipsoid.gramian))
-
-
 def _bounding_box(ellipsoid: Ellipsoid) -> Box:
-    """The ellipsoid's bounding box, from its support along the axes (rounding-safe)."""
-    half_width = _support(ellipsoid, np.eye(ellipsoid.dim))
-    return Box(ellipsoid.center - half_width, ellipsoid.center + half_width)
+    """The ellipsoid's bounding box from its support along the axes, without the final ulp.
 
-
-def _parallelotope(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
-    """Axes P (columns) and half-widths h of the enclosing parallelotope ``|P^T (t - c)| <= h``.
-
-    The half-widths are the ellipsoid's support ``radius sqrt(p_i^T G^-1 p_i)`` along the
-    computed axes (equal to ``radius / sqrt(l_i)`` for exact eigenvectors, and correct for
-    any direction, so rounding in the eigenvectors cannot cut the ellipsoid), grown by a
-    relative ``1e-12 + 16 d eps cond(G)`` for the rounding of that solve.
+    `ellipsoid_in_box_vertices` dilates its result by `VERTEX_ERROR`, which absorbs the
+    rounding of ``c +- half_width``; `Ellipsoid.bounding_box` rounds that outward instead.
     """
-    _, axes = ellipsoid.semi_axes()
-    return axes, _support(ellipsoid, axes)
+    half_width = _centered_support(ellipsoid, np.eye(ellipsoid.dim))
+    return Box(ellipsoid.center - half_width, ellipsoid.center + half_width)
 
 
 def parallelotope_halfspaces(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
@@ -164,19 +148,6 @@ def _drop_near_duplicates(points: np.ndarray, tol: float) -> np.ndarray:
         if not any(np.max(np.abs(point - other)) <= tol for other in kept):
             kept.append(point)
     return np.array(kept)
-
-
-def dilated_parallelotope_vertices(ellipsoid: Ellipsoid) -> np.ndarray:
-    """The parallelotope's 2^d vertices ``c + P diag(h) s`` (as `Ellipsoid.vertices`), rounding-safe.
-
-    The half-widths come from `_parallelotope`; the vertices are then dilated about c
-    by their own rounding error, ``4 (d + 1) eps (|c| + sum h)``, over the smallest
-    half-width (the parallelotope's inradius, P being orthonormal).
-    """
-    axes, support = _parallelotope(ellipsoid)
-    vertices = ellipsoid.center + (hypercube_signs(ellipsoid.dim) * support) @ axes.T
-    vertex_error = 4 * (ellipsoid.dim + 1) * np.finfo(float).eps * (np.max(np.abs(ellipsoid.center)) + np.sum(support))
-    return ellipsoid.center + (1.0 + vertex_error / np.min(support)) * (vertices - ellipsoid.center)
 
 
 def intersect_boxes(box: Box, prior: Box, what: str) -> Box:

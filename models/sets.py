@@ -103,6 +103,37 @@ def hypercube_signs(dim: int) -> np.ndarray:
     return np.array(list(itertools.product((-1.0, 1.0), repeat=dim))).reshape(2**dim, dim)
 
 
+#: Relative growth of an ellipsoid's computed support (`Ellipsoid.bounding_box`,
+#: `Ellipsoid.vertices`), on top of ``SUPPORT_ROUNDING * d eps cond(G)``.
+SUPPORT_MARGIN = 1e-12
+
+#: Factor of ``d eps cond(G)`` in the relative growth of an ellipsoid's computed support:
+#: solving with G perturbs ``p^T G^-1 p`` by a relative O(d eps cond(G)) (first order).
+SUPPORT_ROUNDING = 16
+
+
+def _centered_support(ellipsoid: Ellipsoid, directions: np.ndarray) -> np.ndarray:
+    """``radius sqrt(p^T G^-1 p)`` for each column p, grown by the rounding margin.
+
+    The margin is ``SUPPORT_MARGIN + SUPPORT_ROUNDING * d eps cond(G)`` (relative).
+    """
+    eps = np.finfo(float).eps
+    support = ellipsoid.radius * np.sqrt(np.einsum("ji,ji->i", directions, np.linalg.solve(ellipsoid.gramian, directions)))
+    return support * (1.0 + SUPPORT_MARGIN + SUPPORT_ROUNDING * ellipsoid.dim * eps * np.linalg.cond(ellipsoid.gramian))
+
+
+def _parallelotope(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
+    """Axes P (columns) and half-widths h of the enclosing parallelotope ``|P^T (t - c)| <= h``.
+
+    The half-widths are the ellipsoid's support ``radius sqrt(p_i^T G^-1 p_i)`` along the
+    computed axes (equal to ``radius / sqrt(l_i)`` for exact eigenvectors, and correct for
+    any direction, so rounding in the eigenvectors cannot cut the ellipsoid), grown by the
+    margin of `_centered_support`.
+    """
+    _, axes = ellipsoid.semi_axes()
+    return axes, _centered_support(ellipsoid, axes)
+
+
 @dataclass(frozen=True, eq=False)
 class Box:
     """The axis-aligned box ``{x : low <= x <= high}`` (an interval vector).
@@ -281,41 +312,81 @@ class Ellipsoid:
         return Membership(False, k, "(t - c)^T G (t - c) <= radius^2 (1 + tol)", float(q[k] - limit))
 
     def semi_axes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lengths ``radius / sqrt(l_i)`` and directions (columns of P), with G = P diag(l) P^T."""
+        """The principal semi-axes: lengths and directions.
+
+        Returns
+        -------
+        lengths : numpy.ndarray
+            Shape (d,): ``radius / sqrt(l_i)``, ascending eigenvalues ``l_i`` of G.
+        axes : numpy.ndarray
+            Shape (d, d): the unit directions, as columns of P, with ``G = P diag(l) P^T``.
+        """
         eigenvalues, eigenvectors = self._eig
         return self.radius / np.sqrt(eigenvalues), eigenvectors
 
     def bounding_box(self) -> Box:
-        """The tightest enclosing box: ``c_i +- radius * sqrt((G^-1)_ii)``."""
-        eigenvalues, eigenvectors = self._eig
-        half_width = self.radius * np.sqrt(np.einsum("ij,j,ij->i", eigenvectors, 1 / eigenvalues, eigenvectors))
-        return Box(self.center - half_width, self.center + half_width)
+        """An enclosing box, rounded outward: ``c_i +- radius * sqrt((G^-1)_ii)`` and a margin.
+
+        Returns
+        -------
+        Box
+            Contains every point of the ellipsoid, also in floating point: a point
+            that satisfies ``(t - c)^T G (t - c) <= radius^2`` exactly (in real
+            arithmetic) lies in the box.
+
+        Notes
+        -----
+        The exact tightest box has half-widths ``radius sqrt((G^-1)_ii)``. They are
+        computed as the ellipsoid's support along the coordinate axes, grown by the
+        relative margin ``SUPPORT_MARGIN + SUPPORT_ROUNDING * d eps cond(G)`` (the
+        first-order error of solving with G), and ``c -+ half_width`` is then moved one
+        ulp outward, since rounding ``c + half_width`` to nearest may land inside by half
+        an ulp of ``|c|``. The interval predictor's enclosures use the same margins
+        (`~minimaxplan.models.polytope.parameter_vertices`).
+        """
+        half_width = _centered_support(self, np.eye(self.dim))
+        return Box(np.nextafter(self.center - half_width, -np.inf), np.nextafter(self.center + half_width, np.inf))
 
     def vertices(self) -> np.ndarray:
-        """The 2^d vertices of the enclosing parallelotope aligned with the principal axes.
+        """The 2^d vertices of the enclosing parallelotope aligned with the principal axes, rounding-safe.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (2^d, d), one vertex per sign vector of `hypercube_signs`. Their
+            convex hull contains every point of the ellipsoid, also in floating point:
+            a point that satisfies the defining inequality exactly lies in the hull.
 
         Notes
         -----
         With ``G = P diag(l) P^T`` the vertices are ``c + radius * P diag(l)^(-1/2) h``
         for h in {-1, 1}^d (DESIGN errata: the reference code uses ``P^-1`` and one copy
-        scales by ``sqrt(radius)``). Their convex hull contains the whole ellipsoid.
+        scales by ``sqrt(radius)``). The half-widths ``radius / sqrt(l_i)`` are computed
+        as the ellipsoid's support along the computed axes (correct for any direction,
+        so rounding in the eigenvectors cannot cut the ellipsoid), grown by the relative
+        margin ``SUPPORT_MARGIN + SUPPORT_ROUNDING * d eps cond(G)``; the vertices are then
+        dilated about c by their own rounding error, ``4 (d + 1) eps (max |c| + sum h)``,
+        over the smallest half-width (the parallelotope's inradius, P being orthonormal).
+        These are the vertices that the interval predictor uses for an ellipsoid (eq. (8)).
         """
-        lengths, axes = self.semi_axes()
-        return self.center + (hypercube_signs(self.dim) * lengths) @ axes.T
+        axes, support = _parallelotope(self)
+        vertices = self.center + (hypercube_signs(self.dim) * support) @ axes.T
+        vertex_error = 4 * (self.dim + 1) * np.finfo(float).eps * (np.max(np.abs(self.center)) + np.sum(support))
+        return self.center + (1.0 + vertex_error / np.min(support)) * (vertices - self.center)
 
     def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
         """Vertices of a polytope that contains the ellipsoid (∩ ``prior`` when given), rounding-safe.
 
-        Without a prior: the 2^d vertices of the enclosing parallelotope (as `vertices`),
+        Without a prior: `vertices`, the 2^d vertices of the enclosing parallelotope,
         grown by rounding-level margins so that their hull contains the ellipsoid in
         floating point too. With a prior: the vertices of parallelotope ∩ bounding box ∩
         prior (clipping the vertices to the prior would NOT be sound; DESIGN errata).
         See `~minimaxplan.models.polytope.parameter_vertices`, Notes.
         """
-        from .polytope import dilated_parallelotope_vertices, ellipsoid_in_box_vertices
+        from .polytope import ellipsoid_in_box_vertices
 
         if prior is None:
-            return dilated_parallelotope_vertices(self)
+            return self.vertices()
         check_dimension("prior", prior.dim, self.dim, "the ellipsoid's")
         return ellipsoid_in_box_vertices(self, prior)
 
