@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import KW_ONLY, dataclass
+from typing import Any, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import InputError
 from .sets import Box
 from .validation import (
+    as_choice,
     as_finite_array,
     as_points,
     as_positive_scalar,
@@ -132,27 +135,103 @@ class UncertainLinearSystem:
         return cls(np.eye(p) + dt * A, dt * phi, dt * B, D=dt * Dm, w=w, theta=theta)
 
     @classmethod
-    def from_statespace(cls, sys, phi, *, D=None, w: Box, theta: Box, dt: float | None = None) -> UncertainLinearSystem:
-        """Build from a python-control ``StateSpace``.
+    def from_statespace(
+        cls,
+        sys: Any,
+        phi: ArrayLike,
+        *,
+        D: ArrayLike | None = None,
+        w: Box,
+        theta: Box,
+        dt: float | None = None,
+        phi_time: Literal["continuous", "discrete"] | None = None,
+    ) -> UncertainLinearSystem:
+        """Build from a python-control ``StateSpace``, stating the time base of ``phi``.
 
-        Its ``A`` is the nominal matrix and its ``B`` the input matrix. Its ``D`` (the
-        feedthrough) and ``C`` are ignored: our ``D`` is the disturbance input matrix. A
-        continuous-time ``sys`` needs ``dt`` (forward Euler, see `from_continuous`); a
-        discrete-time one uses its own sampling time and must not be given another (with
-        ``sys.dt = True``, unspecified sampling time, any ``dt`` is accepted). A ``sys``
-        with unspecified timebase (``dt=None``) is refused: it could be either.
+        Parameters
+        ----------
+        sys : control.StateSpace
+            Its ``A`` is the nominal matrix and its ``B`` the input matrix; its ``C`` and
+            its ``D`` (python-control's feedthrough) are ignored. Continuous-time
+            (``sys.dt == 0``) or discrete-time (``sys.dt > 0``, or ``True`` for an
+            unspecified sampling time); the unspecified timebase ``sys.dt = None`` is
+            refused, since it could be either.
+        phi : array_like
+            Structure matrices, shape (d, p, p), in the time base named by ``phi_time``.
+        D : array_like, optional
+            OUR disturbance input matrix, shape (p, r), in the same time base as ``sys``
+            (unrelated to python-control's feedthrough ``sys.D``); defaults to the identity.
+        w : Box
+            Box of admissible disturbances, dimension r (Assumption 2).
+        theta : Box
+            Prior parameter box, dimension d (Assumption 1).
+        dt : float, optional
+            Time step in seconds, > 0. Required for a continuous-time ``sys`` (forward
+            Euler, see `from_continuous`); for a discrete-time one it may only repeat
+            ``sys.dt`` (any value when ``sys.dt`` is True).
+        phi_time : {"continuous", "discrete"}, optional
+            The time base of ``phi``. Required when ``sys`` is discrete-time, where only
+            ``"discrete"`` is accepted: ``A(theta) = sys.A + sum_i theta_i phi_i``. For a
+            continuous-time ``sys``, None or ``"continuous"``.
+
+        Returns
+        -------
+        UncertainLinearSystem
+            The discrete-time model.
+
+        Raises
+        ------
+        InputError
+            If ``sys`` is not a StateSpace or has the unspecified timebase, if ``dt`` is
+            missing for a continuous ``sys`` or contradicts a discrete one, if
+            ``phi_time`` is missing for a discrete ``sys``, not one of the choices, or
+            names a time base that ``sys`` does not have.
+
+        Notes
+        -----
+        A continuous-time ``phi`` is never added to a discrete-time ``sys.A``: that sum
+        (the old silent behaviour) mixes a rate with a one-step matrix. Nor is such a
+        ``phi`` discretised here, because that is consistent only with the method that
+        made ``sys.A`` (e.g. forward Euler gives ``dt phi``; zero-order hold
+        ``expm(dt A(theta))`` is not affine in theta at all), which a StateSpace does
+        not record. Give the continuous-time StateSpace with ``dt=`` instead (forward
+        Euler for ``A``, ``B``, ``D`` and ``phi`` together, as the simulated worlds
+        step), or discretise ``phi`` consistently with ``sys`` and pass
+        ``phi_time="discrete"``. Likewise a discrete-time ``phi`` with a continuous
+        ``sys`` is refused.
         """
         for attr in ("A", "B", "dt"):
             if not hasattr(sys, attr):
                 raise InputError(f"sys must be a python-control StateSpace, got {type(sys).__name__}")
+        phi_time = as_choice("phi_time", phi_time, ("continuous", "discrete", None))
         sys_dt = sys.dt
         if sys_dt is None:  # python-control's "unspecified timebase": continuous and discrete at once
             raise InputError("sys has an unspecified timebase (dt=None): build it with dt=0 (continuous) or its sampling time")
         is_continuous = sys_dt is not True and float(sys_dt) == 0.0
         if is_continuous:
+            if phi_time == "discrete":
+                raise InputError(
+                    "phi_time='discrete' but sys is continuous-time: give phi in continuous time "
+                    "(phi_time='continuous'; forward Euler discretises A, B, D and phi together), "
+                    "or a discrete-time sys"
+                )
             if dt is None:
                 raise InputError("sys is continuous-time: give dt= to discretise it")
             return cls.from_continuous(np.asarray(sys.A), phi, np.asarray(sys.B), D=D, w=w, theta=theta, dt=dt)
+        if phi_time is None:
+            raise InputError(
+                f"phi_time is required when sys is discrete-time (dt={sys_dt}): pass phi_time='discrete' "
+                "if phi is in sys's time base (A(theta) = sys.A + sum_i theta_i phi_i)"
+            )
+        if phi_time == "continuous":
+            raise InputError(
+                f"phi_time='continuous' with a discrete-time sys (dt={sys_dt}): a continuous-time phi cannot be "
+                "added to sys.A, and discretising it consistently needs the method that made sys.A; "
+                "give the continuous-time StateSpace with dt= (forward Euler for A, B, D and phi together), "
+                "or discretise phi like sys and pass phi_time='discrete'"
+            )
+        if dt is not None:
+            dt = as_positive_scalar("dt", dt)
         if dt is not None and sys_dt is not True and not np.isclose(float(sys_dt), dt):
             raise InputError(f"sys is discrete-time with dt={sys_dt}; dt={dt} contradicts it")
         return cls(np.asarray(sys.A), phi, np.asarray(sys.B), D=D, w=w, theta=theta)
