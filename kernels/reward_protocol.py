@@ -325,5 +325,6 @@ def box_minima(params: Any, lower: np.ndarray, upper: np.ndarray, t: Any = 0) ->
     collided = np.empty(n, dtype=bool)
     if n:
         flat_times = np.ascontiguousarray(np.broadcast_to(times, lead)).reshape(n)
-        box_minima_kernel(type(params))(params, z.reshape(n, 2 * p), flat_times, reward, collided)
+        params_type: type = type(params)  # mypy infers type[Any], which it does not treat as Hashable
+        box_minima_kernel(params_type)(params, z.reshape(n, 2 * p), flat_times, reward, collided)
     return reward.reshape(lead), collided.reshape(lead)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import KW_ONLY, dataclass
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -24,53 +24,69 @@ from .validation import (
 __all__ = ["UncertainLinearSystem"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class UncertainLinearSystem:
     """The discrete-time plant ``x+ = A(theta) x + B u + D w``.
 
     Parameters
     ----------
-    A0
+    A0 : array_like
         Nominal state matrix, shape (p, p).
-    phi
+    phi : array_like
         Structure matrices, shape (d, p, p): ``A(theta) = A0 + sum_i theta[i] phi[i]``
         (eq. (2), Assumption 1).
-    B
-        Input matrix, shape (p, q).
-    D
-        Disturbance input matrix, shape (p, r); defaults to the identity (r = p).
-    w
+    B : array_like
+        Input matrix, shape (p, q); a vector of shape (p,) is one input column.
+    D : array_like, optional
+        Disturbance input matrix, shape (p, r); defaults to the identity (r = p). Not a
+        feedthrough.
+    w : Box
         Box of admissible disturbances, dimension r (Assumption 2).
-    theta
+    theta : Box
         Prior parameter box, dimension d: the set D of Assumption 1.
+
+    Raises
+    ------
+    DimensionError
+        If a matrix or box has the wrong shape or dimension (the message names both).
+    NonFiniteError
+        If a matrix contains NaN or inf.
+    InputError
+        If ``w`` or ``theta`` is not a `Box`.
+
+    Notes
+    -----
+    An immutable value: the matrices are stored as read-only float64 copies, and ``D``
+    is always an array (the identity when not given).
     """
 
     A0: np.ndarray
     phi: np.ndarray
     B: np.ndarray
-    _: KW_ONLY
-    D: np.ndarray | None = None
+    D: np.ndarray
     w: Box
     theta: Box
 
-    def __post_init__(self) -> None:
-        A0 = as_finite_array("A0", self.A0, ndim=2)
-        p = A0.shape[0]
-        check_shape("A0", A0, (p, p))
-        phi = as_finite_array("phi", self.phi, ndim=3)
-        check_shape("phi", phi, (None, p, p))
-        B = as_finite_array("B", self.B)
-        if B.ndim == 1:
-            B = B.reshape(p, 1) if B.shape == (p,) else B
-        check_shape("B", B, (p, None))
-        D = np.eye(p) if self.D is None else as_finite_array("D", self.D, ndim=2)
-        check_shape("D", D, (p, None))
-        check_instance("w", self.w, Box)
-        check_instance("theta", self.theta, Box)
-        check_dimension("w", self.w.dim, D.shape[1], f"columns of D, shape {D.shape}")
-        check_dimension("theta", self.theta.dim, phi.shape[0], f"phi has shape {phi.shape}")
-        for name, value in (("A0", A0), ("phi", phi), ("B", B), ("D", D)):
+    def __init__(self, A0: ArrayLike, phi: ArrayLike, B: ArrayLike, *, D: ArrayLike | None = None, w: Box, theta: Box) -> None:
+        A0_ = as_finite_array("A0", A0, ndim=2)
+        p = A0_.shape[0]
+        check_shape("A0", A0_, (p, p))
+        phi_ = as_finite_array("phi", phi, ndim=3)
+        check_shape("phi", phi_, (None, p, p))
+        B_ = as_finite_array("B", B)
+        if B_.ndim == 1:
+            B_ = B_.reshape(p, 1) if B_.shape == (p,) else B_
+        check_shape("B", B_, (p, None))
+        D_ = np.eye(p) if D is None else as_finite_array("D", D, ndim=2)
+        check_shape("D", D_, (p, None))
+        check_instance("w", w, Box)
+        check_instance("theta", theta, Box)
+        check_dimension("w", w.dim, D_.shape[1], f"columns of D, shape {D_.shape}")
+        check_dimension("theta", theta.dim, phi_.shape[0], f"phi has shape {phi_.shape}")
+        for name, value in (("A0", A0_), ("phi", phi_), ("B", B_), ("D", D_)):
             object.__setattr__(self, name, frozen_copy(value))
+        object.__setattr__(self, "w", w)
+        object.__setattr__(self, "theta", theta)
 
     # ----------------------------------------------------------------- sizes
     @property
