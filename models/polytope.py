@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 
@@ -190,9 +191,16 @@ class VertexPolytope:
 
     Parameters
     ----------
-    vertices
-        Array of shape (k, d), k, d >= 1; stored as a read-only copy and taken as is
-        (rows need not be extreme points).
+    vertices : array_like
+        Array of shape (k, d), k, d >= 1, finite; stored as a read-only copy and taken
+        as is (rows need not be extreme points).
+
+    Raises
+    ------
+    DimensionError
+        If ``vertices`` is not of shape (k, d) with k, d >= 1.
+    NonFiniteError
+        If a coordinate is NaN or inf.
 
     Notes
     -----
@@ -220,27 +228,66 @@ class VertexPolytope:
         return self.vertices.shape[0]
 
     def bounding_box(self) -> Box:
-        """The tightest enclosing box: the vertices' coordinate-wise minima and maxima."""
+        """The tightest enclosing box: the vertices' coordinate-wise minima and maxima (exact).
+
+        Returns
+        -------
+        Box
+        """
         return Box(self.vertices.min(axis=0), self.vertices.max(axis=0))
 
     def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
         """The vertices themselves, or those of a sound enclosure of ``co{V} ∩ prior``.
 
-        With a prior: unchanged if every vertex lies in the prior; otherwise the exact
-        vertices of co{V} ∩ bounding box ∩ prior (the box when co{V} is flat).
+        Parameters
+        ----------
+        prior : Box or None
+            The prior parameter box (the set D of Assumption 1), dimension d.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (k', d). Without a prior, or when every vertex lies in the prior: the
+            vertices as given. Otherwise the vertices of co{V} ∩ bounding box ∩ prior
+            (qhull's, dilated outward by `VERTEX_ERROR`; the box when co{V} is flat).
+
+        Raises
+        ------
+        DimensionError
+            If ``prior`` has another dimension.
+        EmptySetError
+            If the hull does not meet ``prior``.
         """
         if prior is None:
             return self.vertices
         check_dimension("prior", prior.dim, self.dim, f"the polytope's vertices have shape {self.vertices.shape}")
         return _array_in_box_vertices(self.vertices, prior)
 
-    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
-        """True iff every point of ``x`` ((d,) or (k, d)) lies in the convex hull, within ``tol``.
+    def contains(self, x: ArrayLike, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """True iff every point of ``x`` lies in the convex hull, within ``tol``.
 
-        A point counts as inside when its infinity-norm distance to the hull (an LP,
-        HiGHS) is at most ``tol + HULL_MEMBERSHIP_TOLERANCE * (1 + max |coordinate|)``.
-        With ``witness=True``, a `Membership` naming the first point outside and that
-        distance beyond the allowance.
+        Parameters
+        ----------
+        x : array_like
+            One point, shape (d,), or k points, shape (k, d).
+        tol : float
+            Absolute slack, in the coordinates' units: a point counts as inside when its
+            infinity-norm distance to the hull (an LP, HiGHS) is at most
+            ``tol + HULL_MEMBERSHIP_TOLERANCE * (1 + max |coordinate|)``.
+        witness : bool
+            Return a `Membership` naming the first point outside and its distance beyond
+            that allowance.
+
+        Returns
+        -------
+        bool or Membership
+
+        Raises
+        ------
+        DimensionError
+            If ``x`` is not of shape (d,) or (k, d).
+        SolverFailure
+            If the distance LP does not solve.
         """
         pts = as_points("x", x, self.dim)
         for index, point in enumerate(np.atleast_2d(pts)):
@@ -268,15 +315,32 @@ class VertexPolytope:
         return float(result.x[-1])
 
     def to_dict(self) -> dict:
-        """``{"vertices": [[...], ...]}``."""
+        """The polytope as plain data.
+
+        Returns
+        -------
+        dict
+            ``{"vertices": [[...], ...]}``.
+        """
         return {"vertices": self.vertices.tolist()}
 
     def __repr__(self) -> str:
         return f"VertexPolytope(nvertices={self.nvertices}, dim={self.dim})"
 
 
-def as_parameter_set(parameters) -> ParameterSet:
+def as_parameter_set(parameters: ParameterSet | ArrayLike) -> ParameterSet:
     """``parameters`` as a `ParameterSet`: a set is returned as is, an array (k, d) of vertices is wrapped.
+
+    Parameters
+    ----------
+    parameters : ParameterSet or array_like
+        A `Box`, `Ellipsoid`, `VertexPolytope` (any `ParameterSet`), or the vertices
+        of a polytope, shape (k, d).
+
+    Returns
+    -------
+    ParameterSet
+        The set itself, or a `VertexPolytope` of the vertices.
 
     Raises
     ------
@@ -291,16 +355,16 @@ def as_parameter_set(parameters) -> ParameterSet:
     return VertexPolytope(vertices)
 
 
-def parameter_vertices(parameters, prior: Box | None = None) -> np.ndarray:
+def parameter_vertices(parameters: ParameterSet | ArrayLike, prior: Box | None = None) -> np.ndarray:
     """Vertices of a polytope that contains a parameter set (eq. (8)).
 
     Parameters
     ----------
-    parameters
+    parameters : ParameterSet or array_like
         A `ParameterSet` (`Box`, `Ellipsoid`, `VertexPolytope`), or an array of shape
         (k, d) whose rows are the vertices of a polytope (any k >= 1; taken as is,
         wrapped in a `VertexPolytope`).
-    prior
+    prior : Box or None
         Optional prior `Box` (the set D of Assumption 1); the result then contains
         ``parameters ∩ prior``.
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import DimensionError, EmptySetError, InputError
 from .validation import (
@@ -79,27 +80,78 @@ class ParameterSet(Protocol):
         """The dimension d of the parameter space."""
         ...
 
-    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
-        """Whether every point of ``x`` ((d,) or (k, d)) lies in the set; a `Membership` with ``witness=True``."""
+    def contains(self, x: ArrayLike, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """Whether every point of ``x`` lies in the set.
+
+        Parameters
+        ----------
+        x : array_like
+            One point, shape (d,), or k points, shape (k, d).
+        tol : float
+            Slack, >= 0, in the units that the implementation documents (absolute for
+            `Box`, relative on the quadratic form for `Ellipsoid`).
+        witness : bool
+            Return a `Membership` naming the first violation instead of a bool.
+
+        Returns
+        -------
+        bool or Membership
+        """
         ...
 
     def bounding_box(self) -> Box:
-        """A box that contains the set."""
+        """A box that contains the set.
+
+        Returns
+        -------
+        Box
+        """
         ...
 
     def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
-        """Vertices (k, d) of a polytope containing the set (intersected with ``prior`` if given)."""
+        """Vertices of a polytope containing the set (intersected with ``prior`` if given).
+
+        Parameters
+        ----------
+        prior : Box or None
+            The prior parameter box (the set D of Assumption 1), dimension d.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (k, d): the convex hull of the rows contains the set (∩ ``prior``);
+            eq. (8) needs the parameters in this form.
+
+        Raises
+        ------
+        EmptySetError
+            If the enclosure does not meet ``prior``.
+        """
         ...
 
     def to_dict(self) -> dict:
-        """The set as plain data."""
+        """The set as plain data (lists and floats, JSON-serialisable).
+
+        Returns
+        -------
+        dict
+        """
         ...
 
 
-
-
 def hypercube_signs(dim: int) -> np.ndarray:
-    """The 2^dim sign vectors of {-1, 1}^dim, one per row, in lexicographic order."""
+    """The 2^dim sign vectors of {-1, 1}^dim, one per row, in lexicographic order.
+
+    Parameters
+    ----------
+    dim : int
+        The dimension, >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (2^dim, dim), float, -1 before 1 in each column (the last varies fastest).
+    """
     return np.array(list(itertools.product((-1.0, 1.0), repeat=dim))).reshape(2**dim, dim)
 
 
@@ -140,9 +192,18 @@ class Box:
 
     Parameters
     ----------
-    low, high
-        Arrays of shape (n,). Every ``low[i] <= high[i]``; degenerate sides
-        (``low[i] == high[i]``) are allowed.
+    low, high : array_like
+        Arrays of shape (n,), n >= 1, finite. Every ``low[i] <= high[i]``; degenerate
+        sides (``low[i] == high[i]``) are allowed. Stored as read-only copies.
+
+    Raises
+    ------
+    DimensionError
+        If the shapes differ or are not (n,) with n >= 1.
+    NonFiniteError
+        If a bound is NaN or inf.
+    EmptySetError
+        If some ``low[i] > high[i]``.
     """
 
     low: np.ndarray
@@ -161,8 +222,28 @@ class Box:
         object.__setattr__(self, "high", frozen_copy(high))
 
     @classmethod
-    def from_center(cls, center, radius) -> Box:
-        """The box ``center +- radius``; ``radius`` is a scalar or an array, >= 0."""
+    def from_center(cls, center: ArrayLike, radius: ArrayLike) -> Box:
+        """The box ``center +- radius``.
+
+        Parameters
+        ----------
+        center : array_like
+            Shape (n,).
+        radius : float or array_like
+            Half-widths, >= 0: a scalar (every coordinate) or shape (n,).
+
+        Returns
+        -------
+        Box
+            ``Box(center - radius, center + radius)`` (rounded to nearest).
+
+        Raises
+        ------
+        DimensionError
+            If ``radius`` is an array whose shape is not ``center``'s.
+        EmptySetError
+            If some radius is negative.
+        """
         c = as_finite_array("center", center, ndim=1)
         r = as_finite_array("radius", radius)
         if r.ndim == 0:
@@ -187,12 +268,29 @@ class Box:
         """``(high - low) / 2``, per coordinate."""
         return (self.high - self.low) / 2
 
-    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
-        """True iff every point of ``x`` ((n,) or (k, n)) lies in the box grown by ``tol``.
+    def contains(self, x: ArrayLike, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """True iff every point of ``x`` lies in the box grown by ``tol``.
 
-        With ``witness=True``, a `Membership` naming the first violation instead: the
-        first point (in order) and, within it, the first coordinate outside, with the
-        distance beyond ``low - tol`` or ``high + tol``.
+        Parameters
+        ----------
+        x : array_like
+            One point, shape (n,), or k points, shape (k, n).
+        tol : float
+            Absolute slack, in the coordinates' units: the test is
+            ``low - tol <= x <= high + tol``.
+        witness : bool
+            Return a `Membership` naming the first violation instead: the first point
+            (in order) and, within it, the first coordinate outside, with the distance
+            beyond ``low - tol`` or ``high + tol``.
+
+        Returns
+        -------
+        bool or Membership
+
+        Raises
+        ------
+        DimensionError
+            If ``x`` is not of shape (n,) or (k, n).
         """
         pts = as_points("x", x, self.dim)
         if not witness:
@@ -208,25 +306,66 @@ class Box:
         return Membership(False, k, f"x[{i}] <= high[{i}] + tol", float(above[k, i]))
 
     def vertices(self) -> np.ndarray:
-        """The 2^n corners, shape (2^n, n), ordered like `hypercube_signs`.
+        """The 2^n corners, ordered like `hypercube_signs`.
 
-        Taken from ``low`` and ``high`` exactly (``center +- radius`` can round outside the box).
+        Returns
+        -------
+        numpy.ndarray
+            Shape (2^n, n), taken from ``low`` and ``high`` exactly (``center +- radius``
+            can round outside the box).
         """
         return np.where(hypercube_signs(self.dim) > 0, self.high, self.low)
 
     def intersect(self, other: Box) -> Box:
-        """The intersection with another box; raises `EmptySetError` if empty."""
+        """The intersection with another box (exact: the bounds are maxima and minima).
+
+        Parameters
+        ----------
+        other : Box
+            A box of the same dimension.
+
+        Returns
+        -------
+        Box
+
+        Raises
+        ------
+        DimensionError
+            If the dimensions differ.
+        EmptySetError
+            If the boxes do not meet.
+        """
         check_dimension("other", other.dim, self.dim)
         return Box(np.maximum(self.low, other.low), np.minimum(self.high, other.high))
 
     def bounding_box(self) -> Box:
-        """The box itself (a `ParameterSet` method)."""
+        """The box itself (a `ParameterSet` method).
+
+        Returns
+        -------
+        Box
+        """
         return self
 
     def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
         """The 2^n corners (exactly ``low`` or ``high``), of ``self ∩ prior`` when a prior is given.
 
-        Box ∩ box is exact. Raises `EmptySetError` if the intersection is empty.
+        Parameters
+        ----------
+        prior : Box or None
+            The prior parameter box (the set D of Assumption 1), dimension n.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (2^n, n), ordered like `hypercube_signs`. Box ∩ box is exact.
+
+        Raises
+        ------
+        DimensionError
+            If ``prior`` has another dimension.
+        EmptySetError
+            If the intersection is empty.
         """
         if prior is None:
             return self.vertices()
@@ -236,7 +375,13 @@ class Box:
         return intersect_boxes(self, prior, "the parameter box").vertices()
 
     def to_dict(self) -> dict:
-        """``{"low": [...], "high": [...]}``."""
+        """The box as plain data.
+
+        Returns
+        -------
+        dict
+            ``{"low": [...], "high": [...]}``.
+        """
         return {"low": self.low.tolist(), "high": self.high.tolist()}
 
     def __eq__(self, other: object) -> bool:
@@ -255,12 +400,27 @@ class Ellipsoid:
 
     Parameters
     ----------
-    center
-        The centre c, shape (d,).
-    gramian
-        The symmetric positive definite shape matrix G, shape (d, d).
-    radius
+    center : array_like
+        The centre c, shape (d,), d >= 1.
+    gramian : array_like
+        The symmetric positive definite shape matrix G, shape (d, d) (symmetric to
+        1e-10 relative; stored symmetrised).
+    radius : float
         The radius, > 0.
+
+    Raises
+    ------
+    DimensionError
+        If the shapes do not match.
+    NonFiniteError
+        If an entry is NaN or inf.
+    InputError
+        If G is not symmetric or not positive definite, or the radius is not > 0.
+
+    Notes
+    -----
+    The confidence sets of `~minimaxplan.models.confidence_ellipsoid` have this form,
+    with G the regularised Gram matrix ``G_N`` and radius ``beta_N(delta)``.
     """
 
     center: np.ndarray
@@ -292,12 +452,28 @@ class Ellipsoid:
         """The dimension d."""
         return self.center.shape[0]
 
-    def contains(self, t, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
-        """True iff every point of ``t`` ((d,) or (k, d)) satisfies the defining inequality.
+    def contains(self, t: ArrayLike, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """True iff every point of ``t`` satisfies the defining inequality (in floating point).
 
-        ``tol`` relaxes it to ``(t-c)^T G (t-c) <= radius^2 (1 + tol)``. With
-        ``witness=True``, a `Membership` naming the first point outside and by how much
-        its quadratic form exceeds ``radius^2 (1 + tol)``.
+        Parameters
+        ----------
+        t : array_like
+            One point, shape (d,), or k points, shape (k, d).
+        tol : float
+            Relative slack on the quadratic form: the test is
+            ``(t-c)^T G (t-c) <= radius^2 (1 + tol)``.
+        witness : bool
+            Return a `Membership` naming the first point outside and by how much its
+            quadratic form exceeds ``radius^2 (1 + tol)``.
+
+        Returns
+        -------
+        bool or Membership
+
+        Raises
+        ------
+        DimensionError
+            If ``t`` is not of shape (d,) or (k, d).
         """
         pts = as_points("t", t, self.dim)
         delta = np.atleast_2d(pts) - self.center
@@ -377,11 +553,31 @@ class Ellipsoid:
     def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
         """Vertices of a polytope that contains the ellipsoid (∩ ``prior`` when given), rounding-safe.
 
-        Without a prior: `vertices`, the 2^d vertices of the enclosing parallelotope,
-        grown by rounding-level margins so that their hull contains the ellipsoid in
-        floating point too. With a prior: the vertices of parallelotope ∩ bounding box ∩
-        prior (clipping the vertices to the prior would NOT be sound; DESIGN errata).
-        See `~minimaxplan.models.polytope.parameter_vertices`, Notes.
+        Parameters
+        ----------
+        prior : Box or None
+            The prior parameter box (the set D of Assumption 1), dimension d.
+
+        Returns
+        -------
+        numpy.ndarray
+            Without a prior: `vertices`, the 2^d vertices of the enclosing
+            parallelotope, grown by rounding-level margins so that their hull contains
+            the ellipsoid in floating point too. With a prior: the vertices of
+            parallelotope ∩ bounding box ∩ prior (clipping the vertices to the prior
+            would NOT be sound; DESIGN errata), shape (k, d).
+
+        Raises
+        ------
+        DimensionError
+            If ``prior`` has another dimension.
+        EmptySetError
+            If the enclosing polytope does not meet ``prior``.
+
+        Notes
+        -----
+        The parameter polytope of eq. (8); see
+        `~minimaxplan.models.polytope.parameter_vertices`, Notes.
         """
         from .polytope import ellipsoid_in_box_vertices
 
@@ -391,7 +587,13 @@ class Ellipsoid:
         return ellipsoid_in_box_vertices(self, prior)
 
     def to_dict(self) -> dict:
-        """``{"center": [...], "gramian": [[...]], "radius": r}``."""
+        """The ellipsoid as plain data.
+
+        Returns
+        -------
+        dict
+            ``{"center": [...], "gramian": [[...]], "radius": r}``.
+        """
         return {"center": self.center.tolist(), "gramian": self.gramian.tolist(), "radius": self.radius}
 
     def __repr__(self) -> str:

@@ -110,30 +110,116 @@ class UncertainLinearSystem:
         return self.D.shape[1]
 
     # ------------------------------------------------------------- dynamics
-    def A(self, theta) -> np.ndarray:
-        """``A(theta) = A0 + sum_i theta[i] phi[i]``; theta (d,) -> (p, p), or (k, d) -> (k, p, p)."""
+    def A(self, theta: ArrayLike) -> np.ndarray:
+        """The state matrix ``A(theta) = A0 + sum_i theta[i] phi[i]`` (eq. (2)).
+
+        Parameters
+        ----------
+        theta : array_like
+            One parameter vector, shape (d,), or k of them, shape (k, d).
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (p, p), or (k, p, p) for k parameter vectors.
+
+        Raises
+        ------
+        DimensionError
+            If ``theta`` is not of shape (d,) or (k, d).
+        """
         t = as_points("theta", theta, self.nparams)
         return self.A0 + np.tensordot(t, self.phi, axes=([-1], [0]))
 
-    def step(self, x, u, theta, w=None) -> np.ndarray:
-        """One transition ``A(theta) x + B u + D w`` (w defaults to 0), for x of shape (p,)."""
+    def step(self, x: ArrayLike, u: ArrayLike, theta: ArrayLike, w: ArrayLike | None = None) -> np.ndarray:
+        """One transition ``x+ = A(theta) x + B u + D w``.
+
+        Parameters
+        ----------
+        x : array_like
+            The state, shape (p,).
+        u : array_like
+            The control, shape (q,).
+        theta : array_like
+            The parameters, shape (d,) (any vector: not checked against the prior box).
+        w : array_like, optional
+            The disturbance, shape (r,); defaults to 0 (not checked against ``w``'s box).
+
+        Returns
+        -------
+        numpy.ndarray
+            The next state, shape (p,).
+
+        Raises
+        ------
+        DimensionError
+            If an argument has the wrong shape.
+        NonFiniteError
+            If an argument contains NaN or inf.
+        """
         x = as_finite_array("x", x, (self.nstates,))
         u = as_finite_array("u", u, (self.ninputs,))
         w = np.zeros(self.ndisturbances) if w is None else as_finite_array("w", w, (self.ndisturbances,))
         return self.A(theta) @ x + self.B @ u + self.D @ w
 
-    def regressor(self, x) -> np.ndarray:
+    def regressor(self, x: ArrayLike) -> np.ndarray:
         """The p x d matrix whose column i is ``phi[i] @ x``, so ``A(theta) x = A0 x + regressor(x) theta``.
 
-        ``x`` of shape (N, p) gives (N, p, d).
+        Parameters
+        ----------
+        x : array_like
+            One state, shape (p,), or N states, shape (N, p).
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (p, d), or (N, p, d): the regressors ``E_n`` of the least-squares fit
+            (``confidence_ellipsoid``) and of the set-membership estimator (eqs. (3)-(6)).
+
+        Raises
+        ------
+        DimensionError
+            If ``x`` is not of shape (p,) or (N, p).
         """
         x = as_points("x", x, self.nstates, batch="N")
         return np.einsum("ipq,...q->...pi", self.phi, x)
 
     # --------------------------------------------------------- constructors
     @classmethod
-    def from_continuous(cls, A, phi, B, *, D=None, w: Box, theta: Box, dt: float) -> UncertainLinearSystem:
+    def from_continuous(
+        cls, A: ArrayLike, phi: ArrayLike, B: ArrayLike, *, D: ArrayLike | None = None, w: Box, theta: Box, dt: float
+    ) -> UncertainLinearSystem:
         """Discretise eq. (1), ``dx/dt = A(theta) x + B u + D w``, by forward Euler.
+
+        Parameters
+        ----------
+        A : array_like
+            Continuous-time nominal state matrix, shape (p, p), in 1/s.
+        phi : array_like
+            Continuous-time structure matrices, shape (d, p, p), in 1/s.
+        B : array_like
+            Continuous-time input matrix, shape (p, q).
+        D : array_like, optional
+            Continuous-time disturbance input matrix, shape (p, r); defaults to the identity.
+        w : Box
+            Box of admissible disturbances (rates), dimension r (Assumption 2).
+        theta : Box
+            Prior parameter box, dimension d (Assumption 1).
+        dt : float
+            Time step in seconds, > 0.
+
+        Returns
+        -------
+        UncertainLinearSystem
+            ``A0 = I + dt A``, ``phi = dt phi``, ``B = dt B``, ``D = dt D``; ``w`` and
+            ``theta`` unchanged.
+
+        Raises
+        ------
+        InputError
+            If ``dt`` is not > 0.
+        DimensionError, NonFiniteError
+            For a malformed matrix (see the class).
 
         Notes
         -----
@@ -253,6 +339,14 @@ class UncertainLinearSystem:
         return cls(np.asarray(sys.A), phi, np.asarray(sys.B), D=D, w=w, theta=theta)
 
     def to_dict(self) -> dict:
+        """The system as plain data (lists, JSON-serialisable).
+
+        Returns
+        -------
+        dict
+            ``A0``, ``phi``, ``B``, ``D`` as nested lists, ``w`` and ``theta`` as
+            `Box.to_dict`.
+        """
         return {
             "A0": self.A0.tolist(),
             "phi": self.phi.tolist(),
