@@ -49,7 +49,20 @@ HULL_MEMBERSHIP_TOLERANCE = 1e-9
 
 
 def box_halfspaces(box: Box) -> tuple[np.ndarray, np.ndarray]:
-    """The box as ``{t : a t <= b}``: ``a`` of shape (2d, d), ``b`` of shape (2d,)."""
+    """The box as ``{t : a t <= b}``.
+
+    Parameters
+    ----------
+    box : Box
+        A box of dimension d.
+
+    Returns
+    -------
+    a : numpy.ndarray
+        Shape (2d, d): the rows of I, then of -I.
+    b : numpy.ndarray
+        Shape (2d,): ``high``, then ``-low`` (exact).
+    """
     eye = np.eye(box.dim)
     return np.vstack([eye, -eye]), np.concatenate([box.high, -box.low])
 
@@ -66,6 +79,19 @@ def _bounding_box(ellipsoid: Ellipsoid) -> Box:
 
 def parallelotope_halfspaces(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
     """The enclosing parallelotope of the ellipsoid as ``{t : a t <= b}``.
+
+    Parameters
+    ----------
+    ellipsoid : Ellipsoid
+        The ellipsoid, dimension d.
+
+    Returns
+    -------
+    a : numpy.ndarray
+        Shape (2d, d): the unit axes ``P^T``, then ``-P^T``.
+    b : numpy.ndarray
+        Shape (2d,): the support along each row, grown by the rounding margin of
+        `~minimaxplan.models.Ellipsoid.vertices`.
 
     Notes
     -----
@@ -105,9 +131,26 @@ def _chebyshev_center(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
 def polytope_vertices(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     """Vertices of the bounded polytope ``{t : a t <= b}``, slightly dilated outward.
 
-    Returns None when the polytope is flat (its Chebyshev radius is below
-    `FLAT_RADIUS` times its size), where exact enumeration by qhull is impossible;
-    raises `EmptySetError` when it is empty.
+    Parameters
+    ----------
+    a : numpy.ndarray
+        Constraint normals, shape (m, d); the polytope must be bounded.
+    b : numpy.ndarray
+        Offsets, shape (m,).
+
+    Returns
+    -------
+    numpy.ndarray or None
+        The vertices, shape (k, d), whose hull contains the polytope; None when the
+        polytope is flat (its Chebyshev radius is below `FLAT_RADIUS` times its size),
+        where exact enumeration by qhull is impossible.
+
+    Raises
+    ------
+    EmptySetError
+        If the polytope is empty.
+    SolverFailure
+        If the Chebyshev-centre LP or qhull fails.
 
     Notes
     -----
@@ -152,7 +195,26 @@ def _drop_near_duplicates(points: np.ndarray, tol: float) -> np.ndarray:
 
 
 def intersect_boxes(box: Box, prior: Box, what: str) -> Box:
-    """``box ∩ prior``; an empty intersection raises `EmptySetError` naming ``what`` and both boxes."""
+    """``box ∩ prior``, with an error message that says which set missed the prior.
+
+    Parameters
+    ----------
+    box : Box
+        The enclosure of a parameter set.
+    prior : Box
+        The prior parameter box, same dimension.
+    what : str
+        What ``box`` is, in words (e.g. ``"the ellipsoid's bounding box"``).
+
+    Returns
+    -------
+    Box
+
+    Raises
+    ------
+    EmptySetError
+        If the boxes do not meet, naming ``what`` and both boxes.
+    """
     try:
         return box.intersect(prior)
     except EmptySetError:
@@ -160,7 +222,26 @@ def intersect_boxes(box: Box, prior: Box, what: str) -> Box:
 
 
 def ellipsoid_in_box_vertices(ellipsoid: Ellipsoid, prior: Box) -> np.ndarray:
-    """Vertices of (parallelotope ∩ bounding box ∩ prior), a sound enclosure of ellipsoid ∩ prior."""
+    """Vertices of (parallelotope ∩ bounding box ∩ prior), a sound enclosure of ellipsoid ∩ prior.
+
+    Parameters
+    ----------
+    ellipsoid : Ellipsoid
+        The parameter set, dimension d.
+    prior : Box
+        The prior parameter box (Assumption 1), dimension d.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (k, d): qhull's vertices, dilated outward (see `polytope_vertices`), or
+        the corners of bounding box ∩ prior when that intersection is flat.
+
+    Raises
+    ------
+    EmptySetError
+        If the ellipsoid's bounding box or the polytope does not meet ``prior``.
+    """
     box = intersect_boxes(_bounding_box(ellipsoid), prior, "the ellipsoid's bounding box")
     a_par, b_par = parallelotope_halfspaces(ellipsoid)
     a_box, b_box = box_halfspaces(box)

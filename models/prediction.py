@@ -73,11 +73,25 @@ def summation_error_bound(n: int) -> float:
 
 
 def interval_matvec(matrix: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The exact box ``{M x : lower <= x <= upper}`` for a fixed matrix M, batched over leading dims.
+    """The tightest box containing ``{M x : lower <= x <= upper}`` for a fixed matrix M.
+
+    Parameters
+    ----------
+    matrix : numpy.ndarray
+        M, shape (m, n).
+    lower, upper : numpy.ndarray
+        Bounds of shape (..., n), ``lower <= upper``; leading dimensions are batched.
+
+    Returns
+    -------
+    lower, upper : numpy.ndarray
+        Shape (..., m): ``(M+ lower - M- upper, M+ upper - M- lower)`` with
+        ``M+ = max(M, 0)``, ``M- = max(-M, 0)``.
 
     Notes
     -----
-    ``(M+ lower - M- upper, M+ upper - M- lower)`` with ``M+ = max(M, 0)``, ``M- = max(-M, 0)``.
+    Exact in real arithmetic; evaluated with rounding to nearest, NOT outward
+    (`IntervalPredictor` adds its own rigorous margins).
     """
     positive, negative = np.maximum(matrix, 0.0), np.maximum(-matrix, 0.0)
     return lower @ positive.T - upper @ negative.T, upper @ positive.T - lower @ negative.T
