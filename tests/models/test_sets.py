@@ -233,24 +233,32 @@ def _exactly_inside(ellipsoid, point):
 def _outermost_inside(ellipsoid, start, i, sign):
     """The float point farthest along ``sign * e_i`` from ``start`` (moving coordinate i only) that is exactly inside.
 
-    ``start`` is first pulled towards the centre until it is exactly inside.
+    ``start`` (a float approximation of a boundary point) is first pulled towards the
+    centre until it is exactly inside; coordinate i then moves outward, galloping and
+    then one ulp at a time, until the next float outward is exactly outside.
     """
-    point = np.array(start, dtype=float)
-    for shrink in 2.0 ** -np.arange(0, 60):
-        candidate = ellipsoid.center + (1 - shrink * 1e-12) * (point - ellipsoid.center) if shrink < 1 else point
-        if _exactly_inside(ellipsoid, candidate):
-            point = candidate
-            break
-    else:
-        point = ellipsoid.center.copy()
-    assert _exactly_inside(ellipsoid, point)
+    start = np.array(start, dtype=float)
+    point, k = start, 0
+    while not _exactly_inside(ellipsoid, point):
+        point = ellipsoid.center + (1 - 2.0**k * 1e-16) * (start - ellipsoid.center)
+        k += 1
+        assert k < 60, "could not find a point exactly inside"
+
+    def moved(value):
+        trial = point.copy()
+        trial[i] = value
+        return trial
+
+    step = float(np.spacing(abs(point[i])))
+    while _exactly_inside(ellipsoid, moved(point[i] + sign * step)):
+        point, step = moved(point[i] + sign * step), 2 * step
+    while step > np.spacing(abs(point[i])):
+        step /= 2
+        if _exactly_inside(ellipsoid, moved(point[i] + sign * step)):
+            point = moved(point[i] + sign * step)
     direction = np.inf if sign > 0 else -np.inf
-    step = point.copy()
-    for _ in range(200):  # walk coordinate i outward one ulp at a time while still exactly inside
-        step[i] = np.nextafter(point[i], direction)
-        if not _exactly_inside(ellipsoid, step):
-            break
-        point = step.copy()
+    while _exactly_inside(ellipsoid, moved(np.nextafter(point[i], direction))):
+        point = moved(np.nextafter(point[i], direction))
     return point
 
 
