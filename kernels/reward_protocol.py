@@ -76,7 +76,30 @@ class BoxReward(Protocol):
     """
 
     def box_minimum(self, lower: np.ndarray, upper: np.ndarray, t: Any = 0) -> tuple[np.ndarray, np.ndarray]:
-        """The exact minimum of the reward over each box at sub-step ``t``, and the collision flags."""
+        """The exact minimum of the reward over each box at sub-step ``t``, and the collision flags.
+
+        Parameters
+        ----------
+        lower, upper : numpy.ndarray
+            Boxes of states, float arrays of shape (..., p) broadcasting against each
+            other, ``lower <= upper``, in the state's units.
+        t : int or array_like
+            Absolute sub-step indices: a scalar or an integer array broadcasting
+            against the leading shape (time-varying rewards, e.g. moving obstacles).
+
+        Returns
+        -------
+        reward : numpy.ndarray
+            Float array of the leading shape: ``min_{lower <= x <= upper} J(x, t)`` in
+            [0, 1], 0 where the box collides.
+        collided : numpy.ndarray
+            Bool array of the leading shape: whether some state of the box collides.
+
+        Notes
+        -----
+        Each term of the pessimistic surrogate objective (11) is such a minimum; that it
+        is the exact minimum (not an estimate at the box centre) is what Theorem 1 needs.
+        """
 
 
 @runtime_checkable
@@ -325,5 +348,6 @@ def box_minima(params: Any, lower: np.ndarray, upper: np.ndarray, t: Any = 0) ->
     collided = np.empty(n, dtype=bool)
     if n:
         flat_times = np.ascontiguousarray(np.broadcast_to(times, lead)).reshape(n)
-        box_minima_kernel(type(params))(params, z.reshape(n, 2 * p), flat_times, reward, collided)
+        params_type: type = type(params)  # mypy infers type[Any], which it does not treat as Hashable
+        box_minima_kernel(params_type)(params, z.reshape(n, 2 * p), flat_times, reward, collided)
     return reward.reshape(lead), collided.reshape(lead)

@@ -21,8 +21,24 @@ __all__ = ["predict_tube_continuous", "euler_keeps_inclusion"]
 def euler_keeps_inclusion(nominal, dt: float) -> bool:
     """The sufficient condition ``I + dt A_N >= 0`` (elementwise) of the Euler predictor.
 
-    It implies that ``A_N`` is Metzler (its off-diagonal entries are ``dt A_N[i, j] >= 0``)
-    and bounds the step: ``dt <= 1 / max_i(-A_N[i, i])``.
+    Parameters
+    ----------
+    nominal : array_like
+        The continuous-time nominal matrix ``A_N``, shape (p, p), in 1/s.
+    dt : float
+        The Euler time step in seconds, > 0.
+
+    Returns
+    -------
+    bool
+        Whether every entry of ``I + dt A_N`` is >= 0.
+
+    Notes
+    -----
+    The condition implies that ``A_N`` is Metzler (its off-diagonal entries are
+    ``dt A_N[i, j] >= 0``) and bounds the step: ``dt <= 1 / max_i(-A_N[i, i])``. It is
+    sufficient (not necessary) for the forward-Euler version of eq. (9), as corrected
+    in DESIGN's errata, to keep inclusion.
     """
     nominal = as_finite_array("nominal", nominal, ndim=2)
     check_shape("nominal", nominal, (nominal.shape[0], nominal.shape[0]))

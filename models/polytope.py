@@ -12,11 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 
 from .errors import DimensionError, EmptySetError, SolverFailure
-from .sets import Box, Ellipsoid, Membership, ParameterSet, hypercube_signs
+from .sets import Box, Ellipsoid, Membership, ParameterSet, _centered_support, _parallelotope
 from .validation import as_finite_array, as_points, check_dimension, check_instance, frozen_copy
 
 __all__ = [
@@ -27,7 +28,6 @@ __all__ = [
     "parallelotope_halfspaces",
     "polytope_vertices",
     "intersect_boxes",
-    "dilated_parallelotope_vertices",
     "ellipsoid_in_box_vertices",
     "HULL_MEMBERSHIP_TOLERANCE",
 ]
@@ -49,38 +49,49 @@ HULL_MEMBERSHIP_TOLERANCE = 1e-9
 
 
 def box_halfspaces(box: Box) -> tuple[np.ndarray, np.ndarray]:
-    """The box as ``{t : a t <= b}``: ``a`` of shape (2d, d), ``b`` of shape (2d,)."""
+    """The box as ``{t : a t <= b}``.
+
+    Parameters
+    ----------
+    box : Box
+        A box of dimension d.
+
+    Returns
+    -------
+    a : numpy.ndarray
+        Shape (2d, d): the rows of I, then of -I.
+    b : numpy.ndarray
+        Shape (2d,): ``high``, then ``-low`` (exact).
+    """
     eye = np.eye(box.dim)
     return np.vstack([eye, -eye]), np.concatenate([box.high, -box.low])
 
 
-def _support(ellipsoid: Ellipsoid, directions: np.ndarray) -> np.ndarray:
-    """``radius sqrt(p^T G^-1 p)`` for each column p, grown by ``1e-12 + 16 d eps cond(G)`` for rounding."""
-    eps = np.finfo(float).eps
-    support = ellipsoid.radius * np.sqrt(np.einsum("ji,ji->i", directions, np.linalg.solve(ellipsoid.gramian, directions)))
-    return support * (1.0 + 1e-12 + 16 * ellipsoid.dim * eps * np.linalg.cond(ellipsoid.gramian))
-
-
 def _bounding_box(ellipsoid: Ellipsoid) -> Box:
-    """The ellipsoid's bounding box, from its support along the axes (rounding-safe)."""
-    half_width = _support(ellipsoid, np.eye(ellipsoid.dim))
-    return Box(ellipsoid.center - half_width, ellipsoid.center + half_width)
+    """The ellipsoid's bounding box from its support along the axes, without the final ulp.
 
-
-def _parallelotope(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
-    """Axes P (columns) and half-widths h of the enclosing parallelotope ``|P^T (t - c)| <= h``.
-
-    The half-widths are the ellipsoid's support ``radius sqrt(p_i^T G^-1 p_i)`` along the
-    computed axes (equal to ``radius / sqrt(l_i)`` for exact eigenvectors, and correct for
-    any direction, so rounding in the eigenvectors cannot cut the ellipsoid), grown by a
-    relative ``1e-12 + 16 d eps cond(G)`` for the rounding of that solve.
+    `ellipsoid_in_box_vertices` dilates its result by `VERTEX_ERROR`, which absorbs the
+    rounding of ``c +- half_width``; `Ellipsoid.bounding_box` rounds that outward instead.
     """
-    _, axes = ellipsoid.semi_axes()
-    return axes, _support(ellipsoid, axes)
+    half_width = _centered_support(ellipsoid, np.eye(ellipsoid.dim))
+    return Box(ellipsoid.center - half_width, ellipsoid.center + half_width)
 
 
 def parallelotope_halfspaces(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
     """The enclosing parallelotope of the ellipsoid as ``{t : a t <= b}``.
+
+    Parameters
+    ----------
+    ellipsoid : Ellipsoid
+        The ellipsoid, dimension d.
+
+    Returns
+    -------
+    a : numpy.ndarray
+        Shape (2d, d): the unit axes ``P^T``, then ``-P^T``.
+    b : numpy.ndarray
+        Shape (2d,): the support along each row, grown by the rounding margin of
+        `~minimaxplan.models.Ellipsoid.vertices`.
 
     Notes
     -----
@@ -120,9 +131,26 @@ def _chebyshev_center(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
 def polytope_vertices(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     """Vertices of the bounded polytope ``{t : a t <= b}``, slightly dilated outward.
 
-    Returns None when the polytope is flat (its Chebyshev radius is below
-    `FLAT_RADIUS` times its size), where exact enumeration by qhull is impossible;
-    raises `EmptySetError` when it is empty.
+    Parameters
+    ----------
+    a : numpy.ndarray
+        Constraint normals, shape (m, d); the polytope must be bounded.
+    b : numpy.ndarray
+        Offsets, shape (m,).
+
+    Returns
+    -------
+    numpy.ndarray or None
+        The vertices, shape (k, d), whose hull contains the polytope; None when the
+        polytope is flat (its Chebyshev radius is below `FLAT_RADIUS` times its size),
+        where exact enumeration by qhull is impossible.
+
+    Raises
+    ------
+    EmptySetError
+        If the polytope is empty.
+    SolverFailure
+        If the Chebyshev-centre LP or qhull fails.
 
     Notes
     -----
@@ -166,21 +194,27 @@ def _drop_near_duplicates(points: np.ndarray, tol: float) -> np.ndarray:
     return np.array(kept)
 
 
-def dilated_parallelotope_vertices(ellipsoid: Ellipsoid) -> np.ndarray:
-    """The parallelotope's 2^d vertices ``c + P diag(h) s`` (as `Ellipsoid.vertices`), rounding-safe.
-
-    The half-widths come from `_parallelotope`; the vertices are then dilated about c
-    by their own rounding error, ``4 (d + 1) eps (|c| + sum h)``, over the smallest
-    half-width (the parallelotope's inradius, P being orthonormal).
-    """
-    axes, support = _parallelotope(ellipsoid)
-    vertices = ellipsoid.center + (hypercube_signs(ellipsoid.dim) * support) @ axes.T
-    vertex_error = 4 * (ellipsoid.dim + 1) * np.finfo(float).eps * (np.max(np.abs(ellipsoid.center)) + np.sum(support))
-    return ellipsoid.center + (1.0 + vertex_error / np.min(support)) * (vertices - ellipsoid.center)
-
-
 def intersect_boxes(box: Box, prior: Box, what: str) -> Box:
-    """``box ∩ prior``; an empty intersection raises `EmptySetError` naming ``what`` and both boxes."""
+    """``box ∩ prior``, with an error message that says which set missed the prior.
+
+    Parameters
+    ----------
+    box : Box
+        The enclosure of a parameter set.
+    prior : Box
+        The prior parameter box, same dimension.
+    what : str
+        What ``box`` is, in words (e.g. ``"the ellipsoid's bounding box"``).
+
+    Returns
+    -------
+    Box
+
+    Raises
+    ------
+    EmptySetError
+        If the boxes do not meet, naming ``what`` and both boxes.
+    """
     try:
         return box.intersect(prior)
     except EmptySetError:
@@ -188,7 +222,26 @@ def intersect_boxes(box: Box, prior: Box, what: str) -> Box:
 
 
 def ellipsoid_in_box_vertices(ellipsoid: Ellipsoid, prior: Box) -> np.ndarray:
-    """Vertices of (parallelotope ∩ bounding box ∩ prior), a sound enclosure of ellipsoid ∩ prior."""
+    """Vertices of (parallelotope ∩ bounding box ∩ prior), a sound enclosure of ellipsoid ∩ prior.
+
+    Parameters
+    ----------
+    ellipsoid : Ellipsoid
+        The parameter set, dimension d.
+    prior : Box
+        The prior parameter box (Assumption 1), dimension d.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (k, d): qhull's vertices, dilated outward (see `polytope_vertices`), or
+        the corners of bounding box ∩ prior when that intersection is flat.
+
+    Raises
+    ------
+    EmptySetError
+        If the ellipsoid's bounding box or the polytope does not meet ``prior``.
+    """
     box = intersect_boxes(_bounding_box(ellipsoid), prior, "the ellipsoid's bounding box")
     a_par, b_par = parallelotope_halfspaces(ellipsoid)
     a_box, b_box = box_halfspaces(box)
@@ -219,9 +272,16 @@ class VertexPolytope:
 
     Parameters
     ----------
-    vertices
-        Array of shape (k, d), k, d >= 1; stored as a read-only copy and taken as is
-        (rows need not be extreme points).
+    vertices : array_like
+        Array of shape (k, d), k, d >= 1, finite; stored as a read-only copy and taken
+        as is (rows need not be extreme points).
+
+    Raises
+    ------
+    DimensionError
+        If ``vertices`` is not of shape (k, d) with k, d >= 1.
+    NonFiniteError
+        If a coordinate is NaN or inf.
 
     Notes
     -----
@@ -249,27 +309,66 @@ class VertexPolytope:
         return self.vertices.shape[0]
 
     def bounding_box(self) -> Box:
-        """The tightest enclosing box: the vertices' coordinate-wise minima and maxima."""
+        """The tightest enclosing box: the vertices' coordinate-wise minima and maxima (exact).
+
+        Returns
+        -------
+        Box
+        """
         return Box(self.vertices.min(axis=0), self.vertices.max(axis=0))
 
     def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
         """The vertices themselves, or those of a sound enclosure of ``co{V} ∩ prior``.
 
-        With a prior: unchanged if every vertex lies in the prior; otherwise the exact
-        vertices of co{V} ∩ bounding box ∩ prior (the box when co{V} is flat).
+        Parameters
+        ----------
+        prior : Box or None
+            The prior parameter box (the set D of Assumption 1), dimension d.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (k', d). Without a prior, or when every vertex lies in the prior: the
+            vertices as given. Otherwise the vertices of co{V} ∩ bounding box ∩ prior
+            (qhull's, dilated outward by `VERTEX_ERROR`; the box when co{V} is flat).
+
+        Raises
+        ------
+        DimensionError
+            If ``prior`` has another dimension.
+        EmptySetError
+            If the hull does not meet ``prior``.
         """
         if prior is None:
             return self.vertices
         check_dimension("prior", prior.dim, self.dim, f"the polytope's vertices have shape {self.vertices.shape}")
         return _array_in_box_vertices(self.vertices, prior)
 
-    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
-        """True iff every point of ``x`` ((d,) or (k, d)) lies in the convex hull, within ``tol``.
+    def contains(self, x: ArrayLike, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """True iff every point of ``x`` lies in the convex hull, within ``tol``.
 
-        A point counts as inside when its infinity-norm distance to the hull (an LP,
-        HiGHS) is at most ``tol + HULL_MEMBERSHIP_TOLERANCE * (1 + max |coordinate|)``.
-        With ``witness=True``, a `Membership` naming the first point outside and that
-        distance beyond the allowance.
+        Parameters
+        ----------
+        x : array_like
+            One point, shape (d,), or k points, shape (k, d).
+        tol : float
+            Absolute slack, in the coordinates' units: a point counts as inside when its
+            infinity-norm distance to the hull (an LP, HiGHS) is at most
+            ``tol + HULL_MEMBERSHIP_TOLERANCE * (1 + max |coordinate|)``.
+        witness : bool
+            Return a `Membership` naming the first point outside and its distance beyond
+            that allowance.
+
+        Returns
+        -------
+        bool or Membership
+
+        Raises
+        ------
+        DimensionError
+            If ``x`` is not of shape (d,) or (k, d).
+        SolverFailure
+            If the distance LP does not solve.
         """
         pts = as_points("x", x, self.dim)
         for index, point in enumerate(np.atleast_2d(pts)):
@@ -297,15 +396,32 @@ class VertexPolytope:
         return float(result.x[-1])
 
     def to_dict(self) -> dict:
-        """``{"vertices": [[...], ...]}``."""
+        """The polytope as plain data.
+
+        Returns
+        -------
+        dict
+            ``{"vertices": [[...], ...]}``.
+        """
         return {"vertices": self.vertices.tolist()}
 
     def __repr__(self) -> str:
         return f"VertexPolytope(nvertices={self.nvertices}, dim={self.dim})"
 
 
-def as_parameter_set(parameters) -> ParameterSet:
+def as_parameter_set(parameters: ParameterSet | ArrayLike) -> ParameterSet:
     """``parameters`` as a `ParameterSet`: a set is returned as is, an array (k, d) of vertices is wrapped.
+
+    Parameters
+    ----------
+    parameters : ParameterSet or array_like
+        A `Box`, `Ellipsoid`, `VertexPolytope` (any `ParameterSet`), or the vertices
+        of a polytope, shape (k, d).
+
+    Returns
+    -------
+    ParameterSet
+        The set itself, or a `VertexPolytope` of the vertices.
 
     Raises
     ------
@@ -320,16 +436,16 @@ def as_parameter_set(parameters) -> ParameterSet:
     return VertexPolytope(vertices)
 
 
-def parameter_vertices(parameters, prior: Box | None = None) -> np.ndarray:
+def parameter_vertices(parameters: ParameterSet | ArrayLike, prior: Box | None = None) -> np.ndarray:
     """Vertices of a polytope that contains a parameter set (eq. (8)).
 
     Parameters
     ----------
-    parameters
+    parameters : ParameterSet or array_like
         A `ParameterSet` (`Box`, `Ellipsoid`, `VertexPolytope`), or an array of shape
         (k, d) whose rows are the vertices of a polytope (any k >= 1; taken as is,
         wrapped in a `VertexPolytope`).
-    prior
+    prior : Box or None
         Optional prior `Box` (the set D of Assumption 1); the result then contains
         ``parameters ∩ prior``.
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+from numpy.typing import ArrayLike
 
 from .errors import DimensionError, InputError, NonFiniteError
 from .polytope import parameter_vertices
@@ -72,11 +73,25 @@ def summation_error_bound(n: int) -> float:
 
 
 def interval_matvec(matrix: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The exact box ``{M x : lower <= x <= upper}`` for a fixed matrix M, batched over leading dims.
+    """The tightest box containing ``{M x : lower <= x <= upper}`` for a fixed matrix M.
+
+    Parameters
+    ----------
+    matrix : numpy.ndarray
+        M, shape (m, n).
+    lower, upper : numpy.ndarray
+        Bounds of shape (..., n), ``lower <= upper``; leading dimensions are batched.
+
+    Returns
+    -------
+    lower, upper : numpy.ndarray
+        Shape (..., m): ``(M+ lower - M- upper, M+ upper - M- lower)`` with
+        ``M+ = max(M, 0)``, ``M- = max(-M, 0)``.
 
     Notes
     -----
-    ``(M+ lower - M- upper, M+ upper - M- lower)`` with ``M+ = max(M, 0)``, ``M- = max(-M, 0)``.
+    Exact in real arithmetic; evaluated with rounding to nearest, NOT outward
+    (`IntervalPredictor` adds its own rigorous margins).
     """
     positive, negative = np.maximum(matrix, 0.0), np.maximum(-matrix, 0.0)
     return lower @ positive.T - upper @ negative.T, upper @ positive.T - lower @ negative.T
@@ -139,6 +154,13 @@ class Tube:
         return bool(np.all(x >= self.lower - slack) and np.all(x <= self.upper + slack))
 
     def to_dict(self) -> dict:
+        """The tube as plain data.
+
+        Returns
+        -------
+        dict
+            ``{"lower": [[...]], "upper": [[...]], "guaranteed": bool, "note": str}``.
+        """
         return {"lower": self.lower.tolist(), "upper": self.upper.tolist(), "guaranteed": self.guaranteed, "note": self.note}
 
     def __repr__(self) -> str:
@@ -372,16 +394,42 @@ class IntervalPredictor:
         """The number of distinct vertex matrices used per step."""
         return self._nvertices
 
-    def enter(self, lower, upper) -> tuple[np.ndarray, np.ndarray]:
-        """The box ``[lower, upper]`` (original coordinates, (..., p)) as an internal box (rounded outward)."""
+    def enter(self, lower: ArrayLike, upper: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """The box ``[lower, upper]`` in original coordinates as an internal box ``z = T^-1 x``.
+
+        Parameters
+        ----------
+        lower, upper : array_like
+            Bounds of shape (..., p) in the original coordinates, ``lower <= upper``.
+
+        Returns
+        -------
+        z_lower, z_upper : numpy.ndarray
+            Shape (..., p): copies when the basis is the identity, otherwise the exact
+            interval product with ``T^-1`` rounded outward (it contains ``T^-1 x`` for
+            every x of the box).
+        """
         lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
         if self._inverse is None:
             return lower.copy(), upper.copy()
         z_lower, z_upper = interval_matvec(self._inverse, lower, upper)
         return _widen(z_lower, z_upper, np.maximum(np.abs(lower), np.abs(upper)) @ self._enter_error.T)
 
-    def leave(self, lower, upper) -> tuple[np.ndarray, np.ndarray]:
-        """An internal box back in original coordinates (interval product with T, rounded outward)."""
+    def leave(self, lower: ArrayLike, upper: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """An internal box back in original coordinates.
+
+        Parameters
+        ----------
+        lower, upper : array_like
+            Internal bounds (on ``z = T^-1 x``) of shape (..., p).
+
+        Returns
+        -------
+        x_lower, x_upper : numpy.ndarray
+            Shape (..., p): copies when the basis is the identity, otherwise the interval
+            product with T rounded outward (it contains every ``x = T z`` of the box,
+            with the exact inverse of the computed ``T^-1``).
+        """
         lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
         if self._transform is None:
             return lower.copy(), upper.copy()
@@ -389,10 +437,27 @@ class IntervalPredictor:
         return _widen(x_lower, x_upper, np.maximum(np.abs(lower), np.abs(upper)) @ self._leave_error.T)
 
     def step(self, lower: np.ndarray, upper: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One step of the predictor on internal boxes (..., p) under controls (..., q).
+        """One step of the predictor on internal boxes.
 
-        Leading dimensions broadcast. No validation: this is a planner's hot loop.
-        The result is rounded outward (see the class Notes).
+        Parameters
+        ----------
+        lower, upper : numpy.ndarray
+            Internal boxes (see `enter`), float arrays of shape (..., p).
+        u : numpy.ndarray
+            Controls, float array of shape (..., q); leading dimensions broadcast with
+            the boxes'.
+
+        Returns
+        -------
+        lower, upper : numpy.ndarray
+            The successor boxes, rounded outward: they contain
+            ``T^-1 (A(theta) x + B u + D w)`` for every x of the box, theta in the
+            parameter polytope and w in ``system.w`` (eq. (7), one step).
+
+        Notes
+        -----
+        No validation: this is a planner's hot loop. See the class Notes for the bound
+        and the rounding.
         """
         k, p = self._nvertices, self._p
         candidates = np.concatenate([lower, upper], axis=-1) @ self._product

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import DimensionError, EmptySetError, InputError
 from .validation import (
@@ -79,28 +80,110 @@ class ParameterSet(Protocol):
         """The dimension d of the parameter space."""
         ...
 
-    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
-        """Whether every point of ``x`` ((d,) or (k, d)) lies in the set; a `Membership` with ``witness=True``."""
+    def contains(self, x: ArrayLike, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """Whether every point of ``x`` lies in the set.
+
+        Parameters
+        ----------
+        x : array_like
+            One point, shape (d,), or k points, shape (k, d).
+        tol : float
+            Slack, >= 0, in the units that the implementation documents (absolute for
+            `Box`, relative on the quadratic form for `Ellipsoid`).
+        witness : bool
+            Return a `Membership` naming the first violation instead of a bool.
+
+        Returns
+        -------
+        bool or Membership
+        """
         ...
 
     def bounding_box(self) -> Box:
-        """A box that contains the set."""
+        """A box that contains the set.
+
+        Returns
+        -------
+        Box
+        """
         ...
 
     def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
-        """Vertices (k, d) of a polytope containing the set (intersected with ``prior`` if given)."""
+        """Vertices of a polytope containing the set (intersected with ``prior`` if given).
+
+        Parameters
+        ----------
+        prior : Box or None
+            The prior parameter box (the set D of Assumption 1), dimension d.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (k, d): the convex hull of the rows contains the set (∩ ``prior``);
+            eq. (8) needs the parameters in this form.
+
+        Raises
+        ------
+        EmptySetError
+            If the enclosure does not meet ``prior``.
+        """
         ...
 
     def to_dict(self) -> dict:
-        """The set as plain data."""
+        """The set as plain data (lists and floats, JSON-serialisable).
+
+        Returns
+        -------
+        dict
+        """
         ...
 
 
-
-
 def hypercube_signs(dim: int) -> np.ndarray:
-    """The 2^dim sign vectors of {-1, 1}^dim, one per row, in lexicographic order."""
+    """The 2^dim sign vectors of {-1, 1}^dim, one per row, in lexicographic order.
+
+    Parameters
+    ----------
+    dim : int
+        The dimension, >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (2^dim, dim), float, -1 before 1 in each column (the last varies fastest).
+    """
     return np.array(list(itertools.product((-1.0, 1.0), repeat=dim))).reshape(2**dim, dim)
+
+
+#: Relative growth of an ellipsoid's computed support (`Ellipsoid.bounding_box`,
+#: `Ellipsoid.vertices`), on top of ``SUPPORT_ROUNDING * d eps cond(G)``.
+SUPPORT_MARGIN = 1e-12
+
+#: Factor of ``d eps cond(G)`` in the relative growth of an ellipsoid's computed support:
+#: solving with G perturbs ``p^T G^-1 p`` by a relative O(d eps cond(G)) (first order).
+SUPPORT_ROUNDING = 16
+
+
+def _centered_support(ellipsoid: Ellipsoid, directions: np.ndarray) -> np.ndarray:
+    """``radius sqrt(p^T G^-1 p)`` for each column p, grown by the rounding margin.
+
+    The margin is ``SUPPORT_MARGIN + SUPPORT_ROUNDING * d eps cond(G)`` (relative).
+    """
+    eps = np.finfo(float).eps
+    support = ellipsoid.radius * np.sqrt(np.einsum("ji,ji->i", directions, np.linalg.solve(ellipsoid.gramian, directions)))
+    return support * (1.0 + SUPPORT_MARGIN + SUPPORT_ROUNDING * ellipsoid.dim * eps * np.linalg.cond(ellipsoid.gramian))
+
+
+def _parallelotope(ellipsoid: Ellipsoid) -> tuple[np.ndarray, np.ndarray]:
+    """Axes P (columns) and half-widths h of the enclosing parallelotope ``|P^T (t - c)| <= h``.
+
+    The half-widths are the ellipsoid's support ``radius sqrt(p_i^T G^-1 p_i)`` along the
+    computed axes (equal to ``radius / sqrt(l_i)`` for exact eigenvectors, and correct for
+    any direction, so rounding in the eigenvectors cannot cut the ellipsoid), grown by the
+    margin of `_centered_support`.
+    """
+    _, axes = ellipsoid.semi_axes()
+    return axes, _centered_support(ellipsoid, axes)
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,9 +192,18 @@ class Box:
 
     Parameters
     ----------
-    low, high
-        Arrays of shape (n,). Every ``low[i] <= high[i]``; degenerate sides
-        (``low[i] == high[i]``) are allowed.
+    low, high : array_like
+        Arrays of shape (n,), n >= 1, finite. Every ``low[i] <= high[i]``; degenerate
+        sides (``low[i] == high[i]``) are allowed. Stored as read-only copies.
+
+    Raises
+    ------
+    DimensionError
+        If the shapes differ or are not (n,) with n >= 1.
+    NonFiniteError
+        If a bound is NaN or inf.
+    EmptySetError
+        If some ``low[i] > high[i]``.
     """
 
     low: np.ndarray
@@ -130,8 +222,28 @@ class Box:
         object.__setattr__(self, "high", frozen_copy(high))
 
     @classmethod
-    def from_center(cls, center, radius) -> Box:
-        """The box ``center +- radius``; ``radius`` is a scalar or an array, >= 0."""
+    def from_center(cls, center: ArrayLike, radius: ArrayLike) -> Box:
+        """The box ``center +- radius``.
+
+        Parameters
+        ----------
+        center : array_like
+            Shape (n,).
+        radius : float or array_like
+            Half-widths, >= 0: a scalar (every coordinate) or shape (n,).
+
+        Returns
+        -------
+        Box
+            ``Box(center - radius, center + radius)`` (rounded to nearest).
+
+        Raises
+        ------
+        DimensionError
+            If ``radius`` is an array whose shape is not ``center``'s.
+        EmptySetError
+            If some radius is negative.
+        """
         c = as_finite_array("center", center, ndim=1)
         r = as_finite_array("radius", radius)
         if r.ndim == 0:
@@ -156,12 +268,29 @@ class Box:
         """``(high - low) / 2``, per coordinate."""
         return (self.high - self.low) / 2
 
-    def contains(self, x, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
-        """True iff every point of ``x`` ((n,) or (k, n)) lies in the box grown by ``tol``.
+    def contains(self, x: ArrayLike, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """True iff every point of ``x`` lies in the box grown by ``tol``.
 
-        With ``witness=True``, a `Membership` naming the first violation instead: the
-        first point (in order) and, within it, the first coordinate outside, with the
-        distance beyond ``low - tol`` or ``high + tol``.
+        Parameters
+        ----------
+        x : array_like
+            One point, shape (n,), or k points, shape (k, n).
+        tol : float
+            Absolute slack, in the coordinates' units: the test is
+            ``low - tol <= x <= high + tol``.
+        witness : bool
+            Return a `Membership` naming the first violation instead: the first point
+            (in order) and, within it, the first coordinate outside, with the distance
+            beyond ``low - tol`` or ``high + tol``.
+
+        Returns
+        -------
+        bool or Membership
+
+        Raises
+        ------
+        DimensionError
+            If ``x`` is not of shape (n,) or (k, n).
         """
         pts = as_points("x", x, self.dim)
         if not witness:
@@ -177,25 +306,66 @@ class Box:
         return Membership(False, k, f"x[{i}] <= high[{i}] + tol", float(above[k, i]))
 
     def vertices(self) -> np.ndarray:
-        """The 2^n corners, shape (2^n, n), ordered like `hypercube_signs`.
+        """The 2^n corners, ordered like `hypercube_signs`.
 
-        Taken from ``low`` and ``high`` exactly (``center +- radius`` can round outside the box).
+        Returns
+        -------
+        numpy.ndarray
+            Shape (2^n, n), taken from ``low`` and ``high`` exactly (``center +- radius``
+            can round outside the box).
         """
         return np.where(hypercube_signs(self.dim) > 0, self.high, self.low)
 
     def intersect(self, other: Box) -> Box:
-        """The intersection with another box; raises `EmptySetError` if empty."""
+        """The intersection with another box (exact: the bounds are maxima and minima).
+
+        Parameters
+        ----------
+        other : Box
+            A box of the same dimension.
+
+        Returns
+        -------
+        Box
+
+        Raises
+        ------
+        DimensionError
+            If the dimensions differ.
+        EmptySetError
+            If the boxes do not meet.
+        """
         check_dimension("other", other.dim, self.dim)
         return Box(np.maximum(self.low, other.low), np.minimum(self.high, other.high))
 
     def bounding_box(self) -> Box:
-        """The box itself (a `ParameterSet` method)."""
+        """The box itself (a `ParameterSet` method).
+
+        Returns
+        -------
+        Box
+        """
         return self
 
     def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
         """The 2^n corners (exactly ``low`` or ``high``), of ``self ∩ prior`` when a prior is given.
 
-        Box ∩ box is exact. Raises `EmptySetError` if the intersection is empty.
+        Parameters
+        ----------
+        prior : Box or None
+            The prior parameter box (the set D of Assumption 1), dimension n.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (2^n, n), ordered like `hypercube_signs`. Box ∩ box is exact.
+
+        Raises
+        ------
+        DimensionError
+            If ``prior`` has another dimension.
+        EmptySetError
+            If the intersection is empty.
         """
         if prior is None:
             return self.vertices()
@@ -205,7 +375,13 @@ class Box:
         return intersect_boxes(self, prior, "the parameter box").vertices()
 
     def to_dict(self) -> dict:
-        """``{"low": [...], "high": [...]}``."""
+        """The box as plain data.
+
+        Returns
+        -------
+        dict
+            ``{"low": [...], "high": [...]}``.
+        """
         return {"low": self.low.tolist(), "high": self.high.tolist()}
 
     def __eq__(self, other: object) -> bool:
@@ -224,12 +400,27 @@ class Ellipsoid:
 
     Parameters
     ----------
-    center
-        The centre c, shape (d,).
-    gramian
-        The symmetric positive definite shape matrix G, shape (d, d).
-    radius
+    center : array_like
+        The centre c, shape (d,), d >= 1.
+    gramian : array_like
+        The symmetric positive definite shape matrix G, shape (d, d) (symmetric to
+        1e-10 relative; stored symmetrised).
+    radius : float
         The radius, > 0.
+
+    Raises
+    ------
+    DimensionError
+        If the shapes do not match.
+    NonFiniteError
+        If an entry is NaN or inf.
+    InputError
+        If G is not symmetric or not positive definite, or the radius is not > 0.
+
+    Notes
+    -----
+    The confidence sets of `~minimaxplan.models.confidence_ellipsoid` have this form,
+    with G the regularised Gram matrix ``G_N`` and radius ``beta_N(delta)``.
     """
 
     center: np.ndarray
@@ -261,12 +452,28 @@ class Ellipsoid:
         """The dimension d."""
         return self.center.shape[0]
 
-    def contains(self, t, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
-        """True iff every point of ``t`` ((d,) or (k, d)) satisfies the defining inequality.
+    def contains(self, t: ArrayLike, tol: float = 0.0, *, witness: bool = False) -> bool | Membership:
+        """True iff every point of ``t`` satisfies the defining inequality (in floating point).
 
-        ``tol`` relaxes it to ``(t-c)^T G (t-c) <= radius^2 (1 + tol)``. With
-        ``witness=True``, a `Membership` naming the first point outside and by how much
-        its quadratic form exceeds ``radius^2 (1 + tol)``.
+        Parameters
+        ----------
+        t : array_like
+            One point, shape (d,), or k points, shape (k, d).
+        tol : float
+            Relative slack on the quadratic form: the test is
+            ``(t-c)^T G (t-c) <= radius^2 (1 + tol)``.
+        witness : bool
+            Return a `Membership` naming the first point outside and by how much its
+            quadratic form exceeds ``radius^2 (1 + tol)``.
+
+        Returns
+        -------
+        bool or Membership
+
+        Raises
+        ------
+        DimensionError
+            If ``t`` is not of shape (d,) or (k, d).
         """
         pts = as_points("t", t, self.dim)
         delta = np.atleast_2d(pts) - self.center
@@ -281,46 +488,112 @@ class Ellipsoid:
         return Membership(False, k, "(t - c)^T G (t - c) <= radius^2 (1 + tol)", float(q[k] - limit))
 
     def semi_axes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lengths ``radius / sqrt(l_i)`` and directions (columns of P), with G = P diag(l) P^T."""
+        """The principal semi-axes: lengths and directions.
+
+        Returns
+        -------
+        lengths : numpy.ndarray
+            Shape (d,): ``radius / sqrt(l_i)``, ascending eigenvalues ``l_i`` of G.
+        axes : numpy.ndarray
+            Shape (d, d): the unit directions, as columns of P, with ``G = P diag(l) P^T``.
+        """
         eigenvalues, eigenvectors = self._eig
         return self.radius / np.sqrt(eigenvalues), eigenvectors
 
     def bounding_box(self) -> Box:
-        """The tightest enclosing box: ``c_i +- radius * sqrt((G^-1)_ii)``."""
-        eigenvalues, eigenvectors = self._eig
-        half_width = self.radius * np.sqrt(np.einsum("ij,j,ij->i", eigenvectors, 1 / eigenvalues, eigenvectors))
-        return Box(self.center - half_width, self.center + half_width)
+        """An enclosing box, rounded outward: ``c_i +- radius * sqrt((G^-1)_ii)`` and a margin.
+
+        Returns
+        -------
+        Box
+            Contains every point of the ellipsoid, also in floating point: a point
+            that satisfies ``(t - c)^T G (t - c) <= radius^2`` exactly (in real
+            arithmetic) lies in the box.
+
+        Notes
+        -----
+        The exact tightest box has half-widths ``radius sqrt((G^-1)_ii)``. They are
+        computed as the ellipsoid's support along the coordinate axes, grown by the
+        relative margin ``SUPPORT_MARGIN + SUPPORT_ROUNDING * d eps cond(G)`` (the
+        first-order error of solving with G), and ``c -+ half_width`` is then moved one
+        ulp outward, since rounding ``c + half_width`` to nearest may land inside by half
+        an ulp of ``|c|``. The interval predictor's enclosures use the same margins
+        (`~minimaxplan.models.polytope.parameter_vertices`).
+        """
+        half_width = _centered_support(self, np.eye(self.dim))
+        return Box(np.nextafter(self.center - half_width, -np.inf), np.nextafter(self.center + half_width, np.inf))
 
     def vertices(self) -> np.ndarray:
-        """The 2^d vertices of the enclosing parallelotope aligned with the principal axes.
+        """The 2^d vertices of the enclosing parallelotope aligned with the principal axes, rounding-safe.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (2^d, d), one vertex per sign vector of `hypercube_signs`. Their
+            convex hull contains every point of the ellipsoid, also in floating point:
+            a point that satisfies the defining inequality exactly lies in the hull.
 
         Notes
         -----
         With ``G = P diag(l) P^T`` the vertices are ``c + radius * P diag(l)^(-1/2) h``
         for h in {-1, 1}^d (DESIGN errata: the reference code uses ``P^-1`` and one copy
-        scales by ``sqrt(radius)``). Their convex hull contains the whole ellipsoid.
+        scales by ``sqrt(radius)``). The half-widths ``radius / sqrt(l_i)`` are computed
+        as the ellipsoid's support along the computed axes (correct for any direction,
+        so rounding in the eigenvectors cannot cut the ellipsoid), grown by the relative
+        margin ``SUPPORT_MARGIN + SUPPORT_ROUNDING * d eps cond(G)``; the vertices are then
+        dilated about c by their own rounding error, ``4 (d + 1) eps (max |c| + sum h)``,
+        over the smallest half-width (the parallelotope's inradius, P being orthonormal).
+        These are the vertices that the interval predictor uses for an ellipsoid (eq. (8)).
         """
-        lengths, axes = self.semi_axes()
-        return self.center + (hypercube_signs(self.dim) * lengths) @ axes.T
+        axes, support = _parallelotope(self)
+        vertices = self.center + (hypercube_signs(self.dim) * support) @ axes.T
+        vertex_error = 4 * (self.dim + 1) * np.finfo(float).eps * (np.max(np.abs(self.center)) + np.sum(support))
+        return self.center + (1.0 + vertex_error / np.min(support)) * (vertices - self.center)
 
     def enclosing_vertices(self, prior: Box | None = None) -> np.ndarray:
         """Vertices of a polytope that contains the ellipsoid (∩ ``prior`` when given), rounding-safe.
 
-        Without a prior: the 2^d vertices of the enclosing parallelotope (as `vertices`),
-        grown by rounding-level margins so that their hull contains the ellipsoid in
-        floating point too. With a prior: the vertices of parallelotope ∩ bounding box ∩
-        prior (clipping the vertices to the prior would NOT be sound; DESIGN errata).
-        See `~minimaxplan.models.polytope.parameter_vertices`, Notes.
+        Parameters
+        ----------
+        prior : Box or None
+            The prior parameter box (the set D of Assumption 1), dimension d.
+
+        Returns
+        -------
+        numpy.ndarray
+            Without a prior: `vertices`, the 2^d vertices of the enclosing
+            parallelotope, grown by rounding-level margins so that their hull contains
+            the ellipsoid in floating point too. With a prior: the vertices of
+            parallelotope ∩ bounding box ∩ prior (clipping the vertices to the prior
+            would NOT be sound; DESIGN errata), shape (k, d).
+
+        Raises
+        ------
+        DimensionError
+            If ``prior`` has another dimension.
+        EmptySetError
+            If the enclosing polytope does not meet ``prior``.
+
+        Notes
+        -----
+        The parameter polytope of eq. (8); see
+        `~minimaxplan.models.polytope.parameter_vertices`, Notes.
         """
-        from .polytope import dilated_parallelotope_vertices, ellipsoid_in_box_vertices
+        from .polytope import ellipsoid_in_box_vertices
 
         if prior is None:
-            return dilated_parallelotope_vertices(self)
+            return self.vertices()
         check_dimension("prior", prior.dim, self.dim, "the ellipsoid's")
         return ellipsoid_in_box_vertices(self, prior)
 
     def to_dict(self) -> dict:
-        """``{"center": [...], "gramian": [[...]], "radius": r}``."""
+        """The ellipsoid as plain data.
+
+        Returns
+        -------
+        dict
+            ``{"center": [...], "gramian": [[...]], "radius": r}``.
+        """
         return {"center": self.center.tolist(), "gramian": self.gramian.tolist(), "radius": self.radius}
 
     def __repr__(self) -> str:

@@ -42,8 +42,20 @@ def _shape_text(shape: Sequence[int | None]) -> str:
 def check_shape(name: str, array: np.ndarray, shape: Sequence[int | None]) -> None:
     """Raise `DimensionError` unless ``array.shape`` matches ``shape`` (None = any length).
 
-    The message names the argument, the expected shape (``*`` for a free length) and
-    the shape given.
+    Parameters
+    ----------
+    name : str
+        The argument's name, used in the message.
+    array : numpy.ndarray
+        The array to check.
+    shape : sequence of int or None
+        The expected shape; a None entry matches any length.
+
+    Raises
+    ------
+    DimensionError
+        Naming the argument, the expected shape (``*`` for a free length) and the
+        shape given.
     """
     if array.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, array.shape)):
         raise DimensionError(
@@ -52,7 +64,24 @@ def check_shape(name: str, array: np.ndarray, shape: Sequence[int | None]) -> No
 
 
 def check_same_shape(first: str, a: np.ndarray, second: str, b: np.ndarray) -> None:
-    """Raise `DimensionError` unless the arrays ``a`` (named ``first``) and ``b`` have one shape."""
+    """Raise `DimensionError` unless two arrays have the same shape.
+
+    Parameters
+    ----------
+    first : str
+        The name of ``a``, used in the message.
+    a : numpy.ndarray
+        The first array.
+    second : str
+        The name of ``b``.
+    b : numpy.ndarray
+        The second array.
+
+    Raises
+    ------
+    DimensionError
+        Naming both arguments and both shapes.
+    """
     if np.shape(a) != np.shape(b):
         raise DimensionError(f"{first} and {second} must have the same shape, got {np.shape(a)} and {np.shape(b)}")
 
@@ -62,14 +91,19 @@ def check_dimension(name: str, dim: int, expected: int, reason: str = "") -> Non
 
     Parameters
     ----------
-    name
+    name : str
         The argument's name.
-    dim
+    dim : int
         Its dimension.
-    expected
+    expected : int
         The dimension required.
-    reason
+    reason : str
         Where ``expected`` comes from (e.g. ``"A0 has shape (2, 2)"``), shown in parentheses.
+
+    Raises
+    ------
+    DimensionError
+        Naming the argument, both dimensions and the reason.
     """
     if dim != expected:
         why = f" ({reason})" if reason else ""
@@ -79,8 +113,22 @@ def check_dimension(name: str, dim: int, expected: int, reason: str = "") -> Non
 def check_instance(name: str, value: Any, types: type | tuple[type, ...], what: str | None = None) -> None:
     """Raise `InputError` unless ``value`` is an instance of ``types``.
 
-    ``what`` describes the expected kind (default: ``"a <Type>"``, or ``"an <Type>"``
-    before a vowel); the message names the type that was given.
+    Parameters
+    ----------
+    name : str
+        The argument's name, used in the message.
+    value : object
+        The value to check.
+    types : type or tuple of type
+        The accepted types (as for `isinstance`).
+    what : str, optional
+        The expected kind in words (default: ``"a <Type>"``, or ``"an <Type>"`` before a
+        vowel, after the first of ``types``).
+
+    Raises
+    ------
+    InputError
+        Naming the argument, the expected kind and the type that was given.
     """
     if isinstance(value, types):
         return
@@ -98,14 +146,28 @@ def as_finite_array(
 
     Parameters
     ----------
-    name
+    name : str
         The argument's name, used in error messages.
-    value
+    value : array_like
         Anything `numpy.asarray` accepts.
-    shape
+    shape : sequence of int or None, optional
         Expected shape; ``None`` entries match any length.
-    ndim
+    ndim : int, optional
         Expected number of dimensions, when the lengths are free.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``value`` as float64 (not copied when it already is one).
+
+    Raises
+    ------
+    InputError
+        If ``value`` is not real and numeric (complex values are refused, not truncated).
+    DimensionError
+        If the shape or the number of dimensions is wrong.
+    NonFiniteError
+        If an entry is NaN or infinite.
     """
     try:
         raw = np.asarray(value)
@@ -128,7 +190,28 @@ def as_finite_array(
 def as_points(name: str, value, dim: int, *, batch: str = "k") -> np.ndarray:
     """A finite float array of one point, shape (dim,), or a batch of points, shape (k, dim).
 
-    ``batch`` names the batch length in the error message (e.g. ``"N"``).
+    Parameters
+    ----------
+    name : str
+        The argument's name, used in error messages.
+    value : array_like
+        The point or points.
+    dim : int
+        The dimension of a point.
+    batch : str
+        The name of the batch length in the message (e.g. ``"N"``).
+
+    Returns
+    -------
+    numpy.ndarray
+        Float64, shape (dim,) or (k, dim).
+
+    Raises
+    ------
+    DimensionError
+        ``"<name> must have shape (dim,) or (k, dim), got shape ..."``.
+    InputError, NonFiniteError
+        As `as_finite_array`.
     """
     points = as_finite_array(name, value)
     if points.shape[-1:] != (dim,) or points.ndim > 2:
@@ -137,7 +220,18 @@ def as_points(name: str, value, dim: int, *, batch: str = "k") -> np.ndarray:
 
 
 def frozen_copy(array: np.ndarray) -> np.ndarray:
-    """A read-only copy, so that immutable values never alias a caller's array."""
+    """A read-only float64 copy, so that immutable values never alias a caller's array.
+
+    Parameters
+    ----------
+    array : array_like
+        The array to copy.
+
+    Returns
+    -------
+    numpy.ndarray
+        A new float64 array with ``writeable=False``.
+    """
     out = np.array(array, dtype=float, copy=True)
     out.setflags(write=False)
     return out
@@ -156,7 +250,28 @@ def _as_real_scalar(name: str, value) -> float:
 
 
 def as_positive_scalar(name: str, value, *, allow_zero: bool = False) -> float:
-    """Check that ``value`` is a finite real scalar > 0 (or >= 0); return it as a float."""
+    """Check that ``value`` is a finite real scalar > 0 (or >= 0); return it as a float.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, used in error messages.
+    value : float
+        The value to check (bools and complex numbers are refused).
+    allow_zero : bool
+        Accept 0 too.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    InputError
+        If ``value`` is not a real scalar, or is negative (or 0 without ``allow_zero``).
+    NonFiniteError
+        If it is NaN or infinite.
+    """
     x = _as_real_scalar(name, value)
     if x < 0 or (x == 0 and not allow_zero):
         raise InputError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {x}")
@@ -167,8 +282,25 @@ def as_probability(name: str, value) -> float:
     """Check that ``value`` is a real scalar in the open interval (0, 1); return it as a float.
 
     Used for confidence levels (``delta``: the set holds with probability >= 1 - delta).
-    A value <= 0 is reported as by `as_positive_scalar` (``"must be > 0"``), one >= 1 as
-    ``"must lie in (0, 1)"``.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, used in error messages.
+    value : float
+        The value to check.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    InputError
+        A value <= 0 as by `as_positive_scalar` (``"must be > 0"``), one >= 1 as
+        ``"must lie in (0, 1)"``.
+    NonFiniteError
+        If it is NaN or infinite.
     """
     x = as_positive_scalar(name, value)
     if not x < 1:
@@ -178,6 +310,17 @@ def as_probability(name: str, value) -> float:
 
 def as_discount(name: str, value) -> float:
     """Check that a discount factor satisfies ``0 < gamma < 1``; return it as a float.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, used in error messages.
+    value : float
+        The discount factor.
+
+    Returns
+    -------
+    float
 
     Notes
     -----
@@ -207,8 +350,24 @@ def as_discount(name: str, value) -> float:
 def as_count(name: str, value, *, minimum: int = 1) -> int:
     """Check that ``value`` is an integer >= ``minimum``; return it as an ``int``.
 
-    Python and numpy integers are accepted; bools, floats (even integral ones) and
-    strings are rejected with `InputError`.
+    Parameters
+    ----------
+    name : str
+        The argument's name, used in error messages.
+    value : int
+        Python and numpy integers are accepted; bools, floats (even integral ones) and
+        strings are not.
+    minimum : int
+        The smallest value accepted.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    InputError
+        If ``value`` is not an integer or is below ``minimum``.
     """
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum:
         what = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
@@ -219,8 +378,27 @@ def as_count(name: str, value, *, minimum: int = 1) -> int:
 def as_choice(name: str, value, choices: Sequence, *, ignore_case: bool = False):
     """Check that ``value`` is one of ``choices``; return the matching choice.
 
-    With ``ignore_case``, strings are compared upper-cased (choices are given upper-case)
-    and the choice is returned in its canonical spelling.
+    Parameters
+    ----------
+    name : str
+        The argument's name, used in error messages.
+    value : object
+        The value to check.
+    choices : sequence
+        The accepted values.
+    ignore_case : bool
+        Compare strings upper-cased (the choices are then given upper-case) and return
+        the choice in its canonical spelling.
+
+    Returns
+    -------
+    object
+        The matching choice.
+
+    Raises
+    ------
+    InputError
+        ``"<name> must be one of (...), got ..."``.
     """
     key = value.upper() if ignore_case and isinstance(value, str) else value
     try:

@@ -1,5 +1,7 @@
 """Boxes and ellipsoids: construction, immutability, membership, enclosures, bad input."""
 
+from fractions import Fraction
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -7,7 +9,7 @@ from hypothesis import strategies as st
 from scipy.optimize import linprog
 
 from minimaxplan.models import Box, DimensionError, Ellipsoid, EmptySetError, InputError, NonFiniteError
-from minimaxplan.models.sets import hypercube_signs
+from minimaxplan.models.sets import SUPPORT_MARGIN, SUPPORT_ROUNDING, hypercube_signs
 
 SEEDS = st.integers(0, 2**32 - 1)
 
@@ -157,8 +159,12 @@ def test_ellipsoid_basics():
     assert ell.contains([2.01, -1.0], tol=0.03)
     assert ell.contains(np.array([[1.0, 0.0], [1.5, -1.0]]))
     box = ell.bounding_box()
-    np.testing.assert_allclose(box.low, [0.0, -3.0], rtol=0, atol=1e-15)
-    np.testing.assert_allclose(box.high, [2.0, 1.0], rtol=0, atol=1e-15)
+    # the exact box [0, 2] x [-3, 1], rounded outward by the documented relative margin
+    # (SUPPORT_MARGIN + SUPPORT_ROUNDING d eps cond(G) of the half-widths 1 and 2, plus an ulp)
+    assert np.all(box.low <= [0.0, -3.0]) and np.all(box.high >= [2.0, 1.0])
+    margin = (SUPPORT_MARGIN + SUPPORT_ROUNDING * 2 * np.finfo(float).eps * 4.0) * np.array([1.0, 2.0])
+    np.testing.assert_allclose(box.low, [0.0, -3.0], rtol=0, atol=float(np.max(margin)) + 1e-15)
+    np.testing.assert_allclose(box.high, [2.0, 1.0], rtol=0, atol=float(np.max(margin)) + 1e-15)
     assert ell.to_dict() == {"center": [1.0, -1.0], "gramian": [[4.0, 0.0], [0.0, 1.0]], "radius": 2.0}
 
 
@@ -189,8 +195,10 @@ def test_bounding_box_encloses_the_boundary_and_is_tight(seed, d):
     for i in range(d):
         extreme = ell.center + ell.radius * inverse[:, i] / np.sqrt(inverse[i, i])
         assert ell.contains(extreme, tol=1e-9)
-        # both routes (inverse here, eigenbasis there) lose ~cond(G) eps of the largest semi-axis
-        assert extreme[i] == pytest.approx(box.high[i], rel=1e-9, abs=1e-9 * largest_axis + 1e-12 * scale[i])
+        # both routes (inverse here, solve there) lose ~cond(G) eps of the largest semi-axis, and
+        # the box is rounded outward by at most the documented margin of its half-width
+        margin = (SUPPORT_MARGIN + SUPPORT_ROUNDING * d * np.finfo(float).eps * np.linalg.cond(ell.gramian)) * box.radius[i]
+        assert extreme[i] == pytest.approx(box.high[i], rel=1e-9, abs=1e-9 * largest_axis + 1e-12 * scale[i] + margin)
 
 
 @given(seed=SEEDS, d=st.integers(1, 4))
@@ -214,11 +222,125 @@ def test_ellipsoid_vertices_enclose_the_ellipsoid(seed, d):
     assert np.all(lengths > 0)
 
 
+def _exactly_inside(ellipsoid, point):
+    """``(t - c)^T G (t - c) <= radius^2`` in exact rational arithmetic (no rounding at all)."""
+    delta = [Fraction(float(t)) - Fraction(float(c)) for t, c in zip(point, ellipsoid.center)]
+    gramian = [[Fraction(float(g)) for g in row] for row in ellipsoid.gramian]
+    form = sum(delta[i] * gramian[i][j] * delta[j] for i in range(len(delta)) for j in range(len(delta)))
+    return form <= Fraction(ellipsoid.radius) ** 2
+
+
+def _outermost_inside(ellipsoid, start, i, sign):
+    """The float point farthest along ``sign * e_i`` from ``start`` (moving coordinate i only) that is exactly inside.
+
+    ``start`` (a float approximation of a boundary point) is first pulled towards the
+    centre until it is exactly inside; coordinate i then moves outward, galloping and
+    then one ulp at a time, until the next float outward is exactly outside.
+    """
+    start = np.array(start, dtype=float)
+    point, k = start, 0
+    while not _exactly_inside(ellipsoid, point):
+        point = ellipsoid.center + (1 - 2.0**k * 1e-16) * (start - ellipsoid.center)
+        k += 1
+        assert k < 60, "could not find a point exactly inside"
+
+    def moved(value):
+        trial = point.copy()
+        trial[i] = value
+        return trial
+
+    step = float(np.spacing(abs(point[i])))
+    while _exactly_inside(ellipsoid, moved(point[i] + sign * step)):
+        point, step = moved(point[i] + sign * step), 2 * step
+    while step > np.spacing(abs(point[i])):
+        step /= 2
+        if _exactly_inside(ellipsoid, moved(point[i] + sign * step)):
+            point = moved(point[i] + sign * step)
+    direction = np.inf if sign > 0 else -np.inf
+    while _exactly_inside(ellipsoid, moved(np.nextafter(point[i], direction))):
+        point = moved(np.nextafter(point[i], direction))
+    return point
+
+
+def _random_1d_ellipsoid(rng):
+    center = rng.normal() * 10.0 ** rng.uniform(-3, 3)
+    return Ellipsoid([center], [[10.0 ** rng.uniform(-6, 6)]], 10.0 ** rng.uniform(-3, 3))
+
+
+@given(seed=SEEDS)
+def test_1d_enclosures_contain_the_exact_boundary_points(seed):
+    """Issue 10 item 4: in d = 1 the box and the vertices must hold the floats exactly inside.
+
+    The outermost floats t with ``(t - c)^2 g <= r^2`` exactly (near ``c +- r / sqrt(g)``)
+    must lie in `bounding_box` and between the two `vertices`; without outward rounding
+    about 5% of such ellipsoids cut one of them off by an ulp.
+    """
+    rng = np.random.default_rng(seed)
+    for _ in range(20):
+        ell = _random_1d_ellipsoid(rng)
+        box, vertices = ell.bounding_box(), ell.vertices()
+        half_width = ell.radius / np.sqrt(ell.gramian[0, 0])
+        for sign in (-1.0, 1.0):
+            point = _outermost_inside(ell, ell.center + sign * half_width, 0, sign)
+            assert box.contains(point), (ell, point, box)
+            assert vertices.min() <= point[0] <= vertices.max(), (ell, point, vertices)
+
+
+def _in_quadrilateral_exactly(corners, point):
+    """Is ``point`` in the convex quadrilateral ``corners`` (in cyclic order)? Exact rational arithmetic."""
+    px, py = Fraction(float(point[0])), Fraction(float(point[1]))
+    signs = set()
+    for k in range(4):
+        (ax, ay), (bx, by) = corners[k], corners[(k + 1) % 4]
+        ax, ay, bx, by = (Fraction(float(v)) for v in (ax, ay, bx, by))
+        cross = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+        if cross != 0:
+            signs.add(cross > 0)
+    return len(signs) <= 1
+
+
+@given(seed=SEEDS, d=st.integers(1, 4))
+def test_bounding_box_contains_the_exact_extreme_points(seed, d):
+    """The maximiser of ``t_i`` over the ellipsoid, moved to the last float exactly inside, is in the box."""
+    rng = np.random.default_rng(seed)
+    ell = Ellipsoid(rng.normal(size=d) * 10.0 ** rng.uniform(-3, 3), _random_gramian(rng, d), 10.0 ** rng.uniform(-2, 2))
+    box = ell.bounding_box()
+    inverse = np.linalg.inv(ell.gramian)
+    for i in range(d):
+        for sign in (-1.0, 1.0):
+            extreme = ell.center + sign * ell.radius * inverse[:, i] / np.sqrt(inverse[i, i])
+            point = _outermost_inside(ell, extreme, i, sign)
+            assert box.contains(point), (i, sign, point, box)
+
+
+@given(seed=SEEDS)
+def test_2d_vertices_contain_the_exact_boundary_points(seed):
+    """Points exactly inside, pushed to the last float along each semi-axis, lie in the hull of `vertices`.
+
+    The hull test is exact (rational cross products), so an enclosure that misses such a
+    point by one ulp fails.
+    """
+    rng = np.random.default_rng(seed)
+    ell = Ellipsoid(rng.normal(size=2) * 10.0 ** rng.uniform(-3, 3), _random_gramian(rng, 2), 10.0 ** rng.uniform(-2, 2))
+    vertices = ell.vertices()
+    corners = vertices[[0, 1, 3, 2]]  # sign vectors (--, -+, ++, +-) of the axes: cyclic order
+    lengths, axes = ell.semi_axes()
+    for j in range(2):
+        for sign in (-1.0, 1.0):
+            tip = ell.center + sign * lengths[j] * axes[:, j]
+            i = int(np.argmax(np.abs(axes[:, j])))  # walk along the coordinate closest to that axis
+            point = _outermost_inside(ell, tip, i, sign * np.sign(axes[i, j]))
+            assert _in_quadrilateral_exactly(corners, point), (j, sign, point, vertices)
+
+
 def test_vertices_follow_the_errata_formula():
     # G = diag(4, 1/9), radius 2: semi-axes 1 and 6 along the coordinate axes
     ell = Ellipsoid([0.0, 0.0], np.diag([4.0, 1.0 / 9.0]), 2.0)
-    vertices = {tuple(np.round(np.abs(v), 12)) for v in ell.vertices()}
-    assert vertices == {(1.0, 6.0)}
+    vertices = ell.vertices()
+    assert {tuple(np.sign(v)) for v in vertices} == {(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)}
+    # |v| = (1, 6), rounded outward by the documented margins (relative ~1e-12)
+    assert np.all(np.abs(vertices) >= [1.0, 6.0])
+    np.testing.assert_allclose(np.abs(vertices), np.tile([1.0, 6.0], (4, 1)), rtol=2e-12, atol=0)
 
 
 def test_ellipsoid_errors():

@@ -100,21 +100,53 @@ def test_from_statespace_discrete_uses_its_own_matrices_and_dt():
     phi = np.array([[[0.0, 0.1], [0.0, 0.0]]])
     D = np.array([[1.0], [0.5]])
     boxes = dict(w=Box([-0.1], [0.1]), theta=Box([-0.5], [0.5]))
-    system = UncertainLinearSystem.from_statespace(sys, phi, D=D, **boxes)
+    system = UncertainLinearSystem.from_statespace(sys, phi, D=D, phi_time="discrete", **boxes)
     np.testing.assert_array_equal(system.A0, A)
+    np.testing.assert_array_equal(system.phi, phi)  # a discrete-time phi is used as given
     np.testing.assert_array_equal(system.B, B)
     np.testing.assert_array_equal(system.D, D)  # our disturbance matrix, not the feedthrough
-    same_dt = UncertainLinearSystem.from_statespace(sys, phi, D=D, dt=0.1, **boxes)
+    same_dt = UncertainLinearSystem.from_statespace(sys, phi, D=D, dt=0.1, phi_time="discrete", **boxes)
     np.testing.assert_array_equal(same_dt.A0, A)
     with pytest.raises(InputError, match=r"sys is discrete-time with dt=0.1; dt=0.2 contradicts it"):
-        UncertainLinearSystem.from_statespace(sys, phi, D=D, dt=0.2, **boxes)
+        UncertainLinearSystem.from_statespace(sys, phi, D=D, dt=0.2, phi_time="discrete", **boxes)
+    with pytest.raises(InputError, match=r"dt must be > 0, got -0.1"):
+        UncertainLinearSystem.from_statespace(sys, phi, D=D, dt=-0.1, phi_time="discrete", **boxes)
     unspecified = control.ss(A, B, np.eye(2), np.zeros((2, 1)), dt=True)
-    np.testing.assert_array_equal(UncertainLinearSystem.from_statespace(unspecified, phi, D=D, **boxes).A0, A)
+    np.testing.assert_array_equal(UncertainLinearSystem.from_statespace(unspecified, phi, D=D, phi_time="discrete", **boxes).A0, A)
     ambiguous = control.ss(A, B, np.eye(2), np.zeros((2, 1)), dt=None)
     with pytest.raises(InputError, match=r"sys has an unspecified timebase \(dt=None\)"):
-        UncertainLinearSystem.from_statespace(ambiguous, phi, D=D, dt=0.1, **boxes)
+        UncertainLinearSystem.from_statespace(ambiguous, phi, D=D, dt=0.1, phi_time="discrete", **boxes)
     with pytest.raises(InputError, match=r"sys must be a python-control StateSpace, got ndarray"):
         UncertainLinearSystem.from_statespace(A, phi, **boxes)
+
+
+def test_from_statespace_never_adds_a_continuous_phi_to_a_discrete_sys():
+    """Issue 10 item 8: the time base of phi is explicit; the old code silently added a rate to sys.A."""
+    A_c, B_c = np.array([[0.0, 1.0], [-2.0, -0.3]]), np.array([[0.0], [1.0]])
+    phi_c = np.array([[[0.0, 0.0], [-1.0, 0.0]]])  # continuous-time: a stiffness uncertainty, per second
+    boxes = dict(w=Box([-0.1, -0.1], [0.1, 0.1]), theta=Box([-0.5], [0.5]))
+    discrete = control.sample_system(control.ss(A_c, B_c, np.eye(2), np.zeros((2, 1))), 0.1)
+    # phi_time is required for a discrete sys: phi's time base cannot be guessed
+    with pytest.raises(InputError, match=r"phi_time is required when sys is discrete-time \(dt=0.1\)"):
+        UncertainLinearSystem.from_statespace(discrete, phi_c, **boxes)
+    # a continuous phi with a discrete sys is refused: its discretisation depends on how sys.A was made
+    with pytest.raises(InputError, match=r"phi_time='continuous' with a discrete-time sys \(dt=0.1\).*continuous-time StateSpace with dt="):
+        UncertainLinearSystem.from_statespace(discrete, phi_c, phi_time="continuous", **boxes)
+    with pytest.raises(InputError, match=r"phi_time must be one of \('continuous', 'discrete', None\), got 'ct'"):
+        UncertainLinearSystem.from_statespace(discrete, phi_c, phi_time="ct", **boxes)
+    # a discrete phi with a continuous sys is refused too
+    continuous = control.ss(A_c, B_c, np.eye(2), np.zeros((2, 1)))
+    with pytest.raises(InputError, match=r"phi_time='discrete' but sys is continuous-time"):
+        UncertainLinearSystem.from_statespace(continuous, 0.1 * phi_c, phi_time="discrete", dt=0.1, **boxes)
+    # the consistent routes: continuous sys and phi with dt= (forward Euler for all), or phi_time="discrete"
+    euler = UncertainLinearSystem.from_statespace(continuous, phi_c, phi_time="continuous", dt=0.1, **boxes)
+    np.testing.assert_array_equal(euler.phi, 0.1 * phi_c)
+    np.testing.assert_array_equal(euler.A0, np.eye(2) + 0.1 * A_c)
+    same = UncertainLinearSystem.from_statespace(continuous, phi_c, dt=0.1, **boxes)
+    np.testing.assert_array_equal(same.phi, euler.phi)
+    explicit = UncertainLinearSystem.from_statespace(discrete, 0.1 * phi_c, phi_time="discrete", **boxes)
+    np.testing.assert_array_equal(explicit.A0, discrete.A)
+    np.testing.assert_array_equal(explicit.phi, 0.1 * phi_c)
 
 
 def test_system_is_immutable_and_does_not_alias():
