@@ -158,6 +158,8 @@ def load_model_file(path) -> ModelFile:
         invalid system (the message names the file, the model and the key).
     """
     path = pathlib.Path(path)
+    if path.is_dir():
+        raise ModelFileError(f"model file {str(path)!r} is a directory, not a file")
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -233,10 +235,7 @@ def _parse_model(table: Mapping[str, Any], where: str, *, default_name: str) -> 
         raise ModelFileError(f'{where}: time must be "discrete" or "continuous", got {time!r}')
     dt = None
     if "dt" in table:
-        dt = table["dt"]
-        if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not math.isfinite(dt) or dt <= 0:
-            raise ModelFileError(f"{where}: dt must be a finite number > 0, got {dt!r}")
-        dt = float(dt)
+        dt = _finite_positive(table["dt"], f"{where}: dt")
     state_key = "A" if time == CONTINUOUS else "A0"
     other_key = "A0" if time == CONTINUOUS else "A"
     if other_key in table:
@@ -279,6 +278,20 @@ def _parse_model(table: Mapping[str, Any], where: str, *, default_name: str) -> 
     return ModelHypothesis(name=name, system=system, time=time, dt=dt, continuous_system=continuous)
 
 
+def _finite_positive(value: Any, where: str) -> float:
+    """A TOML number that is finite and > 0, as a float (integers too large for a float rejected)."""
+    message = f"{where} must be a finite number > 0, got {value!r}"
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ModelFileError(message)
+    try:
+        x = float(value)
+    except OverflowError:
+        raise ModelFileError(f"{where} must be a finite number > 0, got an integer too large for a float") from None
+    if not math.isfinite(x) or x <= 0:
+        raise ModelFileError(message)
+    return x
+
+
 def _numeric(value: Any, where: str, hint: str = "") -> np.ndarray:
     """A TOML number or (nested) array of numbers as a finite float array."""
 
@@ -292,6 +305,8 @@ def _numeric(value: Any, where: str, hint: str = "") -> np.ndarray:
     check(value)
     try:
         array = np.array(value, dtype=float)
+    except OverflowError:
+        raise ModelFileError(f"{where} holds an integer too large for a float (largest: {sys.float_info.max:.6g})") from None
     except ValueError:
         raise ModelFileError(f"{where} is ragged: its rows must all have the same length{hint}") from None
     if not np.all(np.isfinite(array)):
