@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from minimaxplan.kernels import box_gaps_sq
-from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError
+from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, check_shape, frozen_copy
 
 __all__ = [
     "CircularObstacles",
@@ -279,8 +279,7 @@ class MovingObstacles:
                 raise InputError(f"{name} must be >= 0")
             spreads[name] = value
         dt = as_positive_scalar("dt", self.dt)
-        if int(self.time0) != self.time0:
-            raise InputError(f"time0 must be an integer sub-step index, got {self.time0!r}")
+        as_count("time0", self.time0, minimum=0)
         for name, value in (("positions", positions), ("velocities", velocities), ("radii", radii), *spreads.items()):
             object.__setattr__(self, name, frozen_copy(value))
         object.__setattr__(self, "dt", dt)

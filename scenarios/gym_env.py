@@ -34,9 +34,10 @@ except ImportError as exc:  # pragma: no cover - exercised only without the extr
     raise ImportError("minimaxplan.scenarios.gym_env needs gymnasium: pip install 'minimaxplan[gym]'") from exc
 
 from minimaxplan.models.errors import InputError
+from minimaxplan.models.validation import as_choice, check_instance
 
 from .robot import DEFAULT_ROBOT, RobotParameters
-from .worlds import PEDESTRIAN_COUNT, WORLD_KINDS, RobotWorld
+from .worlds import MEASUREMENT_MODELS, PEDESTRIAN_COUNT, WORLD_KINDS, RobotWorld
 
 __all__ = ["RobotNavigationEnv", "ENV_ID"]
 
@@ -66,10 +67,9 @@ class RobotNavigationEnv(gym.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, kind: str = "static", *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT):
-        if kind not in WORLD_KINDS:
-            raise InputError(f"kind must be one of {WORLD_KINDS}, got {kind!r}")
-        if measurement not in ("uniform", "gaussian"):
-            raise InputError(f"measurement must be 'uniform' or 'gaussian', got {measurement!r}")
+        as_choice("kind", kind, WORLD_KINDS)
+        as_choice("measurement", measurement, MEASUREMENT_MODELS)
+        check_instance("params", params, RobotParameters)
         self.kind = kind
         self.measurement = measurement
         self.params = params

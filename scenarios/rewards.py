@@ -44,8 +44,8 @@ from typing import Any
 import numpy as np
 
 from minimaxplan.kernels import box_minima
-from minimaxplan.models.validation import as_finite_array, as_positive_scalar, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError
+from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, frozen_copy
 
 from .compiled_rewards import GoalParams, SpeedLaneParams, collision_params
 from .geometry import CircularObstacles, MovingObstacles, box_box_sq_distance, box_point_sq_distance
@@ -448,9 +448,7 @@ class SpeedLaneReward(RewardFamily):
                 raise InputError(f"lateral_index {lateral} must differ from speed_indices {speed}")
             object.__setattr__(self, "lateral_index", lateral)
         object.__setattr__(self, "lane_width", as_positive_scalar("lane_width", self.lane_width))
-        if int(self.n_lanes) != self.n_lanes or self.n_lanes < 2:
-            raise InputError(f"n_lanes must be an integer >= 2, got {self.n_lanes!r}")
-        object.__setattr__(self, "n_lanes", int(self.n_lanes))
+        object.__setattr__(self, "n_lanes", as_count("n_lanes", self.n_lanes, minimum=2))
         collision = _CollisionTerm(self.obstacles, self.moving_obstacles, self.robot_radius, self.position_indices)
         if set(speed) & set(collision.position_indices):
             raise InputError(f"speed_indices {speed} must differ from position_indices {collision.position_indices}")

@@ -20,10 +20,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from minimaxplan.models.validation import as_positive_scalar
 from minimaxplan.models.errors import InputError
 from minimaxplan.models.sets import Box
 from minimaxplan.models.system import UncertainLinearSystem
+from minimaxplan.models.validation import as_count, as_positive_scalar
 
 __all__ = [
     "RobotParameters",
@@ -91,8 +91,7 @@ class RobotParameters:
             as_positive_scalar(name, getattr(self, name))
         for name in ("friction_low", "measurement_noise", "goal_distance_low"):
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
-        if int(self.substeps) != self.substeps or self.substeps < 1:
-            raise InputError(f"substeps must be a positive integer, got {self.substeps!r}")
+        as_count("substeps", self.substeps)
         if self.friction_low > self.friction_high:
             raise InputError(f"friction_low must be <= friction_high, got {self.friction_low} > {self.friction_high}")
         if self.goal_distance_low > self.goal_distance_high:

@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from minimaxplan.models.validation import as_finite_array
 from minimaxplan.models.errors import InputError, MinimaxplanError
 from minimaxplan.models.system import UncertainLinearSystem
+from minimaxplan.models.validation import as_choice, as_count, as_finite_array, check_instance
 
 from .geometry import CircularObstacles, MovingObstacles, fcl_disc_collisions
 from .rewards import GoalReward
@@ -41,6 +41,8 @@ __all__ = [
 ]
 
 WORLD_KINDS = ("static", "pedestrian")
+#: The measurement models of a `RobotWorld`: bounded (inside the guarantees) or Gaussian.
+MEASUREMENT_MODELS = ("uniform", "gaussian")
 OUTCOMES = ("running", "goal", "collision", "timeout")
 
 #: Static obstacles in the static world (inclusive range) and their radii, m.
@@ -158,8 +160,7 @@ def generate_layout(kind: str, rng: np.random.Generator, params: RobotParameters
     ``kind="static"``: 10-15 obstacles; ``"pedestrian"``: 3-5. Radii 0.4-1.2 m. Layouts
     without a path are redrawn from the same stream.
     """
-    if kind not in WORLD_KINDS:
-        raise InputError(f"kind must be one of {WORLD_KINDS}, got {kind!r}")
+    as_choice("kind", kind, WORLD_KINDS)
     low, high = STATIC_OBSTACLE_COUNT if kind == "static" else PEDESTRIAN_WORLD_OBSTACLE_COUNT
     for _ in range(_MAX_LAYOUT_ATTEMPTS):
         start, goal = _start_and_goal(rng, params)
@@ -263,16 +264,11 @@ class RobotWorld:
     """
 
     def __init__(self, kind: str, seed: int, *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT):
-        if kind not in WORLD_KINDS:
-            raise InputError(f"kind must be one of {WORLD_KINDS}, got {kind!r}")
-        if measurement not in ("uniform", "gaussian"):
-            raise InputError(f"measurement must be 'uniform' or 'gaussian', got {measurement!r}")
-        if not isinstance(params, RobotParameters):
-            raise InputError(f"params must be a RobotParameters, got {type(params).__name__}")
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise InputError(f"seed must be a non-negative integer, got {seed!r}")
+        as_choice("kind", kind, WORLD_KINDS)
+        as_choice("measurement", measurement, MEASUREMENT_MODELS)
+        check_instance("params", params, RobotParameters)
         self.kind = kind
-        self.seed = int(seed)
+        self.seed = as_count("seed", seed, minimum=0)
         self.measurement = measurement
         self.params = params
         layout_seq, theta_seq, disturbance_seq, noise_seq, pedestrian_seq = np.random.SeedSequence(self.seed).spawn(5)

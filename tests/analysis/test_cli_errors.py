@@ -213,3 +213,11 @@ def test_help_imports_neither_cvxpy_nor_numba():
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=True)
     assert "HEAVY []" in done.stderr, done.stderr
 
+
+
+def test_the_constants_spelled_out_for_a_light_parser_match_the_library():
+    from minimaxplan.analysis import episode, lmi_command, model_file
+    from minimaxplan.scenarios import worlds
+
+    assert lmi_command.FORMS == (model_file.DISCRETE, model_file.CONTINUOUS)
+    assert episode.MEASUREMENT_MODELS == worlds.MEASUREMENT_MODELS
