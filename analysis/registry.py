@@ -132,7 +132,18 @@ class World(Protocol):
         """A (noisy) measurement of the state; the only thing the method sees of it."""
 
     def apply(self, u: np.ndarray) -> str:
-        """Apply the control ``u`` for one sub-step; returns the outcome."""
+        """Apply the control ``u`` for one sub-step; returns the outcome.
+
+        Parameters
+        ----------
+        u : numpy.ndarray
+            The control, shape (q,).
+
+        Returns
+        -------
+        str
+            The world's outcome after the sub-step ("running" while not done).
+        """
 
     def reward(self) -> float:
         """The true reward in [0, 1] of the current state."""
@@ -146,7 +157,18 @@ class Policy(Protocol):
     """What a method decided: a feedback law held for one decision period."""
 
     def control(self, measurement: np.ndarray) -> np.ndarray:
-        """The control to apply now, admissible for the world (e.g. saturated)."""
+        """The control to apply now, admissible for the world (e.g. saturated).
+
+        Parameters
+        ----------
+        measurement : numpy.ndarray
+            The current measured state, shape (p,).
+
+        Returns
+        -------
+        numpy.ndarray
+            The control, shape (q,).
+        """
 
 
 class Scenario(abc.ABC):
@@ -158,10 +180,22 @@ class Scenario(abc.ABC):
 
     @abc.abstractmethod
     def make_world(self, seed: int, config: Any) -> World:
-        """A new world for episode ``seed`` under the loop settings ``config`` (a `LoopConfig`).
+        """A new world for episode ``seed`` under the loop settings ``config``.
 
         The same seed must give the same world: records depend only on
         ``(scenario, method, seed, config)``.
+
+        Parameters
+        ----------
+        seed : int
+            The episode's world seed (>= 0).
+        config : LoopConfig
+            The loop settings of the episode.
+
+        Returns
+        -------
+        World
+            A fresh world, before its first sub-step.
         """
 
 
@@ -184,11 +218,27 @@ class Method(abc.ABC):
 
     @abc.abstractmethod
     def start(self, world: World) -> None:
-        """Begin an episode in ``world`` (before its first measurement)."""
+        """Begin an episode in ``world`` (before its first measurement).
+
+        Parameters
+        ----------
+        world : World
+            The episode's world, made by the scenario the method was built for.
+        """
 
     @abc.abstractmethod
     def decide(self, measurement: np.ndarray) -> Policy:
         """Plan on the current measurement; the returned policy runs for one decision period.
+
+        Parameters
+        ----------
+        measurement : numpy.ndarray
+            The current measured state, shape (p,).
+
+        Returns
+        -------
+        Policy
+            The feedback law applied for every sub-step of the decision period.
 
         Raises
         ------
@@ -197,7 +247,14 @@ class Method(abc.ABC):
         """
 
     def observe(self, transition: Transition) -> None:  # noqa: B027 (optional hook)
-        """Learn from one sub-step (default: ignore it)."""
+        """Learn from one sub-step (default: ignore it).
+
+        Parameters
+        ----------
+        transition : Transition
+            The measured state before the sub-step, the control applied and the
+            measured state after it.
+        """
 
     def report(self) -> dict:
         """Per-episode data for ``EpisodeRecord.extra`` (default: none)."""

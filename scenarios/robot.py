@@ -121,6 +121,13 @@ class RobotParameters:
         return Box.from_center(np.zeros(2), self.disturbance_bound)
 
     def to_dict(self) -> dict:
+        """Every parameter by name (JSON-ready).
+
+        Returns
+        -------
+        dict
+            The dataclass's fields.
+        """
         return asdict(self)
 
 
@@ -187,6 +194,13 @@ class Hypothesis(NamedTuple):
     system: UncertainLinearSystem
 
     def to_dict(self) -> dict:
+        """The hypothesis as plain data (JSON-ready).
+
+        Returns
+        -------
+        dict
+            ``{"name": ..., "system": UncertainLinearSystem.to_dict()}``.
+        """
         return {"name": self.name, "system": self.system.to_dict()}
 
 
@@ -196,6 +210,13 @@ WRONG_INPUT_GAIN = 0.6
 
 def robot_hypotheses(dt: float = 0.1, params: RobotParameters = DEFAULT_ROBOT) -> list[Hypothesis]:
     """The competing structural hypotheses for model selection, the truth first.
+
+    Parameters
+    ----------
+    dt : float
+        Time step of the discretised systems, in seconds (> 0).
+    params : RobotParameters
+        The robot (friction prior, disturbance and control bounds).
 
     Returns
     -------

@@ -261,6 +261,8 @@ class RobotWorld:
         Sub-steps applied so far; ``time = step_index * dt``.
     outcome
         "running", "goal", "collision" or "timeout"; ``done`` once it is not "running".
+    measurement
+        "uniform" (bounded noise, inside the guarantees) or "gaussian".
     """
 
     def __init__(self, kind: str, seed: int, *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT):
@@ -303,6 +305,7 @@ class RobotWorld:
 
     @property
     def done(self) -> bool:
+        """Whether the episode has ended (``outcome`` is not "running")."""
         return self.outcome != "running"
 
     @property
@@ -312,6 +315,7 @@ class RobotWorld:
 
     @property
     def position(self) -> np.ndarray:
+        """The robot's true position (px, py), shape (2,), in metres (a copy)."""
         return self.state[:2].copy()
 
     @property
@@ -360,12 +364,29 @@ class RobotWorld:
         return hits
 
     # ---------------------------------------------------------------- dynamics
-    def apply(self, u) -> str:
-        """Hold the control ``u`` in ``[-1, 1]^2`` for one sub-step and return the outcome.
+    def apply(self, u: np.ndarray) -> str:
+        """Hold the control ``u`` for one sub-step and return the outcome.
 
         The robot steps by ``system.step(state, u, true_theta, w)`` with a fresh
         ``w ~ U[-0.1, 0.1]^2``; the pedestrians move; then collision (fcl), goal and
         time limit are checked in that order.
+
+        Parameters
+        ----------
+        u : array_like
+            The control, shape (2,), in ``[-control_bound, control_bound]^2``.
+
+        Returns
+        -------
+        str
+            "running", "goal", "collision" or "timeout".
+
+        Raises
+        ------
+        EpisodeOver
+            If the episode has already ended.
+        InputError
+            If ``u`` is out of bounds, not finite or not of shape (2,).
         """
         if self.done:
             raise EpisodeOver(f"the episode has ended (outcome={self.outcome!r}); make a new world")
@@ -387,8 +408,19 @@ class RobotWorld:
             self.outcome = "timeout"
         return self.outcome
 
-    def apply_held(self, u) -> str:
-        """Hold ``u`` for one decision period (``substeps`` sub-steps, fewer if the episode ends)."""
+    def apply_held(self, u: np.ndarray) -> str:
+        """Hold ``u`` for one decision period (``substeps`` sub-steps, fewer if the episode ends).
+
+        Parameters
+        ----------
+        u : array_like
+            The control, shape (2,); see `apply`.
+
+        Returns
+        -------
+        str
+            The outcome after the last sub-step applied.
+        """
         for _ in range(self.params.substeps):
             if self.apply(u) != "running":
                 break
@@ -410,6 +442,29 @@ class RobotWorld:
 
 
 def make_world(kind: str, seed: int, *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT) -> RobotWorld:
-    """A new seeded episode: ``kind`` is "static" (10-15 obstacles) or "pedestrian"
-    (3-5 obstacles and 1-3 crossing pedestrians); see `RobotWorld`."""
+    """A new seeded episode of robot navigation; see `RobotWorld`.
+
+    Parameters
+    ----------
+    kind : {"static", "pedestrian"}
+        "static": 10-15 obstacles; "pedestrian": 3-5 obstacles and 1-3 crossing
+        pedestrians.
+    seed : int
+        World seed (>= 0): the same seed gives the same episode.
+    measurement : {"uniform", "gaussian"}
+        Measurement noise: bounded (inside the guarantees) or Gaussian (outside).
+    params : RobotParameters
+        The robot and the arena.
+
+    Returns
+    -------
+    RobotWorld
+        The world at its start, the robot at rest.
+
+    Raises
+    ------
+    InputError
+        If ``kind`` or ``measurement`` is unknown, ``seed`` is not an integer >= 0,
+        or ``params`` is not a `RobotParameters`.
+    """
     return RobotWorld(kind, seed, measurement=measurement, params=params)
