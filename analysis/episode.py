@@ -159,7 +159,8 @@ def run_job(job: EpisodeJob) -> EpisodeRecord:
     method = resolve(job.method_factory)(scenario, job.config)
     method.start(world)
     x = world.measure()
-    rewards, positions = [], [np.array(world.position, dtype=float)]
+    rewards: list[float] = []
+    positions = [np.array(world.position, dtype=float)]
     outcome = None
     while not world.done:
         if job.config.max_decisions is not None and len(rewards) >= job.config.max_decisions:

@@ -67,8 +67,8 @@ class ExperimentResult:
         Wall time of the episodes, in seconds.
     """
 
-    records: tuple
-    summary: tuple
+    records: tuple[EpisodeRecord, ...]
+    summary: tuple[dict, ...]
     wall_time_s: float
 
 
@@ -211,13 +211,13 @@ def run_experiment(
     client = None if dask_address is None else _connect(dask_address)
     started = time.perf_counter()
     try:
-        records = _run_jobs(jobs, workers, client, progress)
+        completed = _run_jobs(jobs, workers, client, progress)
     finally:
         if client is not None:
             client.close()
     # Order is by job, not by completion, so that the same seed gives the same output.
     order = {job.key: n for n, job in enumerate(jobs)}
-    records = tuple(sorted(records, key=lambda r: order[(r.scenario, r.method, r.seed)]))
+    records = tuple(sorted(completed, key=lambda r: order[(r.scenario, r.method, r.seed)]))
     return ExperimentResult(records, tuple(summarise(records)), time.perf_counter() - started)
 
 

@@ -108,12 +108,11 @@ def check_model(
     """
     from minimaxplan.verify import check_assumption4
 
-    from .model_file import CONTINUOUS
     from .reports import LMIReport
 
     form = form or model.time
     matrices, D = model.state_matrices(form, vertices=vertices)
-    system = model.continuous_system if form == CONTINUOUS else model.system
+    system = model.system_for(form)
     parameters = system.theta.vertices() if vertices else system.theta.center[None, :]
     started = time.perf_counter()
     result = check_assumption4(list(matrices) if vertices else matrices[0], form=form, D=D, solver=solver)

@@ -29,7 +29,7 @@ import importlib
 import pickle
 import re
 from collections.abc import Callable
-from typing import Any, NamedTuple, Protocol, runtime_checkable
+from typing import Any, Generic, NamedTuple, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
@@ -122,11 +122,25 @@ class World(Protocol):
         Where the agent is, a 1-D array (recorded, rounded, as the trajectory).
     """
 
-    substeps: int
-    done: bool
-    outcome: str
-    time: float
-    position: np.ndarray
+    @property
+    def substeps(self) -> int:
+        """Sub-steps per decision."""
+
+    @property
+    def done(self) -> bool:
+        """True once the episode has ended."""
+
+    @property
+    def outcome(self) -> str:
+        """The outcome: "running" while not done, then e.g. "goal" or "collision"."""
+
+    @property
+    def time(self) -> float:
+        """Simulated time, s."""
+
+    @property
+    def position(self) -> np.ndarray:
+        """Where the agent is, a 1-D array."""
 
     def measure(self) -> np.ndarray:
         """A (noisy) measurement of the state; the only thing the method sees of it."""
@@ -171,7 +185,11 @@ class Policy(Protocol):
         """
 
 
-class Scenario(abc.ABC):
+#: The world type of a scenario and of the methods that drive it (bound: `World`).
+WorldT = TypeVar("WorldT", bound=World)
+
+
+class Scenario(abc.ABC, Generic[WorldT]):
     """A family of seeded worlds, registered with ``register_scenario(name, factory)``.
 
     ``factory()`` returns the scenario; it should be cheap (it is also called in the
@@ -179,7 +197,7 @@ class Scenario(abc.ABC):
     """
 
     @abc.abstractmethod
-    def make_world(self, seed: int, config: Any) -> World:
+    def make_world(self, seed: int, config: Any) -> WorldT:
         """A new world for episode ``seed`` under the loop settings ``config``.
 
         The same seed must give the same world: records depend only on
@@ -199,7 +217,7 @@ class Scenario(abc.ABC):
         """
 
 
-class Method(abc.ABC):
+class Method(abc.ABC, Generic[WorldT]):
     """A planner driving a world, registered with ``register_method(name, factory)``.
 
     ``factory(scenario, config)`` returns a fresh method for one episode, or raises
@@ -217,7 +235,7 @@ class Method(abc.ABC):
     """
 
     @abc.abstractmethod
-    def start(self, world: World) -> None:
+    def start(self, world: WorldT) -> None:
         """Begin an episode in ``world`` (before its first measurement).
 
         Parameters

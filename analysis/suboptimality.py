@@ -17,7 +17,7 @@ import json
 import pathlib
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .arguments import count, count_list, output_directory, report_error
 
@@ -119,7 +119,7 @@ def suboptimality_study(samples: Sequence[int] = DEFAULT_SAMPLES, *, episodes: i
     oracle = run_experiment([scenario], ["oracle"], episodes=episodes, seed=seed, config=base, workers=workers,
                             progress=progress)
     oracle_return = {r.seed: r.discounted_return for r in oracle.records}
-    rows = []
+    rows: list[dict[str, Any]] = []
     for n in samples:
         robust = run_experiment([scenario], ["robust"], episodes=episodes, seed=seed,
                                 config=replace(base, prior_samples=n), workers=workers, progress=progress)

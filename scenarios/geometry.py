@@ -61,7 +61,7 @@ def _pairwise_gaps_sq(lower, upper, other_lower, other_upper) -> np.ndarray:
     rows = [np.ascontiguousarray(np.broadcast_to(a, shape), dtype=float).reshape(n, 2)
             for a in (lower, upper, other_lower, other_upper)]
     out = np.empty(n)
-    box_gaps_sq(*rows, out)
+    box_gaps_sq(*rows, out)  # type: ignore[call-arg]  # numba's Dispatcher stub does not declare the compiled signature
     return out.reshape(shape[:-1])
 
 
@@ -394,8 +394,8 @@ class MovingObstacles:
             "positions": self.positions.tolist(),
             "velocities": self.velocities.tolist(),
             "radii": self.radii.tolist(),
-            "velocity_uncertainty": self.velocity_uncertainty.tolist(),
-            "position_uncertainty": self.position_uncertainty.tolist(),
+            "velocity_uncertainty": np.asarray(self.velocity_uncertainty).tolist(),
+            "position_uncertainty": np.asarray(self.position_uncertainty).tolist(),
             "dt": self.dt,
             "time0": self.time0,
         }

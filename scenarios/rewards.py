@@ -38,7 +38,7 @@ only four corners).
 from __future__ import annotations
 
 import abc
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -70,7 +70,7 @@ def _as_index_tuple(name: str, value, *, length: int | None = None) -> tuple[int
     return indices
 
 
-def _selector(indices: tuple[int, ...]):
+def _selector(indices: tuple[int, ...]) -> slice | list[int]:
     """A basic slice when the indices are contiguous (a view, no copy), else the index list."""
     if indices == tuple(range(indices[0], indices[0] + len(indices))):
         return slice(indices[0], indices[0] + len(indices))
@@ -417,6 +417,8 @@ class GoalReward(RewardFamily):
     moving_obstacles: MovingObstacles | None = None
     robot_radius: float = 0.0
     position_indices: tuple = (0, 1)
+    # Derived in __post_init__ (not constructor arguments).
+    _kernel_params: GoalParams = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "goal", frozen_copy(as_finite_array("goal", self.goal, (2,))))
@@ -557,6 +559,9 @@ class SpeedLaneReward(RewardFamily):
     moving_obstacles: MovingObstacles | None = None
     robot_radius: float = 0.0
     position_indices: tuple = (0, 1)
+    # Derived in __post_init__ (not constructor arguments).
+    _speed_sel: slice | list[int] = field(init=False, repr=False, compare=False)
+    _kernel_params: SpeedLaneParams = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         try:

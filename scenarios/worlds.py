@@ -137,7 +137,8 @@ def _obstacles(rng, count, start, goal, params: RobotParameters) -> CircularObst
     """``count`` obstacles, about half near the route, none within reach of start or goal."""
     route = goal - start
     normal = np.array([-route[1], route[0]]) / np.linalg.norm(route)
-    centers, radii = [], []
+    centers: list[np.ndarray] = []
+    radii: list[float] = []
     while len(centers) < count:
         radius = rng.uniform(*OBSTACLE_RADIUS)
         if rng.uniform() < ON_ROUTE_FRACTION:
@@ -212,8 +213,10 @@ def _crowd(rng: np.random.Generator, count: int, start, goal) -> PedestrianCrowd
     route = goal - start
     length = np.linalg.norm(route)
     route_heading = np.arctan2(route[1], route[0])
-    positions, headings, speeds = [], [], []
-    while len(positions) < count:
+    position_list: list[np.ndarray] = []
+    heading_list: list[float] = []
+    speed_list: list[float] = []
+    while len(position_list) < count:
         fraction = rng.uniform(0.3, 0.8)
         crossing = start + fraction * route
         side = rng.choice([-1.0, 1.0])
@@ -223,12 +226,12 @@ def _crowd(rng: np.random.Generator, count: int, start, goal) -> PedestrianCrowd
         position = crossing - speed * arrival * np.array([np.cos(heading), np.sin(heading)])
         if np.linalg.norm(position - start) < 2.0 + PEDESTRIAN_RADIUS:
             continue
-        positions.append(position)
-        headings.append(heading)
-        speeds.append(speed)
-    headings = np.array(headings, dtype=float)
-    speeds = np.array(speeds, dtype=float)
-    positions = np.array(positions, dtype=float).reshape(count, 2)
+        position_list.append(position)
+        heading_list.append(heading)
+        speed_list.append(speed)
+    headings = np.array(heading_list, dtype=float)
+    speeds = np.array(speed_list, dtype=float)
+    positions = np.array(position_list, dtype=float).reshape(count, 2)
     announced = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
     return PedestrianCrowd(
         positions=positions, announced=announced, speeds=speeds, headings=headings,
