@@ -25,6 +25,7 @@ __all__ = [
     "count_list",
     "name_list",
     "output_directory",
+    "output_file",
     "report_error",
 ]
 
@@ -202,6 +203,38 @@ def output_directory(text: str) -> pathlib.Path:
         raise argparse.ArgumentTypeError(f"cannot create '{path}': '{ancestor}' is not a directory")
     if not os.access(ancestor, os.W_OK | os.X_OK):
         raise argparse.ArgumentTypeError(f"cannot write to '{ancestor}' (permission denied)")
+    return path
+
+
+def output_file(text: str) -> pathlib.Path:
+    """An argparse type: a file that can be written (its directory exists and is writable).
+
+    Parameters
+    ----------
+    text : str
+        The option's value, a path.
+
+    Returns
+    -------
+    pathlib.Path
+        The path as given.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        If the path is a directory, its parent directory does not exist, or the file
+        (if it exists) or its directory is not writable.
+    """
+    path = pathlib.Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"'{path}' is a directory, not a file")
+    parent = path.absolute().parent
+    if not parent.is_dir():
+        raise argparse.ArgumentTypeError(f"cannot write '{path}': directory '{parent}' does not exist")
+    if path.exists() and not os.access(path, os.W_OK):
+        raise argparse.ArgumentTypeError(f"cannot write '{path}' (permission denied)")
+    if not path.exists() and not os.access(parent, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"cannot write to '{parent}' (permission denied)")
     return path
 
 

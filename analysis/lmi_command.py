@@ -17,6 +17,8 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
+from .arguments import output_file
+
 if TYPE_CHECKING:
     from .model_file import ModelHypothesis
     from .reports import LMIReport
@@ -66,7 +68,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--model", dest="model_name", metavar="NAME", help="check only the model with this name")
     parser.add_argument("--json", action="store_true", help="write the JSON report instead of Markdown")
-    parser.add_argument("--out", type=pathlib.Path, metavar="FILE", help="write the report to this file (default: stdout)")
+    parser.add_argument("--out", type=output_file, metavar="FILE", help="write the report to this file (default: stdout)")
     parser.set_defaults(func=run)
 
 

@@ -15,6 +15,8 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
+from .arguments import output_file
+
 if TYPE_CHECKING:
     from .data_file import TransitionData
     from .model_file import ModelFile
@@ -46,7 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("models", type=pathlib.Path, help="TOML model file with one or more [[hypothesis]] tables")
     parser.add_argument("data", type=pathlib.Path, help="observed trajectory: .csv or .npz")
     parser.add_argument("--json", action="store_true", help="write the JSON report instead of Markdown")
-    parser.add_argument("--out", type=pathlib.Path, metavar="FILE", help="write the report to this file (default: stdout)")
+    parser.add_argument("--out", type=output_file, metavar="FILE", help="write the report to this file (default: stdout)")
     parser.set_defaults(func=run)
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
@@ -57,14 +57,14 @@ def fit_trend(ns: Sequence[float], values: Sequence[float]) -> dict:
     return {"a": float(coef[0]), "b": float(coef[1])}
 
 
-def suboptimality_study(samples: Sequence[int] = DEFAULT_SAMPLES, *, episodes: int = 20, seed: int = 0,
+def suboptimality_study(samples: Iterable[int] = DEFAULT_SAMPLES, *, episodes: int = 20, seed: int = 0,
                         horizon: int = 24, scenario: str = "static", workers: int | None = None,
                         progress: bool = True, config: LoopConfig | None = None) -> dict:
     """Run the study: the robust planner's suboptimality against the oracle for each N.
 
     Parameters
     ----------
-    samples : sequence of int
+    samples : iterable of int
         The numbers N of excitation transitions the robust planner learns from (each >= 1).
     episodes : int
         Episodes per N (>= 1), world seeds ``seed .. seed + episodes - 1``.
@@ -107,9 +107,11 @@ def suboptimality_study(samples: Sequence[int] = DEFAULT_SAMPLES, *, episodes: i
     from .episode import DEFAULT_CONFIG
     from .experiment import run_experiment
 
-    if isinstance(samples, (str, bytes)) or not isinstance(samples, Sequence) or not samples:
+    if isinstance(samples, (str, bytes)) or not isinstance(samples, Iterable):
         raise InputError(f"samples must be a non-empty sequence of positive integers, got {samples!r}")
     samples = [as_count(f"samples[{i}]", n) for i, n in enumerate(samples)]
+    if not samples:
+        raise InputError("samples must be a non-empty sequence of positive integers, got none")
     as_count("episodes", episodes)
     as_count("seed", seed, minimum=0)
     horizon = as_count("horizon", horizon)

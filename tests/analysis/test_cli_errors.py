@@ -221,3 +221,48 @@ def test_the_constants_spelled_out_for_a_light_parser_match_the_library():
 
     assert lmi_command.FORMS == (model_file.DISCRETE, model_file.CONTINUOUS)
     assert episode.MEASUREMENT_MODELS == worlds.MEASUREMENT_MODELS
+
+
+@pytest.mark.parametrize("command", ["lmi", "select"])
+def test_an_unwritable_report_file_is_rejected_before_the_solve(tmp_path, capsys, monkeypatch, command):
+    from minimaxplan.analysis import model_file
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("the model file was read before the options were checked")
+
+    monkeypatch.setattr(model_file, "load_model_file", forbidden)
+    inputs = [HYPOTHESES] if command == "lmi" else [HYPOTHESES, ROBOT_DATA]
+    for out, message in [(tmp_path, "is a directory, not a file"), (tmp_path / "absent" / "r.md", "does not exist")]:
+        code, stdout, err = run(capsys, command, *inputs, "--out", out)
+        assert_one_line_error(code, stdout, err, command, "argument --out: ")
+        assert message in err, err
+
+
+def test_the_library_entry_points_check_their_counts_before_any_episode(no_work):
+    import numpy as np
+
+    from minimaxplan.analysis.suboptimality import suboptimality_study
+    from minimaxplan.models import InputError
+
+    with pytest.raises(InputError, match=r"samples\[0\] must be a positive integer, got np.int64\(0\)"):
+        suboptimality_study(np.array([0, 5]), episodes=1)
+    with pytest.raises(InputError, match="samples must be a non-empty sequence"):
+        suboptimality_study([], episodes=1)
+    for kwargs, message in [({"episodes": 0}, "episodes must be"), ({"seed": -1}, "seed must be an integer >= 0"),
+                            ({"horizon": 0}, "horizon must be"), ({"workers": 0}, "workers must be")]:
+        with pytest.raises(InputError, match=message):
+            suboptimality_study((5,), **{"episodes": 1, **kwargs})
+    with pytest.raises(InputError, match="workers must be a positive integer, got 0"):
+        experiment_module.run_experiment(["static"], ["dwa"], episodes=1, workers=0)
+    with pytest.raises(InputError, match="seed must be an integer >= 0, got -1"):
+        experiment_module.run_experiment(["static"], ["dwa"], episodes=1, seed=-1)
+
+
+def test_the_demo_walkthrough_checks_its_arguments():
+    from minimaxplan.models import InputError
+
+    for kwargs, message in [({"seed": -5}, "seed must be an integer >= 0, got -5"),
+                            ({"steps": 0}, "steps must be a positive integer"),
+                            ({"horizon": 0}, "horizon must be a positive integer")]:
+        with pytest.raises(InputError, match=message):
+            demo_module.run(**kwargs)
