@@ -8,23 +8,33 @@ experiments (`experiment.run_experiment`, Table 3), the suboptimality study
 (`suboptimality`, Figure 6), model files, data files and reports (`model_file`,
 `data_file`, `reports`), and the ``minimaxplan`` console script (`cli`). The only layer
 that prints or plots.
+
+The registry names below are loaded on first use (PEP 562), so that importing
+`minimaxplan.analysis.cli` for ``minimaxplan --help`` imports neither numpy nor the
+rest of the library.
 """
 
-from .registry import (
-    EpisodeFailure,
-    Method,
-    Policy,
-    Scenario,
-    Transition,
-    UnknownMethod,
-    UnknownScenario,
-    UnsupportedScenario,
-    World,
-    method_names,
-    register_method,
-    register_scenario,
-    scenario_names,
-)
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .registry import (
+        EpisodeFailure,
+        Method,
+        Policy,
+        Scenario,
+        Transition,
+        UnknownMethod,
+        UnknownScenario,
+        UnsupportedScenario,
+        World,
+        method_names,
+        register_method,
+        register_scenario,
+        scenario_names,
+    )
 
 __all__ = [
     "register_scenario",
@@ -41,3 +51,15 @@ __all__ = [
     "UnknownMethod",
     "UnsupportedScenario",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in __all__:
+        value = getattr(importlib.import_module(".registry", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -62,6 +62,8 @@ def load_data_file(path) -> TransitionData:
     suffix = path.suffix.lower()
     if suffix not in (".csv", ".npz"):
         raise DataFileError(f"data file {str(path)!r} must end in .csv or .npz, got {suffix or 'no extension'!r}")
+    if path.is_dir():
+        raise DataFileError(f"data file {str(path)!r} is a directory, not a file")
     if not path.is_file():
         raise DataFileError(f"data file {str(path)!r} does not exist")
     try:

@@ -15,16 +15,57 @@ import argparse
 import pathlib
 import time
 
-import numpy as np
+from .arguments import count, output_directory, report_error
 
-from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, predict_tube
-from minimaxplan.scenarios import robot_hypotheses
-from minimaxplan.verify import check_assumption4, eliminate_models, feasible_parameter_box
+__all__ = ["DT", "run", "report", "register"]
 
+#: Time step of the demo's robot, in seconds.
 DT = 0.1
 
 
 def run(seed: int = 0, steps: int = 200, horizon: int = 20) -> dict:
+    """Part 1 of the demo: learn, select, certify and predict on a simulated robot.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the controls, disturbances and sampled trajectories (>= 0).
+    steps : int
+        Transitions simulated for learning (>= 1).
+    horizon : int
+        Steps of the predicted interval tube (>= 1).
+
+    Returns
+    -------
+    dict
+        ``theta_true``, ``ellipsoid`` (confidence ellipsoid), ``box`` (LP feasible
+        parameter box), ``survivors`` and ``eliminated`` (hypothesis names, the latter
+        with certificates), ``lmi`` (Assumption 4 on the velocity block), ``tube``,
+        ``contained`` (every sampled trajectory inside the tube), ``elapsed`` (seconds
+        of library time) and ``steps``.
+
+    Raises
+    ------
+    InputError
+        If ``seed``, ``steps`` or ``horizon`` is out of range.
+
+    Notes
+    -----
+    The confidence set is that of eq. (3)-(5), the tube the interval predictor of
+    Remark 2 (inclusion property (7)); Assumption 4 is the LMI of Section III.
+    """
+    import numpy as np
+
+    from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, predict_tube
+    from minimaxplan.models.validation import as_count
+    from minimaxplan.scenarios import robot_hypotheses
+    from minimaxplan.verify import check_assumption4, eliminate_models, feasible_parameter_box
+
+    from .model_file import disturbance_input
+
+    seed = as_count("seed", seed, minimum=0)
+    steps = as_count("steps", steps)
+    horizon = as_count("horizon", horizon)
     rng = np.random.default_rng(seed)
     hypotheses = {name: system for name, system in robot_hypotheses(DT)}
     truth = hypotheses["anisotropic friction"]
@@ -45,7 +86,7 @@ def run(seed: int = 0, steps: int = 200, horizon: int = 20) -> dict:
     selection = eliminate_models(list(hypotheses.values()), states, controls)
     box = feasible_parameter_box(truth, states, controls)
     velocity_block = truth.A(box.center)[2:, 2:]
-    lmi = check_assumption4(velocity_block, form="discrete", D=truth.D[2:, :])
+    lmi = check_assumption4(velocity_block, form="discrete", D=disturbance_input(truth)[2:, :])
     plan = np.tile([1.0, -1.0], (horizon, 1))
     tube = predict_tube(truth, Box.from_center(states[-1], 0.0), plan, parameters=box)
     elapsed = time.perf_counter() - started
@@ -74,6 +115,20 @@ def run(seed: int = 0, steps: int = 200, horizon: int = 20) -> dict:
 
 
 def report(result: dict) -> str:
+    """Part 1's result as the lines the demo prints.
+
+    Parameters
+    ----------
+    result : dict
+        A `run` result.
+
+    Returns
+    -------
+    str
+        One line per fact, without a final newline.
+    """
+    import numpy as np
+
     box, ell, tube, lmi = result["box"], result["ellipsoid"], result["tube"], result["lmi"]
     ebox = ell.bounding_box()
     lines = [
@@ -95,6 +150,8 @@ def report(result: dict) -> str:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from minimaxplan.models import MinimaxplanError
+
     from .experiment_command import run_and_report
     from .registry import method_names, scenario_names
 
@@ -102,17 +159,35 @@ def _run(args: argparse.Namespace) -> int:
     if args.episodes == 0:
         return 0
     print(f"\nShort experiment: {args.episodes} episodes per method in each world (paper: 100)", flush=True)
-    table, out = run_and_report(scenario_names(), method_names(), episodes=args.episodes, seed=args.seed,
-                                workers=args.workers, dask_address=None, out=args.out)
+    try:
+        table, out = run_and_report(scenario_names(), method_names(), episodes=args.episodes, seed=args.seed,
+                                    workers=args.workers, dask_address=None, out=args.out)
+    except MinimaxplanError as exc:
+        return report_error("demo", exc)
     print(table)
     print(f"plots and per-episode data written to {out}/")
     return 0
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("demo", help="a short end-to-end run on the embedded default")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--episodes", type=int, default=5, help="episodes per method and world (0: part 1 only)")
-    parser.add_argument("--workers", type=int, default=None)
-    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("out/demo"))
+    """Add the ``demo`` subcommand to ``subparsers``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
+    """
+    parser = subparsers.add_parser(
+        "demo",
+        help="a short end-to-end run on the embedded default",
+        description="Part 1: learn, select, certify and predict on a simulated robot. Part 2: a short "
+        "experiment, EPISODES per method in every registered world (e.g. 5 x 2 worlds x 5 methods = 50 "
+        "episodes with the defaults), plots written to OUT.",
+        epilog="Exit codes: 0 done; 2 a bad option (one line on stderr, before any work).",
+    )
+    parser.add_argument("--seed", type=count(0), default=0, help="seed of part 1 and world seed of part 2 (>= 0)")
+    parser.add_argument("--episodes", type=count(0), default=5,
+                        help="episodes per method and world (>= 0; 0: part 1 only)")
+    parser.add_argument("--workers", type=count(1), default=None, help="local processes (>= 1; default: all cores)")
+    parser.add_argument("--out", type=output_directory, default=pathlib.Path("out/demo"), help="output directory")
     parser.set_defaults(func=_run)

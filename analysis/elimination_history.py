@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, InputError, UncertainLinearSystem
-from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_instance, check_shape
 from minimaxplan.verify import eliminate_models, feasible_parameter_box
 
 __all__ = ["EliminationHistory", "ParameterSetHistory", "elimination_history", "parameter_set_history"]
@@ -188,8 +188,7 @@ def parameter_set_history(
     The estimator fits ``y_n = E_n theta + D w_n`` with ``E_n = regressor(x_n)`` and
     ``y_n = x_{n+1} - A0 x_n - B u_n`` (eq. (2)), one rank-one update per transition.
     """
-    if not isinstance(hypothesis, UncertainLinearSystem):
-        raise InputError(f"hypothesis must be an UncertainLinearSystem, got {type(hypothesis).__name__}")
+    check_instance("hypothesis", hypothesis, UncertainLinearSystem)
     X, U = _check_trajectory(states, controls, hypothesis.nstates, hypothesis.ninputs)
     sizes = _check_sample_sizes(sample_sizes, U.shape[0])
     prior = hypothesis.theta

@@ -19,11 +19,16 @@ from typing import Any
 import numpy as np
 
 from minimaxplan.models import InputError
-from minimaxplan.models.validation import as_positive_scalar
+from minimaxplan.models.validation import as_choice, as_count, as_discount, as_positive_scalar, check_instance
 
 from .registry import EpisodeFailure, Factory, Transition, method_factory, resolve, scenario_factory
 
 __all__ = ["LoopConfig", "DEFAULT_CONFIG", "EpisodeRecord", "EpisodeJob", "make_job", "run_job", "run_episode"]
+
+
+#: The values of `LoopConfig.measurement` (the measurement models of the robot worlds,
+#: `minimaxplan.scenarios.worlds.MEASUREMENT_MODELS`).
+MEASUREMENT_MODELS = ("uniform", "gaussian")
 
 
 @dataclass(frozen=True)
@@ -71,19 +76,16 @@ class LoopConfig:
     directions: tuple = field(default=((1, 1), (1, -1), (-1, 1), (-1, -1), (0, 0)))
 
     def __post_init__(self) -> None:
-        if isinstance(self.budget, bool) or not isinstance(self.budget, int) or self.budget < 1:
-            raise InputError(f"budget must be a positive integer, got {self.budget!r}")
-        if not 0.0 < float(self.gamma) < 1.0:
-            raise InputError(f"gamma must lie in (0, 1), got {self.gamma!r}")
+        as_count("budget", self.budget)
+        as_discount("gamma", self.gamma)
         for name in ("speed", "gain", "lsq_regularisation", "lookahead"):
             as_positive_scalar(name, getattr(self, name))
         as_positive_scalar("path_clearance", self.path_clearance, allow_zero=True)
         for name in ("prior_samples", "max_decisions"):
             value = getattr(self, name)
-            if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
-                raise InputError(f"{name} must be None or a positive integer, got {value!r}")
-        if self.measurement not in ("uniform", "gaussian"):
-            raise InputError(f"measurement must be 'uniform' or 'gaussian', got {self.measurement!r}")
+            if value is not None:
+                as_count(name, value)
+        as_choice("measurement", self.measurement, MEASUREMENT_MODELS)
         if not self.directions or any(np.shape(d) != (2,) for d in self.directions):
             raise InputError(f"directions must be a non-empty sequence of 2-vectors, got {self.directions!r}")
 
@@ -157,7 +159,8 @@ def run_job(job: EpisodeJob) -> EpisodeRecord:
     method = resolve(job.method_factory)(scenario, job.config)
     method.start(world)
     x = world.measure()
-    rewards, positions = [], [np.array(world.position, dtype=float)]
+    rewards: list[float] = []
+    positions = [np.array(world.position, dtype=float)]
     outcome = None
     while not world.done:
         if job.config.max_decisions is not None and len(rewards) >= job.config.max_decisions:
@@ -209,10 +212,8 @@ def make_job(scenario: str, method: str, seed: int, config: LoopConfig = DEFAULT
     InputError
         If ``config`` is not a `LoopConfig` or ``seed`` not a non-negative integer.
     """
-    if not isinstance(config, LoopConfig):
-        raise InputError(f"config must be a LoopConfig, got {type(config).__name__}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed must be a non-negative integer, got {seed!r}")
+    check_instance("config", config, LoopConfig)
+    as_count("seed", seed, minimum=0)
     world_factory = scenario_factory(scenario)
     instance = built if built is not None else resolve(world_factory)()
     return EpisodeJob(scenario, method, int(seed), config, world_factory, method_factory(method, instance, config))

@@ -18,16 +18,20 @@ import pathlib
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from scipy import stats
 
-from minimaxplan.models.errors import InputError
+from minimaxplan.models.errors import InputError, MinimaxplanError
+from minimaxplan.models.validation import as_count
 
 from .episode import DEFAULT_CONFIG, EpisodeJob, EpisodeRecord, LoopConfig, make_job, run_job
 from .registry import resolve, scenario_factory
 
 __all__ = [
+    "ClusterUnavailable",
+    "DASK_CONNECT_TIMEOUT_S",
     "ExperimentResult",
     "episode_seeds",
     "run_experiment",
@@ -36,17 +40,53 @@ __all__ = [
 ]
 
 
+#: Seconds to wait for a Dask scheduler to answer before giving up (a reachable one
+#: answers in milliseconds; distributed's own default is 30 s).
+DASK_CONNECT_TIMEOUT_S = 5.0
+
+
+class ClusterUnavailable(MinimaxplanError, ConnectionError):
+    """The Dask scheduler given as ``dask_address`` cannot be reached (or the address is malformed).
+
+    Raised by `run_experiment` before any episode runs, within
+    `DASK_CONNECT_TIMEOUT_S` seconds.
+    """
+
+
 @dataclass(frozen=True)
 class ExperimentResult:
-    """Every `EpisodeRecord` in job order, the `summarise` records, and the run's wall time."""
+    """Every `EpisodeRecord` in job order, the `summarise` records, and the run's wall time.
 
-    records: tuple
-    summary: tuple
+    Attributes
+    ----------
+    records : tuple of EpisodeRecord
+        One per episode, in job order (scenario, then method, then seed).
+    summary : tuple of dict
+        The `summarise` records, one per (scenario, method).
+    wall_time_s : float
+        Wall time of the episodes, in seconds.
+    """
+
+    records: tuple[EpisodeRecord, ...]
+    summary: tuple[dict, ...]
     wall_time_s: float
 
 
 def episode_seeds(seed: int, episodes: int) -> list[int]:
-    """Episode i of every method uses world seed ``seed + i`` (paired comparison)."""
+    """The world seeds of a run: episode i of every method uses ``seed + i`` (paired comparison).
+
+    Parameters
+    ----------
+    seed : int
+        World seed of the first episode.
+    episodes : int
+        Number of episodes.
+
+    Returns
+    -------
+    list of int
+        ``[seed, seed + 1, ..., seed + episodes - 1]``.
+    """
     return [seed + i for i in range(episodes)]
 
 
@@ -59,8 +99,19 @@ def _failure_interval(failures: int, episodes: int) -> tuple[float, float]:
 def summarise(records: Iterable[EpisodeRecord]) -> list[dict]:
     """One summary record per (scenario, method), in the order first seen.
 
-    Times are averaged over the episodes that reached the goal (as in the paper's
-    Table 3); ``mean_return`` over all episodes.
+    Parameters
+    ----------
+    records : iterable of EpisodeRecord
+        The episodes to summarise.
+
+    Returns
+    -------
+    list of dict
+        Per (scenario, method): ``episodes``, ``failures``, ``failure_ci95`` (exact
+        Clopper-Pearson 95% interval), ``outcomes`` (counts), ``mean_time_s``,
+        ``median_time_s`` and ``max_time_s`` (seconds, over the episodes that reached
+        the goal, as in the paper's Table 3; NaN if none did) and ``mean_return``
+        (over all episodes).
     """
     groups: dict[tuple[str, str], list[EpisodeRecord]] = {}
     for record in records:
@@ -93,8 +144,8 @@ def summarise(records: Iterable[EpisodeRecord]) -> list[dict]:
 def _jobs(scenarios: Sequence[str], methods: Sequence[str], episodes: int, seed: int,
           config: LoopConfig) -> list[EpisodeJob]:
     """Every job in order (scenario, then method, then seed), names checked before any runs."""
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise InputError(f"episodes must be >= 1, got {episodes}")
+    as_count("episodes", episodes)
+    as_count("seed", seed, minimum=0)
     if not scenarios or not methods:
         raise InputError(f"at least one scenario and one method are needed, got {list(scenarios)} and {list(methods)}")
     jobs = []
@@ -121,33 +172,52 @@ def run_experiment(
 
     Parameters
     ----------
-    scenarios, methods
+    scenarios, methods : sequence of str
         Registered names (`register_scenario`, `register_method`); every method must
         support every scenario.
-    episodes, seed
-        Episode i of every method uses world seed ``seed + i`` (paired comparison).
-    config
+    episodes : int
+        Episodes per method and scenario (>= 1).
+    seed : int
+        World seed of the first episode (>= 0); episode i of every method uses world
+        seed ``seed + i`` (paired comparison).
+    config : LoopConfig
         The loop settings of every episode.
-    workers
-        Local processes (default: all cores). Ignored with ``dask_address``.
-    dask_address
+    workers : int, optional
+        Local processes (>= 1; default: all cores). Ignored with ``dask_address``.
+    dask_address : str, optional
         Address of a Dask scheduler (the ``cluster`` extra); episodes are mapped there.
+    progress : bool
+        Show a progress bar (tqdm, on stderr).
+
+    Returns
+    -------
+    ExperimentResult
+        The records in job order, their summary and the wall time.
 
     Raises
     ------
+    InputError
+        Before any episode runs, if ``episodes``, ``seed`` or ``workers`` is not an
+        integer in range, or no scenario or method is given.
     UnknownScenario, UnknownMethod, UnsupportedScenario
         Before any episode runs, if a name is not registered or a method does not
         support a scenario (the message names the registered names).
+    ClusterUnavailable
+        Before any episode runs, if the scheduler at ``dask_address`` does not answer
+        within `DASK_CONNECT_TIMEOUT_S` seconds.
     """
-    workers = workers or os.cpu_count() or 1
-    if workers < 1:
-        raise InputError(f"workers must be >= 1, got {workers}")
+    workers = (os.cpu_count() or 1) if workers is None else as_count("workers", workers)
     jobs = _jobs(scenarios, methods, episodes, seed, config)
+    client = None if dask_address is None else _connect(dask_address)
     started = time.perf_counter()
-    records = _run_jobs(jobs, workers, dask_address, progress)
+    try:
+        completed = _run_jobs(jobs, workers, client, progress)
+    finally:
+        if client is not None:
+            client.close()
     # Order is by job, not by completion, so that the same seed gives the same output.
     order = {job.key: n for n, job in enumerate(jobs)}
-    records = tuple(sorted(records, key=lambda r: order[(r.scenario, r.method, r.seed)]))
+    records = tuple(sorted(completed, key=lambda r: order[(r.scenario, r.method, r.seed)]))
     return ExperimentResult(records, tuple(summarise(records)), time.perf_counter() - started)
 
 
@@ -157,18 +227,29 @@ def _progress_bar(total: int, enabled: bool):
     return tqdm(total=total, desc="episodes", unit="ep", disable=not enabled)
 
 
-def _run_jobs(jobs: list[EpisodeJob], workers: int, dask_address: str | None, progress: bool) -> list[EpisodeRecord]:
+def _connect(address: str) -> Any:
+    """A `distributed.Client` of the scheduler at ``address``, or `ClusterUnavailable`."""
+    from distributed import Client
+
+    try:
+        return Client(address, timeout=DASK_CONNECT_TIMEOUT_S)
+    except (OSError, ValueError, TypeError) as exc:
+        raise ClusterUnavailable(
+            f"cannot reach the Dask scheduler at {address!r} within {DASK_CONNECT_TIMEOUT_S:g} s: {exc}"
+        ) from None
+
+
+def _run_jobs(jobs: list[EpisodeJob], workers: int, client: Any, progress: bool) -> list[EpisodeRecord]:
     bar = _progress_bar(len(jobs), progress)
     records: list[EpisodeRecord] = []
     try:
-        if dask_address is not None:
-            from distributed import Client, as_completed
+        if client is not None:
+            from distributed import as_completed
 
-            with Client(dask_address) as client:
-                futures = [client.submit(run_job, job, pure=False) for job in jobs]
-                for future in as_completed(futures):
-                    records.append(future.result())
-                    bar.update()
+            futures = [client.submit(run_job, job, pure=False) for job in jobs]
+            for future in as_completed(futures):
+                records.append(future.result())
+                bar.update()
         elif workers == 1:
             for job in jobs:
                 records.append(run_job(job))

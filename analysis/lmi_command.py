@@ -15,21 +15,33 @@ import argparse
 import pathlib
 import sys
 import time
+from typing import TYPE_CHECKING
 
-from minimaxplan.models import MinimaxplanError
-from minimaxplan.verify import check_assumption4
+from .arguments import output_file
 
-from .model_file import CONTINUOUS, DISCRETE, ModelHypothesis, load_model_file
-from .reports import LMIReport, lmi_reports_to_dict, render_lmi_reports, to_json
+if TYPE_CHECKING:
+    from .model_file import ModelHypothesis
+    from .reports import LMIReport
 
-__all__ = ["register", "run", "check_model", "EXIT_HOLDS", "EXIT_FAILS", "EXIT_ERROR"]
+__all__ = ["register", "run", "check_model", "EXIT_HOLDS", "EXIT_FAILS", "EXIT_ERROR", "FORMS"]
 
 EXIT_HOLDS = 0
 EXIT_FAILS = 1
 EXIT_ERROR = 2
 
+#: The LMI forms, `model_file.DISCRETE` and `model_file.CONTINUOUS` (spelled out here so
+#: that parsing the command line imports neither numpy nor cvxpy).
+FORMS = ("discrete", "continuous")
 
-def register(subparsers) -> None:
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``lmi`` subcommand to ``subparsers``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
+    """
     parser = subparsers.add_parser(
         "lmi",
         help="check Assumption 4 (an LMI) for a model file and write a report",
@@ -42,7 +54,7 @@ def register(subparsers) -> None:
     parser.add_argument("model", type=pathlib.Path, help="TOML model file")
     parser.add_argument(
         "--form",
-        choices=(DISCRETE, CONTINUOUS),
+        choices=FORMS,
         default=None,
         help="which LMI to check (default: the model's own time domain)",
     )
@@ -56,7 +68,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--model", dest="model_name", metavar="NAME", help="check only the model with this name")
     parser.add_argument("--json", action="store_true", help="write the JSON report instead of Markdown")
-    parser.add_argument("--out", type=pathlib.Path, metavar="FILE", help="write the report to this file (default: stdout)")
+    parser.add_argument("--out", type=output_file, metavar="FILE", help="write the report to this file (default: stdout)")
     parser.set_defaults(func=run)
 
 
@@ -65,12 +77,44 @@ def check_model(
 ) -> LMIReport:
     """Check Assumption 4 for one model and wrap the result in an `LMIReport`.
 
-    ``form`` defaults to the model's time domain. The continuous form checks the
-    continuous-time matrices of the file, the discrete form the discretised ones.
+    Parameters
+    ----------
+    model : ModelHypothesis
+        One model of a model file.
+    form : {"discrete", "continuous"}, optional
+        Which LMI to check; defaults to the model's time domain. The continuous form
+        checks the continuous-time matrices of the file, the discrete form the
+        discretised ones.
+    vertices : bool
+        Check every vertex A(theta) of the parameter box with one common P (default:
+        the nominal A, at the box's centre).
+    solver : {"CLARABEL", "SCS"}
+        The conic solver.
+
+    Returns
+    -------
+    LMIReport
+        The matrices checked, their parameters, and the re-checked result.
+
+    Raises
+    ------
+    ModelFileError
+        If the continuous form is asked of a discrete-time model.
+    SolverFailure
+        If the solver fails.
+
+    Notes
+    -----
+    Assumption 4 of the paper (Section III) is the continuous-time LMI; the discrete
+    form is its analogue for x_{n+1} = A x_n + D w_n (DESIGN.md).
     """
+    from minimaxplan.verify import check_assumption4
+
+    from .reports import LMIReport
+
     form = form or model.time
     matrices, D = model.state_matrices(form, vertices=vertices)
-    system = model.continuous_system if form == CONTINUOUS else model.system
+    system = model.system_for(form)
     parameters = system.theta.vertices() if vertices else system.theta.center[None, :]
     started = time.perf_counter()
     result = check_assumption4(list(matrices) if vertices else matrices[0], form=form, D=D, solver=solver)
@@ -79,6 +123,24 @@ def check_model(
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run ``minimaxplan lmi`` on parsed arguments.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of `register`'s parser: ``model``, ``form``, ``vertices``,
+        ``solver``, ``model_name``, ``json``, ``out``.
+
+    Returns
+    -------
+    int
+        `EXIT_HOLDS`, `EXIT_FAILS` or `EXIT_ERROR` (after one line on stderr).
+    """
+    from minimaxplan.models import MinimaxplanError
+
+    from .model_file import load_model_file
+    from .reports import lmi_reports_to_dict, render_lmi_reports, to_json
+
     try:
         model_file = load_model_file(args.model)
         if args.model_name is not None:

@@ -34,6 +34,7 @@ __all__ = [
     "format_model_file",
     "DISCRETE",
     "CONTINUOUS",
+    "disturbance_input",
 ]
 
 DISCRETE = "discrete"
@@ -77,6 +78,37 @@ class ModelHypothesis:
     dt: float | None
     continuous_system: UncertainLinearSystem | None = None
 
+    def system_for(self, form: str) -> UncertainLinearSystem:
+        """The system whose matrices the ``form`` of Assumption 4 is checked on.
+
+        Parameters
+        ----------
+        form : {"discrete", "continuous"}
+            The LMI's form.
+
+        Returns
+        -------
+        UncertainLinearSystem
+            `system` for "discrete", `continuous_system` for "continuous".
+
+        Raises
+        ------
+        ModelFileError
+            If ``form`` is "continuous" and the model is discrete-time.
+        InputError
+            If ``form`` is neither.
+        """
+        if form == CONTINUOUS:
+            if self.continuous_system is None:
+                raise ModelFileError(
+                    f"model {self.name!r} is discrete-time (it gives A0); the continuous form of "
+                    'Assumption 4 needs a continuous-time model (time = "continuous" with A and dt)'
+                )
+            return self.continuous_system
+        if form == DISCRETE:
+            return self.system
+        raise InputError(f"form must be 'discrete' or 'continuous', got {form!r}")
+
     def state_matrices(self, form: str, *, vertices: bool) -> tuple[np.ndarray, np.ndarray]:
         """The state matrices to certify and the disturbance matrix, for ``form``.
 
@@ -90,19 +122,9 @@ class ModelHypothesis:
         ModelFileError
             If ``form`` is "continuous" and the model is discrete-time.
         """
-        if form == CONTINUOUS:
-            if self.continuous_system is None:
-                raise ModelFileError(
-                    f"model {self.name!r} is discrete-time (it gives A0); the continuous form of "
-                    'Assumption 4 needs a continuous-time model (time = "continuous" with A and dt)'
-                )
-            system = self.continuous_system
-        elif form == DISCRETE:
-            system = self.system
-        else:
-            raise InputError(f"form must be 'discrete' or 'continuous', got {form!r}")
+        system = self.system_for(form)
         points = system.theta.vertices() if vertices else system.theta.center[None, :]
-        return system.A(points), np.array(system.D)
+        return system.A(points), np.array(disturbance_input(system))
 
     def to_dict(self) -> dict:
         out = {"name": self.name, "time": self.time, "dt": self.dt, "system": self.system.to_dict()}
@@ -147,6 +169,25 @@ class ModelFile:
 
 
 # ----------------------------------------------------------------- reading models
+def disturbance_input(system: UncertainLinearSystem) -> np.ndarray:
+    """The disturbance input matrix D of ``system``, shape (p, r).
+
+    Parameters
+    ----------
+    system : UncertainLinearSystem
+        A constructed system (its ``D`` is the identity when none was given).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``system.D``, narrowed from the optional type of the constructor argument.
+    """
+    D = system.D
+    if D is None:  # unreachable: UncertainLinearSystem.__post_init__ stores the identity
+        raise InputError("system.D is unset")
+    return D
+
+
 def load_model_file(path) -> ModelFile:
     """Read a TOML model file (format: ``docs/model-format.md``).
 
@@ -158,6 +199,8 @@ def load_model_file(path) -> ModelFile:
         invalid system (the message names the file, the model and the key).
     """
     path = pathlib.Path(path)
+    if path.is_dir():
+        raise ModelFileError(f"model file {str(path)!r} is a directory, not a file")
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -233,10 +276,7 @@ def _parse_model(table: Mapping[str, Any], where: str, *, default_name: str) -> 
         raise ModelFileError(f'{where}: time must be "discrete" or "continuous", got {time!r}')
     dt = None
     if "dt" in table:
-        dt = table["dt"]
-        if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not math.isfinite(dt) or dt <= 0:
-            raise ModelFileError(f"{where}: dt must be a finite number > 0, got {dt!r}")
-        dt = float(dt)
+        dt = _finite_positive(table["dt"], f"{where}: dt")
     state_key = "A" if time == CONTINUOUS else "A0"
     other_key = "A0" if time == CONTINUOUS else "A"
     if other_key in table:
@@ -269,6 +309,7 @@ def _parse_model(table: Mapping[str, Any], where: str, *, default_name: str) -> 
     theta = _box(table["theta"], f"{where}: theta", phi.shape[0], f"the {phi.shape[0]} matrices of phi")
     try:
         if time == CONTINUOUS:
+            assert dt is not None  # checked above: a continuous-time model needs dt
             system = UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=w, theta=theta, dt=dt)
             continuous = UncertainLinearSystem(A, phi, B, D=D, w=w, theta=theta)
         else:
@@ -277,6 +318,20 @@ def _parse_model(table: Mapping[str, Any], where: str, *, default_name: str) -> 
     except InputError as exc:
         raise ModelFileError(f"{where}: {exc}") from None
     return ModelHypothesis(name=name, system=system, time=time, dt=dt, continuous_system=continuous)
+
+
+def _finite_positive(value: Any, where: str) -> float:
+    """A TOML number that is finite and > 0, as a float (integers too large for a float rejected)."""
+    message = f"{where} must be a finite number > 0, got {value!r}"
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ModelFileError(message)
+    try:
+        x = float(value)
+    except OverflowError:
+        raise ModelFileError(f"{where} must be a finite number > 0, got an integer too large for a float") from None
+    if not math.isfinite(x) or x <= 0:
+        raise ModelFileError(message)
+    return x
 
 
 def _numeric(value: Any, where: str, hint: str = "") -> np.ndarray:
@@ -292,6 +347,8 @@ def _numeric(value: Any, where: str, hint: str = "") -> np.ndarray:
     check(value)
     try:
         array = np.array(value, dtype=float)
+    except OverflowError:
+        raise ModelFileError(f"{where} holds an integer too large for a float (largest: {sys.float_info.max:.6g})") from None
     except ValueError:
         raise ModelFileError(f"{where} is ragged: its rows must all have the same length{hint}") from None
     if not np.all(np.isfinite(array)):
@@ -344,16 +401,14 @@ def format_model_file(
 def _model_lines(h: ModelHypothesis) -> list[str]:
     lines = [f"name = {_toml_string(h.name)}", f'time = "{h.time}"']
     if h.dt is not None:
-        lines.append(f"dt = {_toml_value(np.float64(h.dt))}")
-    if h.time == CONTINUOUS:
-        system, state_key = h.continuous_system, "A"
-    else:
-        system, state_key = h.system, "A0"
+        lines.append(f"dt = {_toml_value(np.asarray(h.dt, dtype=float))}")
+    system = h.system_for(h.time)
+    state_key = "A" if h.time == CONTINUOUS else "A0"
     lines += [
         f"{state_key} = {_toml_value(system.A0)}",
         f"phi = {_toml_value(system.phi)}",
         f"B = {_toml_value(system.B)}",
-        f"D = {_toml_value(system.D)}",
+        f"D = {_toml_value(disturbance_input(system))}",
         f"w = {{ low = {_toml_value(system.w.low)}, high = {_toml_value(system.w.high)} }}",
         f"theta = {{ low = {_toml_value(system.theta.low)}, high = {_toml_value(system.theta.high)} }}",
     ]

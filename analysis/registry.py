@@ -29,7 +29,7 @@ import importlib
 import pickle
 import re
 from collections.abc import Callable
-from typing import Any, NamedTuple, Protocol, runtime_checkable
+from typing import Any, Generic, NamedTuple, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
@@ -122,17 +122,42 @@ class World(Protocol):
         Where the agent is, a 1-D array (recorded, rounded, as the trajectory).
     """
 
-    substeps: int
-    done: bool
-    outcome: str
-    time: float
-    position: np.ndarray
+    @property
+    def substeps(self) -> int:
+        """Sub-steps per decision."""
+
+    @property
+    def done(self) -> bool:
+        """True once the episode has ended."""
+
+    @property
+    def outcome(self) -> str:
+        """The outcome: "running" while not done, then e.g. "goal" or "collision"."""
+
+    @property
+    def time(self) -> float:
+        """Simulated time, s."""
+
+    @property
+    def position(self) -> np.ndarray:
+        """Where the agent is, a 1-D array."""
 
     def measure(self) -> np.ndarray:
         """A (noisy) measurement of the state; the only thing the method sees of it."""
 
     def apply(self, u: np.ndarray) -> str:
-        """Apply the control ``u`` for one sub-step; returns the outcome."""
+        """Apply the control ``u`` for one sub-step; returns the outcome.
+
+        Parameters
+        ----------
+        u : numpy.ndarray
+            The control, shape (q,).
+
+        Returns
+        -------
+        str
+            The world's outcome after the sub-step ("running" while not done).
+        """
 
     def reward(self) -> float:
         """The true reward in [0, 1] of the current state."""
@@ -146,10 +171,25 @@ class Policy(Protocol):
     """What a method decided: a feedback law held for one decision period."""
 
     def control(self, measurement: np.ndarray) -> np.ndarray:
-        """The control to apply now, admissible for the world (e.g. saturated)."""
+        """The control to apply now, admissible for the world (e.g. saturated).
+
+        Parameters
+        ----------
+        measurement : numpy.ndarray
+            The current measured state, shape (p,).
+
+        Returns
+        -------
+        numpy.ndarray
+            The control, shape (q,).
+        """
 
 
-class Scenario(abc.ABC):
+#: The world type of a scenario and of the methods that drive it (bound: `World`).
+WorldT = TypeVar("WorldT", bound=World)
+
+
+class Scenario(abc.ABC, Generic[WorldT]):
     """A family of seeded worlds, registered with ``register_scenario(name, factory)``.
 
     ``factory()`` returns the scenario; it should be cheap (it is also called in the
@@ -157,15 +197,27 @@ class Scenario(abc.ABC):
     """
 
     @abc.abstractmethod
-    def make_world(self, seed: int, config: Any) -> World:
-        """A new world for episode ``seed`` under the loop settings ``config`` (a `LoopConfig`).
+    def make_world(self, seed: int, config: Any) -> WorldT:
+        """A new world for episode ``seed`` under the loop settings ``config``.
 
         The same seed must give the same world: records depend only on
         ``(scenario, method, seed, config)``.
+
+        Parameters
+        ----------
+        seed : int
+            The episode's world seed (>= 0).
+        config : LoopConfig
+            The loop settings of the episode.
+
+        Returns
+        -------
+        World
+            A fresh world, before its first sub-step.
         """
 
 
-class Method(abc.ABC):
+class Method(abc.ABC, Generic[WorldT]):
     """A planner driving a world, registered with ``register_method(name, factory)``.
 
     ``factory(scenario, config)`` returns a fresh method for one episode, or raises
@@ -183,12 +235,28 @@ class Method(abc.ABC):
     """
 
     @abc.abstractmethod
-    def start(self, world: World) -> None:
-        """Begin an episode in ``world`` (before its first measurement)."""
+    def start(self, world: WorldT) -> None:
+        """Begin an episode in ``world`` (before its first measurement).
+
+        Parameters
+        ----------
+        world : World
+            The episode's world, made by the scenario the method was built for.
+        """
 
     @abc.abstractmethod
     def decide(self, measurement: np.ndarray) -> Policy:
         """Plan on the current measurement; the returned policy runs for one decision period.
+
+        Parameters
+        ----------
+        measurement : numpy.ndarray
+            The current measured state, shape (p,).
+
+        Returns
+        -------
+        Policy
+            The feedback law applied for every sub-step of the decision period.
 
         Raises
         ------
@@ -197,7 +265,14 @@ class Method(abc.ABC):
         """
 
     def observe(self, transition: Transition) -> None:  # noqa: B027 (optional hook)
-        """Learn from one sub-step (default: ignore it)."""
+        """Learn from one sub-step (default: ignore it).
+
+        Parameters
+        ----------
+        transition : Transition
+            The measured state before the sub-step, the control applied and the
+            measured state after it.
+        """
 
     def report(self) -> dict:
         """Per-episode data for ``EpisodeRecord.extra`` (default: none)."""

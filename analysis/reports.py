@@ -124,7 +124,14 @@ class LMIReport:
 
     @property
     def has_certificate(self) -> bool:
-        return all(getattr(self.result, key, None) is not None for key in ("P", "Q0", "rho"))
+        """True if the solver returned a certificate (P, Q0, rho), checked or not."""
+        return self._certificate() is not None
+
+    def _certificate(self) -> tuple[np.ndarray, np.ndarray, float] | None:
+        P, Q0, rho = (getattr(self.result, key, None) for key in ("P", "Q0", "rho"))
+        if P is None or Q0 is None or rho is None:
+            return None
+        return P, Q0, rho
 
     @property
     def holds(self) -> bool:
@@ -154,12 +161,11 @@ class LMIReport:
 
     def lmi_max_eigenvalues(self) -> np.ndarray | None:
         """Per matrix, the largest eigenvalue of the LMI at the returned certificate (< 0 required)."""
-        if not self.has_certificate:
+        certificate = self._certificate()
+        if certificate is None:
             return None
-        result = self.result
-        return np.array(
-            [np.linalg.eigvalsh(lmi_matrix(a, result.P, result.Q0, result.rho, self.D, self.form))[-1] for a in self.matrices]
-        )
+        P, Q0, rho = certificate
+        return np.array([np.linalg.eigvalsh(lmi_matrix(a, P, Q0, rho, self.D, self.form))[-1] for a in self.matrices])
 
     def to_dict(self) -> dict:
         margins = self.lmi_max_eigenvalues()
@@ -206,7 +212,7 @@ class LMIReport:
             else "[[A^T P A - P + Q0, A^T P D], [D^T P A, D^T P D - rho I]] < 0, P > 0"
         )
         solve_time = getattr(result, "solve_time", None)
-        rows = [
+        rows: list[tuple[str, ...]] = [
             ("verdict", f"**{self.verdict}**"),
             ("status", f"{result.status} (certified: {bool(result.certified)}, inaccurate: {bool(getattr(result, 'inaccurate', False))})"),
             ("form", f"{self.form}: `{lmi}`"),
@@ -243,9 +249,10 @@ class LMIReport:
                 "(negative means every LMI holds strictly at the returned certificate)."
             )
             lines.append("")
-        if self.has_certificate:
-            p_eig = np.linalg.eigvalsh(result.P)
-            q_eig = np.linalg.eigvalsh(result.Q0)
+        certificate = self._certificate()
+        if certificate is not None:
+            p_eig = np.linalg.eigvalsh(certificate[0])
+            q_eig = np.linalg.eigvalsh(certificate[1])
             lines += ["### Certificate", ""]
             rows = [
                 ("eigenvalues of P", _vector(p_eig)),
@@ -378,7 +385,7 @@ class SelectionReport:
             "the margin recomputed with numpy (weak duality) from the transitions that force it.",
             "",
         ]
-        rows = []
+        rows: list[tuple[str, ...]] = []
         for i, name in enumerate(self.names):
             margin = _num(self.result.margins[i], 6)
             if i in self.survivors:

@@ -52,6 +52,7 @@ from minimaxplan.scenarios import RobotWorld
 from minimaxplan.verify.selection import ModelSelector, feasible_parameter_box
 
 from .episode import LoopConfig
+from .model_file import disturbance_input
 from .registry import EpisodeFailure, Method, Policy, Transition, UnsupportedScenario, register_method
 from .robot_scenario import RobotScenario, assumption4_report, excitation_data
 
@@ -86,7 +87,7 @@ def planning_system(system: UncertainLinearSystem, control_error: float) -> Unce
 
     ``x+ = A(theta) x + B (u + e) + D w = A(theta) x + B u + [D B] (w, e)``.
     """
-    D = np.hstack([system.D, system.B])
+    D = np.hstack([disturbance_input(system), system.B])
     w = Box(
         np.concatenate([system.w.low, np.full(system.ninputs, -control_error)]),
         np.concatenate([system.w.high, np.full(system.ninputs, control_error)]),
@@ -154,7 +155,7 @@ class _Learner:
             self.states, self.controls = list(X), list(U)
             for n in range(U.shape[0]):
                 self.selector.add(X[n], U[n], X[n + 1])
-        self._boxes = None
+        self._boxes: list[tuple[int, Box]] | None = None
         self._fitted_on = 0  # transitions behind the current boxes
 
     def add(self, x, u, x_next) -> None:
@@ -177,16 +178,18 @@ class _Learner:
                 f"every hypothesis ({names}) is contradicted by the {len(self.controls)} transitions observed"
             )
         n = len(self.controls)
-        stale = self._boxes is None or [i for i, _ in self._boxes] != self.selector.survivors
-        if stale or n >= self.refit_growth * self._fitted_on + 1:
+        boxes = self._boxes
+        stale = boxes is None or [i for i, _ in boxes] != self.selector.survivors
+        if boxes is None or stale or n >= self.refit_growth * self._fitted_on + 1:
             X, U = np.array(self.states).reshape(-1, 4), np.array(self.controls).reshape(-1, 2)
             self._fitted_on = n
-            self._boxes = [
+            boxes = [
                 (i, feasible_parameter_box(self.hypotheses[i].system, X, U, measurement_noise=self.noise)
                  if U.shape[0] else self.hypotheses[i].system.theta)
                 for i in self.selector.survivors
             ]
-        return self._boxes
+            self._boxes = boxes
+        return boxes
 
 
 class _HeldControl:
@@ -211,7 +214,7 @@ class _Saturated:
         return np.clip(self.policy.control(measurement), -self.bound, self.bound)
 
 
-class RobotMethod(Method):
+class RobotMethod(Method[RobotWorld]):
     """What every robot method shares: the velocity controllers and the global path's waypoint.
 
     Parameters
@@ -274,7 +277,7 @@ class RobustMethod(RobotMethod):
         prior = None if self.config.prior_samples is None else excitation_data(world, self.config.prior_samples)
         self.learner = _Learner(hypotheses, self.noise, prior)
         self.planning = [planning_system(h.system, self.config.gain * self.noise) for h in hypotheses]
-        self.lmi = None
+        self.lmi: dict | None = None
         self.plans: list = []
 
     def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:
@@ -326,9 +329,10 @@ class NominalMethod(OracleMethod):
     def start(self, world: RobotWorld) -> None:
         super().start(world)
         self.lsq = _LeastSquares(world.system, self.config.lsq_regularisation)
-        self.learning = self.config.prior_samples is None
-        if not self.learning:
-            X, U = excitation_data(world, self.config.prior_samples)
+        prior_samples = self.config.prior_samples
+        self.learning = prior_samples is None
+        if prior_samples is not None:
+            X, U = excitation_data(world, prior_samples)
             for n in range(U.shape[0]):
                 self.lsq.add(X[n], U[n], X[n + 1])
 
@@ -347,7 +351,7 @@ class DWAMethod(RobotMethod):
     announced velocities, and does not learn the friction (like the ROS local planners).
     """
 
-    baseline = DynamicWindowPlanner
+    baseline: type[DynamicWindowPlanner] | type[TimedElasticBand] = DynamicWindowPlanner
 
     def start(self, world: RobotWorld) -> None:
         super().start(world)

@@ -13,13 +13,14 @@ import argparse
 import pathlib
 import sys
 import time
+from typing import TYPE_CHECKING
 
-from minimaxplan.models import MinimaxplanError
-from minimaxplan.verify import eliminate_models, feasible_parameter_box
+from .arguments import output_file
 
-from .data_file import DataFileError, TransitionData, load_data_file
-from .model_file import ModelFile, load_model_file
-from .reports import SelectionReport, to_json
+if TYPE_CHECKING:
+    from .data_file import TransitionData
+    from .model_file import ModelFile
+    from .reports import SelectionReport
 
 __all__ = ["register", "run", "select_models", "EXIT_SURVIVORS", "EXIT_NONE_SURVIVES", "EXIT_ERROR"]
 
@@ -28,7 +29,14 @@ EXIT_NONE_SURVIVES = 1
 EXIT_ERROR = 2
 
 
-def register(subparsers) -> None:
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``select`` subcommand to ``subparsers``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
+    """
     parser = subparsers.add_parser(
         "select",
         help="eliminate the model hypotheses that observed data contradicts",
@@ -40,18 +48,42 @@ def register(subparsers) -> None:
     parser.add_argument("models", type=pathlib.Path, help="TOML model file with one or more [[hypothesis]] tables")
     parser.add_argument("data", type=pathlib.Path, help="observed trajectory: .csv or .npz")
     parser.add_argument("--json", action="store_true", help="write the JSON report instead of Markdown")
-    parser.add_argument("--out", type=pathlib.Path, metavar="FILE", help="write the report to this file (default: stdout)")
+    parser.add_argument("--out", type=output_file, metavar="FILE", help="write the report to this file (default: stdout)")
     parser.set_defaults(func=run)
 
 
 def select_models(model_file: ModelFile, data: TransitionData) -> SelectionReport:
     """Run `eliminate_models` and `feasible_parameter_box` and wrap them in a `SelectionReport`.
 
+    Parameters
+    ----------
+    model_file : ModelFile
+        The hypotheses (and the measurement-noise bound) of a model file.
+    data : TransitionData
+        One observed trajectory.
+
+    Returns
+    -------
+    SelectionReport
+        The survivors, each eliminated hypothesis's certificate, the survivors'
+        feasible parameter boxes and the timings.
+
     Raises
     ------
     DataFileError
         If the data's numbers of states or inputs differ from the models'.
+
+    Notes
+    -----
+    The hypotheses are the model set M of eq. (15) (Section III); a hypothesis is
+    eliminated when an LP finds no parameter in its box consistent with every
+    transition, with a certificate (an inconsistency margin > 0).
     """
+    from minimaxplan.verify import eliminate_models, feasible_parameter_box
+
+    from .data_file import DataFileError
+    from .reports import SelectionReport
+
     first = model_file.systems[0]
     p, q = first.nstates, first.ninputs
     if data.states.shape[1] != p or data.controls.shape[1] != q:
@@ -88,6 +120,24 @@ def select_models(model_file: ModelFile, data: TransitionData) -> SelectionRepor
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run ``minimaxplan select`` on parsed arguments.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of `register`'s parser: ``models``, ``data``, ``json``, ``out``.
+
+    Returns
+    -------
+    int
+        `EXIT_SURVIVORS`, `EXIT_NONE_SURVIVES` or `EXIT_ERROR` (after one line on stderr).
+    """
+    from minimaxplan.models import MinimaxplanError
+
+    from .data_file import load_data_file
+    from .model_file import load_model_file
+    from .reports import to_json
+
     try:
         report = select_models(load_model_file(args.models), load_data_file(args.data))
         code = EXIT_SURVIVORS if report.survivors else EXIT_NONE_SURVIVES

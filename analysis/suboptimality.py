@@ -15,40 +15,113 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from .arguments import count, count_list, output_directory, report_error
 
-from minimaxplan.models.errors import InputError
+if TYPE_CHECKING:
+    from .episode import LoopConfig
 
-from .episode import DEFAULT_CONFIG, LoopConfig
-from .experiment import run_experiment
+__all__ = ["suboptimality_study", "fit_trend", "plot_study", "markdown", "register", "DEFAULT_SAMPLES"]
 
-__all__ = ["suboptimality_study", "fit_trend", "plot_study", "register"]
-
+#: The values of N of the default study.
 DEFAULT_SAMPLES = (2, 5, 10, 20, 50, 100, 200, 400)
 
 
-def fit_trend(ns, values) -> dict:
-    """Least-squares fit of ``a + b log(N) / N`` (the shape of eq. (14)'s estimation term)."""
+def fit_trend(ns: Sequence[float], values: Sequence[float]) -> dict:
+    """Least-squares fit of ``a + b log(N) / N`` to suboptimality values.
+
+    Parameters
+    ----------
+    ns : sequence of float
+        The numbers of samples N (> 0).
+    values : sequence of float
+        The suboptimality observed at each N.
+
+    Returns
+    -------
+    dict
+        ``{"a": a, "b": b}``.
+
+    Notes
+    -----
+    ``log(N) / N`` is the shape of the estimation term of eq. (14) (Theorem 2).
+    """
+    import numpy as np
+
     n = np.asarray(ns, dtype=float)
     design = np.stack([np.ones_like(n), np.log(n) / n], axis=1)
     coef, *_ = np.linalg.lstsq(design, np.asarray(values, dtype=float), rcond=None)
     return {"a": float(coef[0]), "b": float(coef[1])}
 
 
-def suboptimality_study(samples=DEFAULT_SAMPLES, *, episodes: int = 20, seed: int = 0, horizon: int = 24,
-                        scenario: str = "static", workers: int | None = None, progress: bool = True,
-                        config: LoopConfig = DEFAULT_CONFIG) -> dict:
-    """Run the study; returns per-N mean, max and per-episode suboptimality, and the trend."""
-    samples = [int(n) for n in samples]
-    if not samples or min(samples) < 1:
-        raise InputError(f"samples must be positive integers, got {samples}")
-    base = replace(config, max_decisions=horizon)
+def suboptimality_study(samples: Iterable[int] = DEFAULT_SAMPLES, *, episodes: int = 20, seed: int = 0,
+                        horizon: int = 24, scenario: str = "static", workers: int | None = None,
+                        progress: bool = True, config: LoopConfig | None = None) -> dict:
+    """Run the study: the robust planner's suboptimality against the oracle for each N.
+
+    Parameters
+    ----------
+    samples : iterable of int
+        The numbers N of excitation transitions the robust planner learns from (each >= 1).
+    episodes : int
+        Episodes per N (>= 1), world seeds ``seed .. seed + episodes - 1``.
+    seed : int
+        World seed of the first episode (>= 0).
+    horizon : int
+        Decisions per episode (>= 1).
+    scenario : str
+        A registered scenario.
+    workers : int, optional
+        Local processes (>= 1; default: all cores).
+    progress : bool
+        Show progress bars.
+    config : LoopConfig, optional
+        Loop settings (default: `episode.DEFAULT_CONFIG`); ``max_decisions`` and
+        ``prior_samples`` are overridden.
+
+    Returns
+    -------
+    dict
+        ``scenario``, ``episodes``, ``horizon_decisions``, ``seed``, ``rows`` (per N:
+        ``mean``, ``max``, ``min``, ``per_episode`` suboptimality and ``failures``) and
+        ``fit`` (`fit_trend` of the means).
+
+    Raises
+    ------
+    InputError
+        Before any episode runs, if a value of ``samples``, ``episodes``, ``seed``,
+        ``horizon`` or ``workers`` is out of range.
+
+    Notes
+    -----
+    The Figure 6 analogue; the trend is the ``log(N) / N`` term of eq. (14).
+    """
+    import numpy as np
+
+    from minimaxplan.models.errors import InputError
+    from minimaxplan.models.validation import as_count
+
+    from .episode import DEFAULT_CONFIG
+    from .experiment import run_experiment
+
+    if isinstance(samples, (str, bytes)) or not isinstance(samples, Iterable):
+        raise InputError(f"samples must be a non-empty sequence of positive integers, got {samples!r}")
+    samples = [as_count(f"samples[{i}]", n) for i, n in enumerate(samples)]
+    if not samples:
+        raise InputError("samples must be a non-empty sequence of positive integers, got none")
+    as_count("episodes", episodes)
+    as_count("seed", seed, minimum=0)
+    horizon = as_count("horizon", horizon)
+    if workers is not None:
+        as_count("workers", workers)
+    base = replace(DEFAULT_CONFIG if config is None else config, max_decisions=horizon)
     oracle = run_experiment([scenario], ["oracle"], episodes=episodes, seed=seed, config=base, workers=workers,
                             progress=progress)
     oracle_return = {r.seed: r.discounted_return for r in oracle.records}
-    rows = []
+    rows: list[dict[str, Any]] = []
     for n in samples:
         robust = run_experiment([scenario], ["robust"], episodes=episodes, seed=seed,
                                 config=replace(base, prior_samples=n), workers=workers, progress=progress)
@@ -60,8 +133,23 @@ def suboptimality_study(samples=DEFAULT_SAMPLES, *, episodes: int = 20, seed: in
             "rows": rows, "fit": fit_trend([r["n"] for r in rows], [r["mean"] for r in rows])}
 
 
-def plot_study(study: dict, path) -> pathlib.Path:
+def plot_study(study: dict, path: str | pathlib.Path) -> pathlib.Path:
+    """Plot a study's mean and max suboptimality against N, with the fitted trend.
+
+    Parameters
+    ----------
+    study : dict
+        A `suboptimality_study` result.
+    path : str or pathlib.Path
+        The image file to write (PNG).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     import matplotlib
+    import numpy as np
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -86,6 +174,18 @@ def plot_study(study: dict, path) -> pathlib.Path:
 
 
 def markdown(study: dict) -> str:
+    """A study as a Markdown table, one row per N, and the fitted trend.
+
+    Parameters
+    ----------
+    study : dict
+        A `suboptimality_study` result.
+
+    Returns
+    -------
+    str
+        The table and the trend line.
+    """
     lines = ["| N | mean suboptimality | max | min | failures |", "|---:|---:|---:|---:|---:|"]
     for r in study["rows"]:
         lines.append(f"| {r['n']} | {r['mean']:.4f} | {r['max']:.4f} | {r['min']:.4f} | {r['failures']}/{study['episodes']} |")
@@ -95,8 +195,13 @@ def markdown(study: dict) -> str:
 
 
 def _run(args: argparse.Namespace) -> int:
-    study = suboptimality_study(args.samples, episodes=args.episodes, seed=args.seed, horizon=args.horizon,
-                                workers=args.workers, progress=not args.no_progress)
+    from minimaxplan.models import MinimaxplanError
+
+    try:
+        study = suboptimality_study(args.samples, episodes=args.episodes, seed=args.seed, horizon=args.horizon,
+                                    workers=args.workers, progress=not args.no_progress)
+    except MinimaxplanError as exc:
+        return report_error("suboptimality", exc)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "suboptimality.json").write_text(json.dumps(study, indent=2) + "\n")
@@ -108,13 +213,28 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("suboptimality", help="Figure 6: suboptimality against the number of samples N")
-    parser.add_argument("--samples", type=lambda s: [int(x) for x in s.split(",")], default=list(DEFAULT_SAMPLES),
-                        help="comma-separated values of N")
-    parser.add_argument("--episodes", type=int, default=20)
-    parser.add_argument("--horizon", type=int, default=24, help="decisions per episode")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--workers", type=int, default=None)
-    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("out/suboptimality"))
-    parser.add_argument("--no-progress", action="store_true")
+    """Add the ``suboptimality`` subcommand to ``subparsers``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
+    """
+    parser = subparsers.add_parser(
+        "suboptimality",
+        help="Figure 6: suboptimality against the number of samples N",
+        description="For each N, run EPISODES robust episodes that learn from N prior transitions, "
+        "and EPISODES oracle episodes on the same worlds; report the oracle's return minus the robust "
+        "planner's. A run has EPISODES x (1 + number of values of N) episodes (180 with the defaults).",
+        epilog="Exit codes: 0 done; 2 a bad option (one line on stderr, before any episode runs).",
+    )
+    parser.add_argument("--samples", type=count_list(1), default=list(DEFAULT_SAMPLES),
+                        help=f"comma-separated values of N, each >= 1 (default: {','.join(map(str, DEFAULT_SAMPLES))})")
+    parser.add_argument("--episodes", type=count(1), default=20, help="episodes per value of N (>= 1)")
+    parser.add_argument("--horizon", type=count(1), default=24, help="decisions per episode (>= 1)")
+    parser.add_argument("--seed", type=count(0), default=0, help="world seed of the first episode (>= 0)")
+    parser.add_argument("--workers", type=count(1), default=None, help="local processes (>= 1; default: all cores)")
+    parser.add_argument("--out", type=output_directory, default=pathlib.Path("out/suboptimality"),
+                        help="output directory")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=_run)

@@ -68,7 +68,8 @@ def collision_params(collision) -> CollisionParams:
 
 
 def _is(params, cls) -> bool:
-    return isinstance(params, types.BaseNamedTuple) and params.instance_class is cls
+    # numba's typing classes carry instance_class on NamedTuple types but its stubs do not declare it.
+    return isinstance(params, types.BaseNamedTuple) and params.instance_class is cls  # type: ignore[attr-defined]
 
 
 @njit(inline="always")

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from minimaxplan.kernels import box_gaps_sq
-from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError
+from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, check_shape, frozen_copy
 
 __all__ = [
     "CircularObstacles",
@@ -61,7 +61,7 @@ def _pairwise_gaps_sq(lower, upper, other_lower, other_upper) -> np.ndarray:
     rows = [np.ascontiguousarray(np.broadcast_to(a, shape), dtype=float).reshape(n, 2)
             for a in (lower, upper, other_lower, other_upper)]
     out = np.empty(n)
-    box_gaps_sq(*rows, out)
+    box_gaps_sq(*rows, out)  # type: ignore[call-arg]  # numba's Dispatcher stub does not declare the compiled signature
     return out.reshape(shape[:-1])
 
 
@@ -203,11 +203,46 @@ class CircularObstacles:
         return self.centers.shape[0]
 
     def boxes_meet(self, lower: np.ndarray, upper: np.ndarray, margin: float = 0.0) -> np.ndarray:
-        """`boxes_meet_circles` against these discs (raw arrays (..., 2), no validation)."""
+        """Whether each box, grown by a disc of radius ``margin``, meets any of these discs.
+
+        `boxes_meet_circles` against these discs; raw arrays, no validation (planner
+        hot path).
+
+        Parameters
+        ----------
+        lower, upper : numpy.ndarray
+            Corners of the boxes, shape (..., 2), in metres.
+        margin : float
+            Radius of the disc the boxes are grown by (e.g. the robot's), in metres.
+
+        Returns
+        -------
+        numpy.ndarray
+            Bool array of shape (...).
+        """
         return boxes_meet_circles(lower, upper, self.centers, self.radii, margin)
 
-    def clearance(self, points) -> np.ndarray:
-        """Signed distance from each point (..., 2) to the nearest disc (negative inside; +inf if none)."""
+    def clearance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance from each point to the nearest disc.
+
+        Parameters
+        ----------
+        points : array_like
+            Shape (..., 2), in metres.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (...): distance to the nearest disc's boundary, in metres, negative
+            inside a disc; +inf if there is no disc.
+
+        Raises
+        ------
+        DimensionError
+            If ``points`` does not have a last axis of length 2.
+        NonFiniteError
+            If ``points`` has NaN or infinite entries.
+        """
         pts = as_finite_array("points", points)
         if pts.shape[-1:] != (2,):
             raise DimensionError(f"points must have shape (..., 2), got shape {pts.shape}")
@@ -217,6 +252,13 @@ class CircularObstacles:
         return d.min(axis=-1)
 
     def to_dict(self) -> dict:
+        """The discs as plain lists (JSON-ready).
+
+        Returns
+        -------
+        dict
+            ``{"centers": [[x, y], ...], "radii": [r, ...]}``.
+        """
         return {"centers": self.centers.tolist(), "radii": self.radii.tolist()}
 
 
@@ -279,8 +321,7 @@ class MovingObstacles:
                 raise InputError(f"{name} must be >= 0")
             spreads[name] = value
         dt = as_positive_scalar("dt", self.dt)
-        if int(self.time0) != self.time0:
-            raise InputError(f"time0 must be an integer sub-step index, got {self.time0!r}")
+        as_count("time0", self.time0, minimum=0)
         for name, value in (("positions", positions), ("velocities", velocities), ("radii", radii), *spreads.items()):
             object.__setattr__(self, name, frozen_copy(value))
         object.__setattr__(self, "dt", dt)
@@ -288,15 +329,31 @@ class MovingObstacles:
 
     @classmethod
     def empty(cls) -> MovingObstacles:
+        """No moving obstacle at all.
+
+        Returns
+        -------
+        MovingObstacles
+            m = 0 obstacles, ``dt = 1``, ``time0 = 0``.
+        """
         return cls(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0))
 
     def __len__(self) -> int:
         return self.positions.shape[0]
 
-    def boxes(self, t) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted boxes of the centres at sub-step index ``t`` (scalar or array).
+    def boxes(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted boxes of the obstacles' centres at sub-step index ``t``.
 
-        Returns ``(lower, upper)`` of shape ``shape(t) + (m, 2)``.
+        Parameters
+        ----------
+        t : float or numpy.ndarray
+            Absolute sub-step index (scalar or array); before ``time0`` the box of
+            ``time0`` is returned.
+
+        Returns
+        -------
+        lower, upper : numpy.ndarray
+            Shape ``shape(t) + (m, 2)``, in metres.
         """
         elapsed = (np.maximum(np.asarray(t, dtype=float) - self.time0, 0.0) * self.dt)[..., None, None]
         centre = self.positions + self.velocities * elapsed
@@ -304,20 +361,41 @@ class MovingObstacles:
         return centre - half, centre + half
 
     def boxes_meet(self, lower: np.ndarray, upper: np.ndarray, t, margin: float = 0.0) -> np.ndarray:
-        """Whether each box (..., 2) grown by ``margin`` can meet an obstacle at sub-step ``t``.
+        """Whether each box grown by ``margin`` can meet an obstacle at sub-step ``t``.
 
-        ``t`` is a scalar or broadcasts against the leading shape of ``lower``.
+        Parameters
+        ----------
+        lower, upper : numpy.ndarray
+            Corners of the boxes, shape (..., 2), in metres (raw arrays, no validation).
+        t : float or numpy.ndarray
+            Absolute sub-step index; a scalar, or an array that broadcasts against the
+            leading shape of ``lower``.
+        margin : float
+            Radius of the disc the boxes are grown by (e.g. the robot's), in metres.
+
+        Returns
+        -------
+        numpy.ndarray
+            Bool array of shape (...): True if some obstacle's predicted box, grown by
+            its radius, is within ``margin`` of the box.
         """
         other_lower, other_upper = self.boxes(t)
         return boxes_meet_boxes(lower, upper, other_lower, other_upper, self.radii, margin)
 
     def to_dict(self) -> dict:
+        """The obstacles as plain lists and numbers (JSON-ready).
+
+        Returns
+        -------
+        dict
+            Every field of the dataclass; arrays as nested lists.
+        """
         return {
             "positions": self.positions.tolist(),
             "velocities": self.velocities.tolist(),
             "radii": self.radii.tolist(),
-            "velocity_uncertainty": self.velocity_uncertainty.tolist(),
-            "position_uncertainty": self.position_uncertainty.tolist(),
+            "velocity_uncertainty": np.asarray(self.velocity_uncertainty).tolist(),
+            "position_uncertainty": np.asarray(self.position_uncertainty).tolist(),
             "dt": self.dt,
             "time0": self.time0,
         }
@@ -414,12 +492,34 @@ def fcl_boxes_meet_boxes(lower, upper, other_lower, other_upper, radii, margin: 
     return out
 
 
-def fcl_disc_collisions(position, radius: float, centers, radii) -> np.ndarray:
-    """Which discs (centers (n, 2), radii (n,)) the disc (position, radius) touches or overlaps.
+def fcl_disc_collisions(position: np.ndarray, radius: float, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Which discs the disc (``position``, ``radius``) touches or overlaps.
 
     The simulated worlds' true collision test (robot disc against obstacles or
-    pedestrians), by ``fcl.collide`` on spheres centred in the plane. Returns a bool
-    array of shape (n,).
+    pedestrians), by ``fcl.collide`` on spheres centred in the plane.
+
+    Parameters
+    ----------
+    position : array_like
+        Centre of the disc, shape (2,), in metres.
+    radius : float
+        Its radius (> 0), in metres.
+    centers : array_like
+        Centres of the other discs, shape (n, 2), in metres.
+    radii : array_like
+        Their radii, shape (n,), in metres.
+
+    Returns
+    -------
+    numpy.ndarray
+        Bool array of shape (n,).
+
+    Raises
+    ------
+    DimensionError
+        If a shape does not match.
+    InputError
+        If ``radius`` is not > 0 or an entry is not finite.
     """
     fcl = _fcl()
     position = as_finite_array("position", position, (2,))

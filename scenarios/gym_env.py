@@ -34,9 +34,10 @@ except ImportError as exc:  # pragma: no cover - exercised only without the extr
     raise ImportError("minimaxplan.scenarios.gym_env needs gymnasium: pip install 'minimaxplan[gym]'") from exc
 
 from minimaxplan.models.errors import InputError
+from minimaxplan.models.validation import as_choice, check_instance
 
 from .robot import DEFAULT_ROBOT, RobotParameters
-from .worlds import PEDESTRIAN_COUNT, WORLD_KINDS, RobotWorld
+from .worlds import MEASUREMENT_MODELS, PEDESTRIAN_COUNT, WORLD_KINDS, RobotWorld
 
 __all__ = ["RobotNavigationEnv", "ENV_ID"]
 
@@ -66,10 +67,9 @@ class RobotNavigationEnv(gym.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, kind: str = "static", *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT):
-        if kind not in WORLD_KINDS:
-            raise InputError(f"kind must be one of {WORLD_KINDS}, got {kind!r}")
-        if measurement not in ("uniform", "gaussian"):
-            raise InputError(f"measurement must be 'uniform' or 'gaussian', got {measurement!r}")
+        as_choice("kind", kind, WORLD_KINDS)
+        as_choice("measurement", measurement, MEASUREMENT_MODELS)
+        check_instance("params", params, RobotParameters)
         self.kind = kind
         self.measurement = measurement
         self.params = params
@@ -79,8 +79,13 @@ class RobotNavigationEnv(gym.Env):
         self.observation_space = spaces.Box(-OBSERVATION_BOUND, OBSERVATION_BOUND, shape=(size,), dtype=np.float32)
         self.world: RobotWorld | None = None
 
+    def _current_world(self) -> RobotWorld:
+        if self.world is None:
+            raise InputError("call reset() before step()")
+        return self.world
+
     def _observation(self) -> np.ndarray:
-        world = self.world
+        world = self._current_world()
         x = world.measure()
         obs = [x, world.goal - x[:2]]
         obstacles = np.zeros((OBSERVED_OBSTACLES, 4))
@@ -94,18 +99,59 @@ class RobotNavigationEnv(gym.Env):
         return np.concatenate(obs).astype(np.float32)
 
     def _info(self) -> dict:
-        world = self.world
+        world = self._current_world()
         return {"outcome": world.outcome, "time": world.time, "true_theta": world.true_theta.copy()}
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """Start a new episode (gymnasium API).
+
+        Parameters
+        ----------
+        seed : int, optional
+            World seed of the new episode (>= 0); without it, the next seed of the
+            env's own generator (seeded by the first seeded reset).
+        options : dict, optional
+            Unused (gymnasium API).
+
+        Returns
+        -------
+        observation : numpy.ndarray
+            float32, shape ``observation_space.shape``.
+        info : dict
+            ``outcome``, ``time`` (s) and ``true_theta``.
+        """
         super().reset(seed=seed)
         world_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
         self.world = RobotWorld(self.kind, world_seed, measurement=self.measurement, params=self.params)
         return self._observation(), self._info()
 
-    def step(self, action):
-        if self.world is None:
-            raise InputError("call reset() before step()")
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """Hold ``action`` for one decision period (gymnasium API).
+
+        Parameters
+        ----------
+        action : array_like
+            The control, shape (2,), in ``action_space``.
+
+        Returns
+        -------
+        observation : numpy.ndarray
+            float32, shape ``observation_space.shape``.
+        reward : float
+            Mean true reward over the sub-steps, in [0, 1].
+        terminated : bool
+            The robot reached the goal or collided.
+        truncated : bool
+            The time limit ran out.
+        info : dict
+            ``outcome``, ``time`` (s) and ``true_theta``.
+
+        Raises
+        ------
+        InputError
+            If `reset` was not called, or ``action`` is malformed or out of bounds.
+        """
+        world = self._current_world()
         u = np.asarray(action, dtype=float)
         if u.shape != (2,):
             raise InputError(f"action must have shape (2,), got shape {u.shape}")
@@ -116,11 +162,11 @@ class RobotNavigationEnv(gym.Env):
         u = np.clip(u, -bound, bound)
         rewards = []
         for _ in range(self.params.substeps):
-            self.world.apply(u)
-            rewards.append(self.world.reward())
-            if self.world.done:
+            world.apply(u)
+            rewards.append(world.reward())
+            if world.done:
                 break
-        outcome = self.world.outcome
+        outcome = world.outcome
         terminated = outcome in ("goal", "collision")
         truncated = outcome == "timeout"
         return self._observation(), float(np.mean(rewards)), terminated, truncated, self._info()

@@ -38,14 +38,14 @@ only four corners).
 from __future__ import annotations
 
 import abc
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from minimaxplan.kernels import box_minima
-from minimaxplan.models.validation import as_finite_array, as_positive_scalar, frozen_copy
 from minimaxplan.models.errors import DimensionError, InputError
+from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, frozen_copy
 
 from .compiled_rewards import GoalParams, SpeedLaneParams, collision_params
 from .geometry import CircularObstacles, MovingObstacles, box_box_sq_distance, box_point_sq_distance
@@ -70,7 +70,7 @@ def _as_index_tuple(name: str, value, *, length: int | None = None) -> tuple[int
     return indices
 
 
-def _selector(indices: tuple[int, ...]):
+def _selector(indices: tuple[int, ...]) -> slice | list[int]:
     """A basic slice when the indices are contiguous (a view, no copy), else the index list."""
     if indices == tuple(range(indices[0], indices[0] + len(indices))):
         return slice(indices[0], indices[0] + len(indices))
@@ -189,11 +189,34 @@ class RewardFamily(abc.ABC):
 
     @abc.abstractmethod
     def free_value(self, states: np.ndarray) -> np.ndarray:
-        """f at each state (..., p): the reward where nothing collides (checked states)."""
+        """f at each state: the reward where nothing collides.
+
+        Parameters
+        ----------
+        states : numpy.ndarray
+            States, shape (..., p), checked by the caller (`value`).
+
+        Returns
+        -------
+        numpy.ndarray
+            f at each state, shape (...), in [0, 1].
+        """
 
     @abc.abstractmethod
     def free_argmin(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        """A state of each box (..., p) where f attains its minimum over the box (checked boxes)."""
+        """A state of each box where f attains its minimum over the box.
+
+        Parameters
+        ----------
+        lower, upper : numpy.ndarray
+            Corners of the boxes, shape (..., p), ``lower <= upper``, checked by the
+            caller (`box_argmin`).
+
+        Returns
+        -------
+        numpy.ndarray
+            One state per box, shape (..., p), inside the box.
+        """
 
     @abc.abstractmethod
     def to_dict(self) -> dict:
@@ -222,17 +245,56 @@ class RewardFamily(abc.ABC):
             raise InputError("lower must be <= upper in every coordinate")
         return lo, hi
 
-    def value(self, states, t=0, *, moving_positions=None) -> np.ndarray:
-        """J at each state (..., p); see `evaluate`."""
+    def value(self, states: np.ndarray, t: int = 0, *, moving_positions: np.ndarray | None = None) -> np.ndarray:
+        """J at each state; see `evaluate`.
+
+        Parameters
+        ----------
+        states : array_like
+            States, shape (..., p).
+        t : int
+            Absolute sub-step index (where the moving obstacles' boxes are predicted).
+        moving_positions : array_like, optional
+            The moving obstacles' true positions, shape (m, 2), in metres.
+
+        Returns
+        -------
+        numpy.ndarray
+            J at each state, shape (...), in [0, 1].
+        """
         return self.evaluate(states, t, moving_positions=moving_positions)[0]
 
-    def evaluate(self, states, t=0, *, moving_positions=None) -> tuple[np.ndarray, np.ndarray]:
-        """J and the collision flag at each state (..., p) at sub-step ``t``.
+    def evaluate(
+        self, states: np.ndarray, t: int = 0, *, moving_positions: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """J and the collision flag at each state at sub-step ``t``.
 
-        ``moving_positions`` (m, 2), when given, are the moving obstacles' true
-        positions (a simulated world's view); otherwise a state collides when it can
-        meet a moving obstacle anywhere in its predicted box at ``t`` (the box minimum's
-        verdict on the degenerate box ``[x, x]``).
+        Parameters
+        ----------
+        states : array_like
+            States, shape (..., p).
+        t : int
+            Absolute sub-step index.
+        moving_positions : array_like, optional
+            The moving obstacles' true positions, shape (m, 2) (a simulated world's
+            view). Without them a state collides when it can meet a moving obstacle
+            anywhere in its predicted box at ``t`` (the box minimum's verdict on the
+            degenerate box ``[x, x]``).
+
+        Returns
+        -------
+        reward : numpy.ndarray
+            J at each state, shape (...), in [0, 1] (0 where it collides).
+        collided : numpy.ndarray
+            Bool, shape (...).
+
+        Raises
+        ------
+        DimensionError
+            If ``states`` has fewer than `min_state_dim` coordinates, or
+            ``moving_positions`` is not (m, 2).
+        NonFiniteError
+            If an entry is NaN or infinite.
         """
         x = self._check_states("states", states)
         if moving_positions is None:
@@ -262,15 +324,53 @@ class RewardFamily(abc.ABC):
         return self.box_minimum_raw(lo, hi, t)
 
     def box_minimum_raw(self, lower: np.ndarray, upper: np.ndarray, t=0) -> tuple[np.ndarray, np.ndarray]:
-        """`box_minimum` without argument checks (float arrays (..., p), lower <= upper).
+        """`box_minimum` without argument checks.
 
         Runs the family's compiled kernel over the boxes (`minimaxplan.kernels.box_minima`):
         bit for bit the minima of the planners' compiled engine.
+
+        Parameters
+        ----------
+        lower, upper : numpy.ndarray
+            Float arrays of shape (..., p) with ``lower <= upper`` (not checked).
+        t : int
+            Absolute sub-step index.
+
+        Returns
+        -------
+        minimum : numpy.ndarray
+            The exact minimum of J over each box, shape (...).
+        collided : numpy.ndarray
+            Bool, shape (...): the box can meet an obstacle (its minimum is 0).
+
+        Notes
+        -----
+        The minimum over the predicted interval is the pessimistic reward J_n of
+        eq. (11) that the robust planners sum.
         """
         return box_minima(self.kernel_params, lower, upper, t)
 
-    def box_argmin(self, lower, upper, t=0) -> np.ndarray:
-        """A state of each box where J attains `box_minimum` (shape (..., p))."""
+    def box_argmin(self, lower: np.ndarray, upper: np.ndarray, t: int = 0) -> np.ndarray:
+        """A state of each box where J attains `box_minimum`.
+
+        Parameters
+        ----------
+        lower, upper : array_like
+            Corners of the boxes, shape (..., p), ``lower <= upper``.
+        t : int
+            Absolute sub-step index.
+
+        Returns
+        -------
+        numpy.ndarray
+            One state per box, shape (..., p): a colliding point of the box if the box
+            can collide, else a minimiser of f.
+
+        Raises
+        ------
+        DimensionError, InputError
+            If the boxes are malformed (shapes, ``lower > upper``, non-finite entries).
+        """
         lo, hi = self._check_box(lower, upper)
         pos = self._collision.pos
         point = self.free_argmin(lo, hi)
@@ -317,6 +417,8 @@ class GoalReward(RewardFamily):
     moving_obstacles: MovingObstacles | None = None
     robot_radius: float = 0.0
     position_indices: tuple = (0, 1)
+    # Derived in __post_init__ (not constructor arguments).
+    _kernel_params: GoalParams = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "goal", frozen_copy(as_finite_array("goal", self.goal, (2,))))
@@ -339,19 +441,57 @@ class GoalReward(RewardFamily):
         return self.position_indices
 
     def free_value(self, states: np.ndarray) -> np.ndarray:
-        """``1 / (1 + ||pos(x) - goal||)`` at each state (..., p)."""
+        """``1 / (1 + ||pos(x) - goal||)`` at each state.
+
+        Parameters
+        ----------
+        states : numpy.ndarray
+            States, shape (..., p), checked by the caller (`value`).
+
+        Returns
+        -------
+        numpy.ndarray
+            f at each state, shape (...), in [0, 1].
+        """
         return 1.0 / (1.0 + np.linalg.norm(states[..., self._collision.pos] - self.goal, axis=-1))
 
     def free_argmin(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        """The corner of each box farthest from the goal (other coordinates at ``lower``)."""
+        """The corner of each box farthest from the goal (other coordinates at ``lower``).
+
+        Parameters
+        ----------
+        lower, upper : numpy.ndarray
+            Corners of the boxes, shape (..., p), ``lower <= upper``, checked by the
+            caller (`box_argmin`).
+
+        Returns
+        -------
+        numpy.ndarray
+            One state per box, shape (..., p), inside the box.
+        """
         pos = self._collision.pos
         point = lower.copy()
         lo, hi = lower[..., pos], upper[..., pos]
         point[..., pos] = np.where(np.abs(lo - self.goal) >= np.abs(hi - self.goal), lo, hi)
         return point
 
-    def with_obstacles(self, obstacles=None, moving_obstacles=None) -> GoalReward:
-        """The same reward with other obstacles (e.g. the pedestrians observed now)."""
+    def with_obstacles(
+        self, obstacles: CircularObstacles | None = None, moving_obstacles: MovingObstacles | None = None
+    ) -> GoalReward:
+        """The same reward with other obstacles (e.g. the pedestrians observed now).
+
+        Parameters
+        ----------
+        obstacles : CircularObstacles, optional
+            New static discs (default: keep this reward's).
+        moving_obstacles : MovingObstacles, optional
+            New moving discs (default: keep this reward's).
+
+        Returns
+        -------
+        GoalReward
+            Same goal, robot radius and position indices.
+        """
         return GoalReward(
             self.goal,
             obstacles=self.obstacles if obstacles is None else obstacles,
@@ -419,6 +559,9 @@ class SpeedLaneReward(RewardFamily):
     moving_obstacles: MovingObstacles | None = None
     robot_radius: float = 0.0
     position_indices: tuple = (0, 1)
+    # Derived in __post_init__ (not constructor arguments).
+    _speed_sel: slice | list[int] = field(init=False, repr=False, compare=False)
+    _kernel_params: SpeedLaneParams = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         try:
@@ -448,9 +591,7 @@ class SpeedLaneReward(RewardFamily):
                 raise InputError(f"lateral_index {lateral} must differ from speed_indices {speed}")
             object.__setattr__(self, "lateral_index", lateral)
         object.__setattr__(self, "lane_width", as_positive_scalar("lane_width", self.lane_width))
-        if int(self.n_lanes) != self.n_lanes or self.n_lanes < 2:
-            raise InputError(f"n_lanes must be an integer >= 2, got {self.n_lanes!r}")
-        object.__setattr__(self, "n_lanes", int(self.n_lanes))
+        object.__setattr__(self, "n_lanes", as_count("n_lanes", self.n_lanes, minimum=2))
         collision = _CollisionTerm(self.obstacles, self.moving_obstacles, self.robot_radius, self.position_indices)
         if set(speed) & set(collision.position_indices):
             raise InputError(f"speed_indices {speed} must differ from position_indices {collision.position_indices}")
@@ -498,14 +639,37 @@ class SpeedLaneReward(RewardFamily):
         return np.sqrt(np.einsum("...i,...i->...", near, near)), np.sqrt(np.einsum("...i,...i->...", far, far))
 
     def free_value(self, states: np.ndarray) -> np.ndarray:
-        """The speed and lane terms at each state (..., p)."""
+        """The speed and lane terms at each state.
+
+        Parameters
+        ----------
+        states : numpy.ndarray
+            States, shape (..., p), checked by the caller (`value`).
+
+        Returns
+        -------
+        numpy.ndarray
+            f at each state, shape (...), in [0, 1].
+        """
         reward = self.speed_weight * self._speed_term(np.abs(self._speed(states) - self.target_speed))
         if self.lane_weight:
             reward = reward + self.lane_weight * self._lane_term(states[..., self.lateral_index])
         return reward
 
     def free_argmin(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        """A state of each box at the worst end of the speed interval (the lane term's minimiser is ``lower``)."""
+        """A state of each box at the worst end of the speed interval (the lane term's minimiser is ``lower``).
+
+        Parameters
+        ----------
+        lower, upper : numpy.ndarray
+            Corners of the boxes, shape (..., p), ``lower <= upper``, checked by the
+            caller (`box_argmin`).
+
+        Returns
+        -------
+        numpy.ndarray
+            One state per box, shape (..., p), inside the box.
+        """
         point = lower.copy()
         lo, hi = lower[..., self._speed_sel], upper[..., self._speed_sel]
         s_lo, s_hi = self._speed_interval(lower, upper)

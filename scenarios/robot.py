@@ -20,10 +20,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from minimaxplan.models.validation import as_positive_scalar
 from minimaxplan.models.errors import InputError
 from minimaxplan.models.sets import Box
 from minimaxplan.models.system import UncertainLinearSystem
+from minimaxplan.models.validation import as_count, as_positive_scalar
 
 __all__ = [
     "RobotParameters",
@@ -91,8 +91,7 @@ class RobotParameters:
             as_positive_scalar(name, getattr(self, name))
         for name in ("friction_low", "measurement_noise", "goal_distance_low"):
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
-        if int(self.substeps) != self.substeps or self.substeps < 1:
-            raise InputError(f"substeps must be a positive integer, got {self.substeps!r}")
+        as_count("substeps", self.substeps)
         if self.friction_low > self.friction_high:
             raise InputError(f"friction_low must be <= friction_high, got {self.friction_low} > {self.friction_high}")
         if self.goal_distance_low > self.goal_distance_high:
@@ -122,6 +121,13 @@ class RobotParameters:
         return Box.from_center(np.zeros(2), self.disturbance_bound)
 
     def to_dict(self) -> dict:
+        """Every parameter by name (JSON-ready).
+
+        Returns
+        -------
+        dict
+            The dataclass's fields.
+        """
         return asdict(self)
 
 
@@ -188,6 +194,13 @@ class Hypothesis(NamedTuple):
     system: UncertainLinearSystem
 
     def to_dict(self) -> dict:
+        """The hypothesis as plain data (JSON-ready).
+
+        Returns
+        -------
+        dict
+            ``{"name": ..., "system": UncertainLinearSystem.to_dict()}``.
+        """
         return {"name": self.name, "system": self.system.to_dict()}
 
 
@@ -197,6 +210,13 @@ WRONG_INPUT_GAIN = 0.6
 
 def robot_hypotheses(dt: float = 0.1, params: RobotParameters = DEFAULT_ROBOT) -> list[Hypothesis]:
     """The competing structural hypotheses for model selection, the truth first.
+
+    Parameters
+    ----------
+    dt : float
+        Time step of the discretised systems, in seconds (> 0).
+    params : RobotParameters
+        The robot (friction prior, disturbance and control bounds).
 
     Returns
     -------

@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from minimaxplan.models.validation import as_finite_array
 from minimaxplan.models.errors import InputError, MinimaxplanError
 from minimaxplan.models.system import UncertainLinearSystem
+from minimaxplan.models.validation import as_choice, as_count, as_finite_array, check_instance
 
 from .geometry import CircularObstacles, MovingObstacles, fcl_disc_collisions
 from .rewards import GoalReward
@@ -41,6 +41,8 @@ __all__ = [
 ]
 
 WORLD_KINDS = ("static", "pedestrian")
+#: The measurement models of a `RobotWorld`: bounded (inside the guarantees) or Gaussian.
+MEASUREMENT_MODELS = ("uniform", "gaussian")
 OUTCOMES = ("running", "goal", "collision", "timeout")
 
 #: Static obstacles in the static world (inclusive range) and their radii, m.
@@ -135,7 +137,8 @@ def _obstacles(rng, count, start, goal, params: RobotParameters) -> CircularObst
     """``count`` obstacles, about half near the route, none within reach of start or goal."""
     route = goal - start
     normal = np.array([-route[1], route[0]]) / np.linalg.norm(route)
-    centers, radii = [], []
+    centers: list[np.ndarray] = []
+    radii: list[float] = []
     while len(centers) < count:
         radius = rng.uniform(*OBSTACLE_RADIUS)
         if rng.uniform() < ON_ROUTE_FRACTION:
@@ -158,8 +161,7 @@ def generate_layout(kind: str, rng: np.random.Generator, params: RobotParameters
     ``kind="static"``: 10-15 obstacles; ``"pedestrian"``: 3-5. Radii 0.4-1.2 m. Layouts
     without a path are redrawn from the same stream.
     """
-    if kind not in WORLD_KINDS:
-        raise InputError(f"kind must be one of {WORLD_KINDS}, got {kind!r}")
+    as_choice("kind", kind, WORLD_KINDS)
     low, high = STATIC_OBSTACLE_COUNT if kind == "static" else PEDESTRIAN_WORLD_OBSTACLE_COUNT
     for _ in range(_MAX_LAYOUT_ATTEMPTS):
         start, goal = _start_and_goal(rng, params)
@@ -211,8 +213,10 @@ def _crowd(rng: np.random.Generator, count: int, start, goal) -> PedestrianCrowd
     route = goal - start
     length = np.linalg.norm(route)
     route_heading = np.arctan2(route[1], route[0])
-    positions, headings, speeds = [], [], []
-    while len(positions) < count:
+    position_list: list[np.ndarray] = []
+    heading_list: list[float] = []
+    speed_list: list[float] = []
+    while len(position_list) < count:
         fraction = rng.uniform(0.3, 0.8)
         crossing = start + fraction * route
         side = rng.choice([-1.0, 1.0])
@@ -222,12 +226,12 @@ def _crowd(rng: np.random.Generator, count: int, start, goal) -> PedestrianCrowd
         position = crossing - speed * arrival * np.array([np.cos(heading), np.sin(heading)])
         if np.linalg.norm(position - start) < 2.0 + PEDESTRIAN_RADIUS:
             continue
-        positions.append(position)
-        headings.append(heading)
-        speeds.append(speed)
-    headings = np.array(headings, dtype=float)
-    speeds = np.array(speeds, dtype=float)
-    positions = np.array(positions, dtype=float).reshape(count, 2)
+        position_list.append(position)
+        heading_list.append(heading)
+        speed_list.append(speed)
+    headings = np.array(heading_list, dtype=float)
+    speeds = np.array(speed_list, dtype=float)
+    positions = np.array(position_list, dtype=float).reshape(count, 2)
     announced = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
     return PedestrianCrowd(
         positions=positions, announced=announced, speeds=speeds, headings=headings,
@@ -260,19 +264,16 @@ class RobotWorld:
         Sub-steps applied so far; ``time = step_index * dt``.
     outcome
         "running", "goal", "collision" or "timeout"; ``done`` once it is not "running".
+    measurement
+        "uniform" (bounded noise, inside the guarantees) or "gaussian".
     """
 
     def __init__(self, kind: str, seed: int, *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT):
-        if kind not in WORLD_KINDS:
-            raise InputError(f"kind must be one of {WORLD_KINDS}, got {kind!r}")
-        if measurement not in ("uniform", "gaussian"):
-            raise InputError(f"measurement must be 'uniform' or 'gaussian', got {measurement!r}")
-        if not isinstance(params, RobotParameters):
-            raise InputError(f"params must be a RobotParameters, got {type(params).__name__}")
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise InputError(f"seed must be a non-negative integer, got {seed!r}")
+        as_choice("kind", kind, WORLD_KINDS)
+        as_choice("measurement", measurement, MEASUREMENT_MODELS)
+        check_instance("params", params, RobotParameters)
         self.kind = kind
-        self.seed = int(seed)
+        self.seed = as_count("seed", seed, minimum=0)
         self.measurement = measurement
         self.params = params
         layout_seq, theta_seq, disturbance_seq, noise_seq, pedestrian_seq = np.random.SeedSequence(self.seed).spawn(5)
@@ -307,6 +308,7 @@ class RobotWorld:
 
     @property
     def done(self) -> bool:
+        """Whether the episode has ended (``outcome`` is not "running")."""
         return self.outcome != "running"
 
     @property
@@ -316,6 +318,7 @@ class RobotWorld:
 
     @property
     def position(self) -> np.ndarray:
+        """The robot's true position (px, py), shape (2,), in metres (a copy)."""
         return self.state[:2].copy()
 
     @property
@@ -364,12 +367,29 @@ class RobotWorld:
         return hits
 
     # ---------------------------------------------------------------- dynamics
-    def apply(self, u) -> str:
-        """Hold the control ``u`` in ``[-1, 1]^2`` for one sub-step and return the outcome.
+    def apply(self, u: np.ndarray) -> str:
+        """Hold the control ``u`` for one sub-step and return the outcome.
 
         The robot steps by ``system.step(state, u, true_theta, w)`` with a fresh
         ``w ~ U[-0.1, 0.1]^2``; the pedestrians move; then collision (fcl), goal and
         time limit are checked in that order.
+
+        Parameters
+        ----------
+        u : array_like
+            The control, shape (2,), in ``[-control_bound, control_bound]^2``.
+
+        Returns
+        -------
+        str
+            "running", "goal", "collision" or "timeout".
+
+        Raises
+        ------
+        EpisodeOver
+            If the episode has already ended.
+        InputError
+            If ``u`` is out of bounds, not finite or not of shape (2,).
         """
         if self.done:
             raise EpisodeOver(f"the episode has ended (outcome={self.outcome!r}); make a new world")
@@ -391,8 +411,19 @@ class RobotWorld:
             self.outcome = "timeout"
         return self.outcome
 
-    def apply_held(self, u) -> str:
-        """Hold ``u`` for one decision period (``substeps`` sub-steps, fewer if the episode ends)."""
+    def apply_held(self, u: np.ndarray) -> str:
+        """Hold ``u`` for one decision period (``substeps`` sub-steps, fewer if the episode ends).
+
+        Parameters
+        ----------
+        u : array_like
+            The control, shape (2,); see `apply`.
+
+        Returns
+        -------
+        str
+            The outcome after the last sub-step applied.
+        """
         for _ in range(self.params.substeps):
             if self.apply(u) != "running":
                 break
@@ -414,6 +445,29 @@ class RobotWorld:
 
 
 def make_world(kind: str, seed: int, *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT) -> RobotWorld:
-    """A new seeded episode: ``kind`` is "static" (10-15 obstacles) or "pedestrian"
-    (3-5 obstacles and 1-3 crossing pedestrians); see `RobotWorld`."""
+    """A new seeded episode of robot navigation; see `RobotWorld`.
+
+    Parameters
+    ----------
+    kind : {"static", "pedestrian"}
+        "static": 10-15 obstacles; "pedestrian": 3-5 obstacles and 1-3 crossing
+        pedestrians.
+    seed : int
+        World seed (>= 0): the same seed gives the same episode.
+    measurement : {"uniform", "gaussian"}
+        Measurement noise: bounded (inside the guarantees) or Gaussian (outside).
+    params : RobotParameters
+        The robot and the arena.
+
+    Returns
+    -------
+    RobotWorld
+        The world at its start, the robot at rest.
+
+    Raises
+    ------
+    InputError
+        If ``kind`` or ``measurement`` is unknown, ``seed`` is not an integer >= 0,
+        or ``params`` is not a `RobotParameters`.
+    """
     return RobotWorld(kind, seed, measurement=measurement, params=params)

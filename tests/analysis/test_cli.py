@@ -14,8 +14,7 @@ from minimaxplan.analysis import cli
 from minimaxplan.analysis.data_file import load_data_file
 from minimaxplan.analysis.lmi_command import check_model
 from minimaxplan.analysis.model_file import format_model_file, load_model_file
-from minimaxplan.verify import lmi_matrix
-from minimaxplan.verify import check_assumption4, eliminate_models, feasible_parameter_box
+from minimaxplan.verify import check_assumption4, eliminate_models, feasible_parameter_box, lmi_matrix
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"

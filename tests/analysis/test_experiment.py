@@ -54,7 +54,7 @@ def test_bad_method_and_scenario_are_rejected():
         run_experiment(["static"], ["magic"], episodes=1)
     with pytest.raises(UnknownScenario, match="scenario must be one of"):
         run_experiment(["mars"], ["dwa"], episodes=1)
-    with pytest.raises(InputError, match="episodes must be >= 1"):
+    with pytest.raises(InputError, match="episodes must be a positive integer, got 0"):
         run_experiment(["static"], ["dwa"], episodes=0)
     with pytest.raises(InputError, match="config must be a LoopConfig"):
         run_experiment(["static"], ["dwa"], episodes=1, config={"budget": 12})
@@ -217,10 +217,10 @@ def test_boxes_of_the_robust_model_contain_the_loop_driven_by_noisy_measurements
     "kwargs, message",
     [
         ({"budget": 0}, "budget must be a positive integer"),
-        ({"gamma": 1.0}, r"gamma must lie in \(0, 1\)"),
+        ({"gamma": 1.0}, r"gamma must be in the open interval \(0, 1\), got 1.0"),
         ({"speed": -1.0}, "speed must be > 0"),
-        ({"prior_samples": 0}, "prior_samples must be None or a positive integer"),
-        ({"measurement": "laser"}, "measurement must be 'uniform' or 'gaussian'"),
+        ({"prior_samples": 0}, "prior_samples must be a positive integer, got 0"),
+        ({"measurement": "laser"}, r"measurement must be one of \('uniform', 'gaussian'\), got 'laser'"),
         ({"directions": ((1, 1, 1),)}, "directions must be a non-empty sequence of 2-vectors"),
     ],
 )

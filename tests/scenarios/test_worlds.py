@@ -242,9 +242,9 @@ def test_apply_rejects_bad_controls(call, error, message):
     "args, kwargs, message",
     [
         (("maze", 0), {}, "kind must be one of"),
-        (("static", -1), {}, "seed must be a non-negative integer"),
-        (("static", 1.5), {}, "seed must be a non-negative integer"),
-        (("static", 0), {"measurement": "laplace"}, "measurement must be 'uniform' or 'gaussian'"),
+        (("static", -1), {}, "seed must be an integer >= 0, got -1"),
+        (("static", 1.5), {}, "seed must be an integer >= 0, got 1.5"),
+        (("static", 0), {"measurement": "laplace"}, r"measurement must be one of \('uniform', 'gaussian'\), got 'laplace'"),
         (("static", 0), {"params": {"dt": 0.1}}, "params must be a RobotParameters"),
     ],
 )
