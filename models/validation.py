@@ -238,12 +238,15 @@ def frozen_copy(array: np.ndarray) -> np.ndarray:
 
 
 def _as_real_scalar(name: str, value) -> float:
-    if np.iscomplexobj(value) or isinstance(value, (bool, np.bool_)):
+    # A string is not a number even when float() would parse it ("0.5"), nor is a bool.
+    if isinstance(value, (str, bytes, bool, np.bool_)) or np.iscomplexobj(value):
         raise InputError(f"{name} must be a real scalar, got {value!r}")
     try:
         x = float(value)
     except (TypeError, ValueError):
         raise InputError(f"{name} must be a real scalar, got {value!r}") from None
+    except OverflowError:  # an int too large for a float (10**400)
+        raise NonFiniteError(f"{name} must be finite, got an integer too large for a float") from None
     if not np.isfinite(x):
         raise NonFiniteError(f"{name} must be finite, got {x}")
     return x
@@ -334,11 +337,11 @@ def as_discount(name: str, value) -> float:
     NonFiniteError
         If it is NaN or infinite.
     """
-    if isinstance(value, (bool, np.bool_)) or np.iscomplexobj(value):
+    if isinstance(value, (str, bytes, bool, np.bool_)) or np.iscomplexobj(value):
         raise InputError(f"{name} must be a real number in (0, 1), got {value!r}")
     try:
         x = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{name} must be a real number in (0, 1), got {value!r}") from None
     if not np.isfinite(x):
         raise NonFiniteError(f"{name} must be finite and in (0, 1), got {x}")

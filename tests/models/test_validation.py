@@ -11,6 +11,7 @@ from minimaxplan.models.validation import (
     as_count,
     as_discount,
     as_points,
+    as_positive_scalar,
     as_probability,
     check_dimension,
     check_instance,
@@ -47,9 +48,18 @@ def test_discounts_lie_strictly_between_0_and_1():
             as_discount("gamma", bad)
     with pytest.raises(NonFiniteError, match=r"gamma must be finite and in \(0, 1\), got nan"):
         as_discount("gamma", float("nan"))
-    for bad in ("x", True, 0.5 + 0j, None):
+    for bad in ("x", "0.5", b"0.5", True, 0.5 + 0j, None, 10**400):
         with pytest.raises(InputError, match=r"gamma must be a real number in \(0, 1\)"):
             as_discount("gamma", bad)
+
+
+def test_real_scalars_refuse_numeric_strings_and_huge_integers():
+    """A numeric string is not a number, and 10**400 has no float: typed errors naming the argument."""
+    for bad in ("0.5", b"2", True):
+        with pytest.raises(InputError, match=r"sigma must be a real scalar"):
+            as_positive_scalar("sigma", bad)
+    with pytest.raises(NonFiniteError, match=r"sigma must be finite, got an integer too large for a float"):
+        as_positive_scalar("sigma", 10**400)
 
 
 def test_probabilities():
