@@ -28,10 +28,13 @@ test: $(STAMP_BASE)
 	$(PY) -m pytest -n 2 -q
 
 # ruff (lint rules and formatting) and mypy on the package; .ci/run runs it before the tests.
+# mypy reads the package through a link named minimaxplan: the repository root is the
+# package (package-dir "."), and the checkout's own folder name may not be a valid one.
 lint: $(STAMP_BASE)
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
-	$(VENV)/bin/mypy
+	rm -rf .lint && mkdir .lint && ln -s .. .lint/minimaxplan
+	MYPYPATH=.lint $(VENV)/bin/mypy -p minimaxplan
 
 bench: $(STAMP_BENCH)
 	$(PY) benchmarks/run_all.py
