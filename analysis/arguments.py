@@ -137,9 +137,13 @@ def count_list(minimum: int = 1) -> Callable[[str], list[int]]:
             try:
                 value = int(item)
             except ValueError:
-                raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {item!r} in {text!r}") from None
+                raise argparse.ArgumentTypeError(
+                    f"expected comma-separated integers, got {item!r} in {text!r}"
+                ) from None
             if value < minimum:
-                raise argparse.ArgumentTypeError(f"every value must be an integer >= {minimum}, got {item!r} in {text!r}")
+                raise argparse.ArgumentTypeError(
+                    f"every value must be an integer >= {minimum}, got {item!r} in {text!r}"
+                )
             values.append(value)
         return values
 

@@ -160,8 +160,15 @@ def _run(args: argparse.Namespace) -> int:
         return 0
     print(f"\nShort experiment: {args.episodes} episodes per method in each world (paper: 100)", flush=True)
     try:
-        table, out = run_and_report(scenario_names(), method_names(), episodes=args.episodes, seed=args.seed,
-                                    workers=args.workers, dask_address=None, out=args.out)
+        table, out = run_and_report(
+            scenario_names(),
+            method_names(),
+            episodes=args.episodes,
+            seed=args.seed,
+            workers=args.workers,
+            dask_address=None,
+            out=args.out,
+        )
     except MinimaxplanError as exc:
         return report_error("demo", exc)
     print(table)
@@ -186,8 +193,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog="Exit codes: 0 done; 2 a bad option (one line on stderr, before any work).",
     )
     parser.add_argument("--seed", type=count(0), default=0, help="seed of part 1 and world seed of part 2 (>= 0)")
-    parser.add_argument("--episodes", type=count(0), default=5,
-                        help="episodes per method and world (>= 0; 0: part 1 only)")
+    parser.add_argument(
+        "--episodes", type=count(0), default=5, help="episodes per method and world (>= 0; 0: part 1 only)"
+    )
     parser.add_argument("--workers", type=count(1), default=None, help="local processes (>= 1; default: all cores)")
     parser.add_argument("--out", type=output_directory, default=pathlib.Path("out/demo"), help="output directory")
     parser.set_defaults(func=_run)

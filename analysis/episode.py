@@ -199,8 +199,9 @@ def run_job(job: EpisodeJob) -> EpisodeRecord:
     )
 
 
-def make_job(scenario: str, method: str, seed: int, config: LoopConfig = DEFAULT_CONFIG, *,
-             built: Any = None) -> EpisodeJob:
+def make_job(
+    scenario: str, method: str, seed: int, config: LoopConfig = DEFAULT_CONFIG, *, built: Any = None
+) -> EpisodeJob:
     """The job of episode ``seed`` of ``method`` in ``scenario`` (names looked up in the registries).
 
     ``built`` may pass the scenario instance already made from its factory.

@@ -141,8 +141,9 @@ def summarise(records: Iterable[EpisodeRecord]) -> list[dict]:
     return summary
 
 
-def _jobs(scenarios: Sequence[str], methods: Sequence[str], episodes: int, seed: int,
-          config: LoopConfig) -> list[EpisodeJob]:
+def _jobs(
+    scenarios: Sequence[str], methods: Sequence[str], episodes: int, seed: int, config: LoopConfig
+) -> list[EpisodeJob]:
     """Every job in order (scenario, then method, then seed), names checked before any runs."""
     as_count("episodes", episodes)
     as_count("seed", seed, minimum=0)
@@ -296,7 +297,8 @@ def write_outputs(result: ExperimentResult, out_dir: str | os.PathLike) -> pathl
         writer.writeheader()
         writer.writerows(rows)
     (out / "table.md").write_text(
-        markdown_table(result.summary) + assumption4_note(result.records)
+        markdown_table(result.summary)
+        + assumption4_note(result.records)
         + f"\nWall time of the run: {result.wall_time_s:.1f} s\n"
     )
     return out

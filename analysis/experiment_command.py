@@ -19,9 +19,18 @@ from .arguments import count, name_list, output_directory, report_error
 __all__ = ["register", "run_and_report"]
 
 
-def run_and_report(scenarios: Sequence[str], methods: Sequence[str], *, episodes: int, seed: int,
-                   workers: int | None, dask_address: str | None, out: pathlib.Path, progress: bool = True,
-                   plot_seeds: int = 3) -> tuple[str, pathlib.Path]:
+def run_and_report(
+    scenarios: Sequence[str],
+    methods: Sequence[str],
+    *,
+    episodes: int,
+    seed: int,
+    workers: int | None,
+    dask_address: str | None,
+    out: pathlib.Path,
+    progress: bool = True,
+    plot_seeds: int = 3,
+) -> tuple[str, pathlib.Path]:
     """Run the experiment, write every output into ``out`` and return the Markdown table.
 
     Parameters
@@ -60,8 +69,9 @@ def run_and_report(scenarios: Sequence[str], methods: Sequence[str], *, episodes
     from .experiment import markdown_table, run_experiment, write_outputs
     from .plots import plot_trajectories
 
-    result = run_experiment(scenarios, methods, episodes=episodes, seed=seed, workers=workers,
-                            dask_address=dask_address, progress=progress)
+    result = run_experiment(
+        scenarios, methods, episodes=episodes, seed=seed, workers=workers, dask_address=dask_address, progress=progress
+    )
     out = write_outputs(result, out)
     for scenario in scenarios:
         shown = sorted({r.seed for r in result.records if r.scenario == scenario})[:plot_seeds]
@@ -77,9 +87,16 @@ def _run(args: argparse.Namespace) -> int:
     from .registry import method_names, scenario_names
 
     try:
-        table, out = run_and_report(args.scenario or scenario_names(), args.methods or method_names(), episodes=args.episodes, seed=args.seed,
-                                    workers=args.workers, dask_address=args.dask, out=args.out,
-                                    progress=not args.no_progress)
+        table, out = run_and_report(
+            args.scenario or scenario_names(),
+            args.methods or method_names(),
+            episodes=args.episodes,
+            seed=args.seed,
+            workers=args.workers,
+            dask_address=args.dask,
+            out=args.out,
+            progress=not args.no_progress,
+        )
     except MinimaxplanError as exc:
         return report_error("experiment", exc)
     print(table)
@@ -105,19 +122,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog="Exit codes: 0 done; 2 a bad option, an unknown name or an unreachable Dask scheduler "
         "(one line on stderr, before any episode runs).",
     )
-    parser.add_argument("--scenario", type=name_list, default=None,
-                        help="comma-separated registered scenarios (default: all, e.g. static,pedestrian)")
-    parser.add_argument("--methods", type=name_list, default=None,
-                        help="comma-separated registered methods (default: all, e.g. robust,nominal,oracle,dwa,teb)")
-    parser.add_argument("--episodes", type=count(1), default=100,
-                        help="episodes per method and scenario (>= 1)")
-    parser.add_argument("--seed", type=count(0), default=0,
-                        help="world seed of the first episode (>= 0); episode i uses SEED + i")
-    parser.add_argument("--workers", type=count(1), default=None,
-                        help="local processes (>= 1; default: all cores)")
-    parser.add_argument("--dask", metavar="ADDRESS", default=None,
-                        help="run on the Dask scheduler at this address instead (the 'cluster' extra)")
-    parser.add_argument("--out", type=output_directory, default=pathlib.Path("out/experiment"),
-                        help="output directory")
+    parser.add_argument(
+        "--scenario",
+        type=name_list,
+        default=None,
+        help="comma-separated registered scenarios (default: all, e.g. static,pedestrian)",
+    )
+    parser.add_argument(
+        "--methods",
+        type=name_list,
+        default=None,
+        help="comma-separated registered methods (default: all, e.g. robust,nominal,oracle,dwa,teb)",
+    )
+    parser.add_argument("--episodes", type=count(1), default=100, help="episodes per method and scenario (>= 1)")
+    parser.add_argument(
+        "--seed", type=count(0), default=0, help="world seed of the first episode (>= 0); episode i uses SEED + i"
+    )
+    parser.add_argument("--workers", type=count(1), default=None, help="local processes (>= 1; default: all cores)")
+    parser.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        default=None,
+        help="run on the Dask scheduler at this address instead (the 'cluster' extra)",
+    )
+    parser.add_argument("--out", type=output_directory, default=pathlib.Path("out/experiment"), help="output directory")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=_run)

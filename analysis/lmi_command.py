@@ -68,7 +68,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--model", dest="model_name", metavar="NAME", help="check only the model with this name")
     parser.add_argument("--json", action="store_true", help="write the JSON report instead of Markdown")
-    parser.add_argument("--out", type=output_file, metavar="FILE", help="write the report to this file (default: stdout)")
+    parser.add_argument(
+        "--out", type=output_file, metavar="FILE", help="write the report to this file (default: stdout)"
+    )
     parser.set_defaults(func=run)
 
 

@@ -288,14 +288,18 @@ def _parse_model(table: Mapping[str, Any], where: str, *, default_name: str) -> 
         if key not in table:
             raise ModelFileError(f"{where}: missing required key '{key}'")
     if time == CONTINUOUS and dt is None:
-        raise ModelFileError(f"{where}: missing required key 'dt' (a continuous-time model is discretised with step dt)")
+        raise ModelFileError(
+            f"{where}: missing required key 'dt' (a continuous-time model is discretised with step dt)"
+        )
     A = _matrix(table[state_key], f"{where}: {state_key}", ndim=2)
     p = A.shape[0]
     if A.shape != (p, p):
         raise ModelFileError(f"{where}: {state_key} must be square, got shape {A.shape}")
     phi = _matrix(table["phi"], f"{where}: phi", ndim=3, hint="a list of d matrices, each p x p")
     if phi.shape[1:] != (p, p):
-        raise ModelFileError(f"{where}: phi must have shape (d, {p}, {p}) to match {state_key} {A.shape}, got shape {phi.shape}")
+        raise ModelFileError(
+            f"{where}: phi must have shape (d, {p}, {p}) to match {state_key} {A.shape}, got shape {phi.shape}"
+        )
     B = _matrix(table["B"], f"{where}: B", ndim=2)
     if B.shape[0] != p:
         raise ModelFileError(f"{where}: B must have shape ({p}, q) to match {state_key} {A.shape}, got shape {B.shape}")
@@ -303,9 +307,16 @@ def _parse_model(table: Mapping[str, Any], where: str, *, default_name: str) -> 
     if "D" in table:
         D = _matrix(table["D"], f"{where}: D", ndim=2)
         if D.shape[0] != p:
-            raise ModelFileError(f"{where}: D must have shape ({p}, r) to match {state_key} {A.shape}, got shape {D.shape}")
+            raise ModelFileError(
+                f"{where}: D must have shape ({p}, r) to match {state_key} {A.shape}, got shape {D.shape}"
+            )
     r = p if D is None else D.shape[1]
-    w = _box(table["w"], f"{where}: w", r, f"the columns of D {D.shape}" if D is not None else f"the {p} states (D is the identity)")
+    w = _box(
+        table["w"],
+        f"{where}: w",
+        r,
+        f"the columns of D {D.shape}" if D is not None else f"the {p} states (D is the identity)",
+    )
     theta = _box(table["theta"], f"{where}: theta", phi.shape[0], f"the {phi.shape[0]} matrices of phi")
     try:
         if time == CONTINUOUS:
@@ -348,7 +359,9 @@ def _numeric(value: Any, where: str, hint: str = "") -> np.ndarray:
     try:
         array = np.array(value, dtype=float)
     except OverflowError:
-        raise ModelFileError(f"{where} holds an integer too large for a float (largest: {sys.float_info.max:.6g})") from None
+        raise ModelFileError(
+            f"{where} holds an integer too large for a float (largest: {sys.float_info.max:.6g})"
+        ) from None
     except ValueError:
         raise ModelFileError(f"{where} is ragged: its rows must all have the same length{hint}") from None
     if not np.all(np.isfinite(array)):
@@ -370,7 +383,9 @@ def _box(value: Any, where: str, dim: int, what: str) -> Box:
     keys = set(value)
     if keys != _BOX_KEYS:
         missing, extra = sorted(_BOX_KEYS - keys), sorted(keys - _BOX_KEYS)
-        raise ModelFileError(f"{where} must have exactly the keys 'low' and 'high' (missing {missing}, unknown {extra})")
+        raise ModelFileError(
+            f"{where} must have exactly the keys 'low' and 'high' (missing {missing}, unknown {extra})"
+        )
     low = _numeric(value["low"], f"{where}.low")
     high = _numeric(value["high"], f"{where}.high")
     for side, array in (("low", low), ("high", high)):

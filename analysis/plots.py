@@ -29,7 +29,13 @@ def plot_trajectories(records: Sequence[EpisodeRecord], path: str | pathlib.Path
 
     seeds = sorted({r.seed for r in records})
     fig, axes = plt.subplots(1, len(seeds), figsize=(5 * len(seeds), 5), squeeze=False)
-    colors = {"robust": "tab:green", "nominal": "tab:orange", "oracle": "tab:blue", "dwa": "tab:red", "teb": "tab:purple"}
+    colors = {
+        "robust": "tab:green",
+        "nominal": "tab:orange",
+        "oracle": "tab:blue",
+        "dwa": "tab:red",
+        "teb": "tab:purple",
+    }
     for ax, seed in zip(axes[0], seeds):
         group = [r for r in records if r.seed == seed]
         world = group[0].extra.get("world", {})
@@ -46,11 +52,15 @@ def plot_trajectories(records: Sequence[EpisodeRecord], path: str | pathlib.Path
             trajectory = np.array(r.trajectory)
             if trajectory.size:
                 # planar positions as a path; any other dimension against the sub-step index
-                x, y = (trajectory[:, 0], trajectory[:, 1]) if planar else (np.arange(len(trajectory)), trajectory[:, 0])
+                x, y = (
+                    (trajectory[:, 0], trajectory[:, 1]) if planar else (np.arange(len(trajectory)), trajectory[:, 0])
+                )
                 ax.plot(x, y, color=colors.get(r.method, "k"), lw=1.5, label=f"{r.method} ({r.outcome})")
             for _, lower, upper in r.extra.get("plans", []):
                 for lo, hi in zip(lower[1:], upper[1:]):
-                    ax.add_patch(Rectangle(lo, hi[0] - lo[0], hi[1] - lo[1], fill=False, ec=colors["robust"], lw=0.4, alpha=0.6))
+                    ax.add_patch(
+                        Rectangle(lo, hi[0] - lo[0], hi[1] - lo[1], fill=False, ec=colors["robust"], lw=0.4, alpha=0.6)
+                    )
         if planar:
             ax.set_aspect("equal")
         ax.set_title(f"{group[0].scenario} world, seed {seed}")

@@ -423,5 +423,6 @@ def method_factory(name: str, scenario: Scenario, config: Any) -> Factory:
             reasons.append(str(exc))
             continue
         return factory
-    raise UnsupportedScenario(f"method {name!r} supports no scenario of type {type(scenario).__name__}: "
-                              + "; ".join(reasons))
+    raise UnsupportedScenario(
+        f"method {name!r} supports no scenario of type {type(scenario).__name__}: " + "; ".join(reasons)
+    )

@@ -214,7 +214,10 @@ class LMIReport:
         solve_time = getattr(result, "solve_time", None)
         rows: list[tuple[str, ...]] = [
             ("verdict", f"**{self.verdict}**"),
-            ("status", f"{result.status} (certified: {bool(result.certified)}, inaccurate: {bool(getattr(result, 'inaccurate', False))})"),
+            (
+                "status",
+                f"{result.status} (certified: {bool(result.certified)}, inaccurate: {bool(getattr(result, 'inaccurate', False))})",
+            ),
             ("form", f"{self.form}: `{lmi}`"),
             ("checked", what),
             ("solver", f"{getattr(result, 'solver', '-')}, status `{getattr(result, 'solver_status', '-')}`"),
@@ -269,7 +272,9 @@ class LMIReport:
                 ]
             lines += _table(("quantity", "value"), rows) + [""]
             if self.holds:
-                dynamics, error = ("e+ = A e + D w", "||e_n||") if self.form == "discrete" else ("de/dt = A e + D w", "||e(t)||")
+                dynamics, error = (
+                    ("e+ = A e + D w", "||e_n||") if self.form == "discrete" else ("de/dt = A e + D w", "||e(t)||")
+                )
                 lines += [
                     f"With this certificate, `{dynamics}` obeys `{error} <= c0 ||e_0|| + cw sup ||w||` "
                     "for every A of the checked set (Theorem 2, bound constants of `LMIResult.bound_constants`).",
@@ -294,7 +299,14 @@ def render_lmi_reports(reports: Sequence[LMIReport], *, source: str) -> str:
     """The Markdown document of ``minimaxplan lmi``: a summary table, then one section per model."""
     lines = [f"# Assumption 4 (LMI) report: `{source}`", ""]
     rows = [
-        (r.model, r.form, "vertices" if r.vertices else "nominal", r.result.status, str(bool(r.result.certified)), r.verdict)
+        (
+            r.model,
+            r.form,
+            "vertices" if r.vertices else "nominal",
+            r.result.status,
+            str(bool(r.result.certified)),
+            r.verdict,
+        )
         for r in reports
     ]
     lines += _table(("model", "form", "matrices", "status", "certified", "verdict"), rows) + [""]
@@ -348,7 +360,9 @@ class SelectionReport:
             "model_file": self.model_source,
             "data_file": self.data_source,
             "data": {"transitions": self.ntransitions, "states": self.nstates, "inputs": self.ninputs},
-            "measurement_noise": None if self.measurement_noise is None else np.asarray(self.measurement_noise).tolist(),
+            "measurement_noise": None
+            if self.measurement_noise is None
+            else np.asarray(self.measurement_noise).tolist(),
             "hypotheses": [
                 {
                     "index": i,
@@ -411,7 +425,13 @@ class SelectionReport:
                 box = self.feasible_boxes[i]
                 for k in range(box.dim):
                     rows.append(
-                        (self.names[i], f"theta[{k}]", _num(box.low[k], 6), _num(box.high[k], 6), _num(box.high[k] - box.low[k], 4))
+                        (
+                            self.names[i],
+                            f"theta[{k}]",
+                            _num(box.low[k], 6),
+                            _num(box.high[k], 6),
+                            _num(box.high[k] - box.low[k], 4),
+                        )
                     )
             lines += _table(("hypothesis", "parameter", "low", "high", "width"), rows) + [""]
         else:

@@ -184,8 +184,12 @@ class _Learner:
             X, U = np.array(self.states).reshape(-1, 4), np.array(self.controls).reshape(-1, 2)
             self._fitted_on = n
             boxes = [
-                (i, feasible_parameter_box(self.hypotheses[i].system, X, U, measurement_noise=self.noise)
-                 if U.shape[0] else self.hypotheses[i].system.theta)
+                (
+                    i,
+                    feasible_parameter_box(self.hypotheses[i].system, X, U, measurement_noise=self.noise)
+                    if U.shape[0]
+                    else self.hypotheses[i].system.theta,
+                )
                 for i in self.selector.survivors
             ]
             self._boxes = boxes
@@ -200,7 +204,6 @@ class _HeldControl:
 
     def control(self, x):
         return self.u
-
 
 
 class _Saturated:
@@ -232,8 +235,9 @@ class RobotMethod(Method[RobotWorld]):
 
     def __init__(self, scenario: RobotScenario, config: LoopConfig):
         if not isinstance(scenario, RobotScenario):
-            raise UnsupportedScenario(f"{type(self).__name__} drives only RobotScenario worlds, "
-                                      f"got {type(scenario).__name__}")
+            raise UnsupportedScenario(
+                f"{type(self).__name__} drives only RobotScenario worlds, got {type(scenario).__name__}"
+            )
         self.scenario = scenario
         self.config = config
 
@@ -290,9 +294,14 @@ class RobustMethod(RobotMethod):
         pairs = [(self.planning[i], box) for i, box in survivors]
         if self.lmi is None:
             self.lmi = assumption4_report(world.system, pairs[0][1])
-        planner = multi_model_robust_planner(pairs, self.scenario.objective(world, waypoint, uncertain=True),
-                                             self.controllers, gamma=config.gamma, budget=config.budget,
-                                             substeps=self.params.substeps)
+        planner = multi_model_robust_planner(
+            pairs,
+            self.scenario.objective(world, waypoint, uncertain=True),
+            self.controllers,
+            gamma=config.gamma,
+            budget=config.budget,
+            substeps=self.params.substeps,
+        )
         root = root_state(planner, *measurement_box(measurement, self.noise), time=t)
         decision = planner.plan(root)
         lower, upper, _, _ = planner.models[0].rollout(root, decision.sequence)
@@ -316,9 +325,15 @@ class OracleMethod(RobotMethod):
 
     def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:
         world, config = self.world, self.config
-        planner = nominal_planner(world.system, self.theta(), self.scenario.objective(world, waypoint, uncertain=False),
-                                  self.controllers, gamma=config.gamma, budget=config.budget,
-                                  substeps=self.params.substeps)
+        planner = nominal_planner(
+            world.system,
+            self.theta(),
+            self.scenario.objective(world, waypoint, uncertain=False),
+            self.controllers,
+            gamma=config.gamma,
+            budget=config.budget,
+            substeps=self.params.substeps,
+        )
         return self.controllers[planner.plan(root_state(planner, measurement, time=world.step_index)).action]
 
 
@@ -355,8 +370,13 @@ class DWAMethod(RobotMethod):
 
     def start(self, world: RobotWorld) -> None:
         super().start(world)
-        self.planner = self.baseline(world.system, theta=world.system.theta.center, substeps=self.params.substeps,
-                                     robot_radius=self.params.robot_radius, control_bound=self.params.control_bound)
+        self.planner = self.baseline(
+            world.system,
+            theta=world.system.theta.center,
+            substeps=self.params.substeps,
+            robot_radius=self.params.robot_radius,
+            control_bound=self.params.control_bound,
+        )
 
     def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:
         return _HeldControl(self.planner.plan(measurement, self.scenario.scene(self.world, waypoint)))

@@ -59,16 +59,21 @@ class RobotScenario(Scenario[RobotWorld]):
         """The static map's cost-to-go to the goal, on a grid covering the whole arena."""
         size = world.params.arena_size
         region = np.array([world.start, [0.0, 0.0], [size, size]])
-        return NavigationFunction(world.goal, world.obstacles.centers, world.obstacles.radii, clearance=clearance,
-                                  region=region, padding=3.0)
+        return NavigationFunction(
+            world.goal, world.obstacles.centers, world.obstacles.radii, clearance=clearance, region=region, padding=3.0
+        )
 
     @staticmethod
     def objective(world: RobotWorld, waypoint, *, uncertain: bool) -> GoalReward:
         """The reward a planner maximises at this decision: reach ``waypoint`` without touching
         the static discs or the pedestrians (predicted boxes if ``uncertain``, else points
         moving at their announced velocities)."""
-        return GoalReward(waypoint, obstacles=world.obstacles, robot_radius=world.params.robot_radius,
-                          moving_obstacles=_pedestrian_prediction(world, uncertain) if len(world.crowd) else None)
+        return GoalReward(
+            waypoint,
+            obstacles=world.obstacles,
+            robot_radius=world.params.robot_radius,
+            moving_obstacles=_pedestrian_prediction(world, uncertain) if len(world.crowd) else None,
+        )
 
     @staticmethod
     def scene(world: RobotWorld, waypoint) -> NavigationScene:
@@ -102,7 +107,9 @@ def assumption4_report(system: UncertainLinearSystem, parameters: Box) -> dict:
     """
     vertices = parameters.vertices()
     full = check_assumption4([system.A(v) for v in vertices], form="discrete", D=disturbance_input(system))
-    velocity = check_assumption4([system.A(v)[2:, 2:] for v in vertices], form="discrete", D=disturbance_input(system)[2:])
+    velocity = check_assumption4(
+        [system.A(v)[2:, 2:] for v in vertices], form="discrete", D=disturbance_input(system)[2:]
+    )
     return {
         "full_model": full.status,
         "full_model_note": "integrators: infeasible is expected and Theorem 2 does not apply",

@@ -48,7 +48,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("models", type=pathlib.Path, help="TOML model file with one or more [[hypothesis]] tables")
     parser.add_argument("data", type=pathlib.Path, help="observed trajectory: .csv or .npz")
     parser.add_argument("--json", action="store_true", help="write the JSON report instead of Markdown")
-    parser.add_argument("--out", type=output_file, metavar="FILE", help="write the report to this file (default: stdout)")
+    parser.add_argument(
+        "--out", type=output_file, metavar="FILE", help="write the report to this file (default: stdout)"
+    )
     parser.set_defaults(func=run)
 
 

@@ -57,9 +57,17 @@ def fit_trend(ns: Sequence[float], values: Sequence[float]) -> dict:
     return {"a": float(coef[0]), "b": float(coef[1])}
 
 
-def suboptimality_study(samples: Iterable[int] = DEFAULT_SAMPLES, *, episodes: int = 20, seed: int = 0,
-                        horizon: int = 24, scenario: str = "static", workers: int | None = None,
-                        progress: bool = True, config: LoopConfig | None = None) -> dict:
+def suboptimality_study(
+    samples: Iterable[int] = DEFAULT_SAMPLES,
+    *,
+    episodes: int = 20,
+    seed: int = 0,
+    horizon: int = 24,
+    scenario: str = "static",
+    workers: int | None = None,
+    progress: bool = True,
+    config: LoopConfig | None = None,
+) -> dict:
     """Run the study: the robust planner's suboptimality against the oracle for each N.
 
     Parameters
@@ -118,19 +126,41 @@ def suboptimality_study(samples: Iterable[int] = DEFAULT_SAMPLES, *, episodes: i
     if workers is not None:
         as_count("workers", workers)
     base = replace(DEFAULT_CONFIG if config is None else config, max_decisions=horizon)
-    oracle = run_experiment([scenario], ["oracle"], episodes=episodes, seed=seed, config=base, workers=workers,
-                            progress=progress)
+    oracle = run_experiment(
+        [scenario], ["oracle"], episodes=episodes, seed=seed, config=base, workers=workers, progress=progress
+    )
     oracle_return = {r.seed: r.discounted_return for r in oracle.records}
     rows: list[dict[str, Any]] = []
     for n in samples:
-        robust = run_experiment([scenario], ["robust"], episodes=episodes, seed=seed,
-                                config=replace(base, prior_samples=n), workers=workers, progress=progress)
+        robust = run_experiment(
+            [scenario],
+            ["robust"],
+            episodes=episodes,
+            seed=seed,
+            config=replace(base, prior_samples=n),
+            workers=workers,
+            progress=progress,
+        )
         gaps = [oracle_return[r.seed] - r.discounted_return for r in robust.records]
         outcomes = [r.outcome for r in robust.records]
-        rows.append({"n": n, "mean": float(np.mean(gaps)), "max": float(np.max(gaps)), "min": float(np.min(gaps)),
-                     "per_episode": gaps, "failures": sum(o not in ("goal", "horizon") for o in outcomes)})
-    return {"scenario": scenario, "episodes": episodes, "horizon_decisions": horizon, "seed": seed,
-            "rows": rows, "fit": fit_trend([r["n"] for r in rows], [r["mean"] for r in rows])}
+        rows.append(
+            {
+                "n": n,
+                "mean": float(np.mean(gaps)),
+                "max": float(np.max(gaps)),
+                "min": float(np.min(gaps)),
+                "per_episode": gaps,
+                "failures": sum(o not in ("goal", "horizon") for o in outcomes),
+            }
+        )
+    return {
+        "scenario": scenario,
+        "episodes": episodes,
+        "horizon_decisions": horizon,
+        "seed": seed,
+        "rows": rows,
+        "fit": fit_trend([r["n"] for r in rows], [r["mean"] for r in rows]),
+    }
 
 
 def plot_study(study: dict, path: str | pathlib.Path) -> pathlib.Path:
@@ -188,7 +218,9 @@ def markdown(study: dict) -> str:
     """
     lines = ["| N | mean suboptimality | max | min | failures |", "|---:|---:|---:|---:|---:|"]
     for r in study["rows"]:
-        lines.append(f"| {r['n']} | {r['mean']:.4f} | {r['max']:.4f} | {r['min']:.4f} | {r['failures']}/{study['episodes']} |")
+        lines.append(
+            f"| {r['n']} | {r['mean']:.4f} | {r['max']:.4f} | {r['min']:.4f} | {r['failures']}/{study['episodes']} |"
+        )
     fit = study["fit"]
     lines.append(f"\nTrend fit: suboptimality ~ {fit['a']:.4f} + {fit['b']:.4f} log(N)/N")
     return "\n".join(lines) + "\n"
@@ -198,8 +230,14 @@ def _run(args: argparse.Namespace) -> int:
     from minimaxplan.models import MinimaxplanError
 
     try:
-        study = suboptimality_study(args.samples, episodes=args.episodes, seed=args.seed, horizon=args.horizon,
-                                    workers=args.workers, progress=not args.no_progress)
+        study = suboptimality_study(
+            args.samples,
+            episodes=args.episodes,
+            seed=args.seed,
+            horizon=args.horizon,
+            workers=args.workers,
+            progress=not args.no_progress,
+        )
     except MinimaxplanError as exc:
         return report_error("suboptimality", exc)
     out = pathlib.Path(args.out)
@@ -228,13 +266,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "planner's. A run has EPISODES x (1 + number of values of N) episodes (180 with the defaults).",
         epilog="Exit codes: 0 done; 2 a bad option (one line on stderr, before any episode runs).",
     )
-    parser.add_argument("--samples", type=count_list(1), default=list(DEFAULT_SAMPLES),
-                        help=f"comma-separated values of N, each >= 1 (default: {','.join(map(str, DEFAULT_SAMPLES))})")
+    parser.add_argument(
+        "--samples",
+        type=count_list(1),
+        default=list(DEFAULT_SAMPLES),
+        help=f"comma-separated values of N, each >= 1 (default: {','.join(map(str, DEFAULT_SAMPLES))})",
+    )
     parser.add_argument("--episodes", type=count(1), default=20, help="episodes per value of N (>= 1)")
     parser.add_argument("--horizon", type=count(1), default=24, help="decisions per episode (>= 1)")
     parser.add_argument("--seed", type=count(0), default=0, help="world seed of the first episode (>= 0)")
     parser.add_argument("--workers", type=count(1), default=None, help="local processes (>= 1; default: all cores)")
-    parser.add_argument("--out", type=output_directory, default=pathlib.Path("out/suboptimality"),
-                        help="output directory")
+    parser.add_argument(
+        "--out", type=output_directory, default=pathlib.Path("out/suboptimality"), help="output directory"
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=_run)

@@ -37,8 +37,9 @@ RESULTS = pathlib.Path(__file__).parent / "results"
 
 def scene_of(world) -> NavigationScene:
     crowd = world.crowd
-    return NavigationScene(world.goal, world.obstacles.centers, world.obstacles.radii,
-                           crowd.positions, crowd.announced, crowd.radii)
+    return NavigationScene(
+        world.goal, world.obstacles.centers, world.obstacles.radii, crowd.positions, crowd.announced, crowd.radii
+    )
 
 
 def closed_loop_latencies(make_planner) -> tuple[np.ndarray, dict]:
@@ -122,7 +123,9 @@ def reference_dwa_scores(planner: DynamicWindowPlanner, x: np.ndarray, scene: Na
             t = dt * (n + 1)
             for j in range(centers.shape[0]):
                 footprint = planner.robot_radius + (p.pedestrian_margin if j >= n_static else 0.0)
-                clearance = min(clearance, np.linalg.norm(s[:2] - (centers[j] + t * velocities[j])) - radii[j] - footprint)
+                clearance = min(
+                    clearance, np.linalg.norm(s[:2] - (centers[j] + t * velocities[j])) - radii[j] - footprint
+                )
         end = held[-1]
         speed_end = np.linalg.norm(end[2:])
         if nav is not None:
@@ -188,13 +191,22 @@ def teb_against_finite_differences(bands: int = 10) -> dict:
         fast = minimize(band_cost, z0, args=args, jac=True, method="L-BFGS-B", bounds=bounds, options=options)
         analytic_times.append(time.perf_counter() - started)
         started = time.perf_counter()
-        slow = minimize(lambda z, *a: band_cost(z, *a)[0], z0, args=args, method="L-BFGS-B", bounds=bounds, options=options)
+        slow = minimize(
+            lambda z, *a: band_cost(z, *a)[0], z0, args=args, method="L-BFGS-B", bounds=bounds, options=options
+        )
         numeric_times.append(time.perf_counter() - started)
         analytic_costs.append(fast.fun)
         numeric_costs.append(slow.fun)
     fast_t, slow_t = np.median(analytic_times), np.median(numeric_times)
-    return {"bands": bands, "variables": int(z0.size), "fast_ms": 1e3 * fast_t, "slow_ms": 1e3 * slow_t, "ratio": slow_t / fast_t,
-            "fast_cost": float(np.median(analytic_costs)), "slow_cost": float(np.median(numeric_costs))}
+    return {
+        "bands": bands,
+        "variables": int(z0.size),
+        "fast_ms": 1e3 * fast_t,
+        "slow_ms": 1e3 * slow_t,
+        "ratio": slow_t / fast_t,
+        "fast_cost": float(np.median(analytic_costs)),
+        "slow_cost": float(np.median(numeric_costs)),
+    }
 
 
 def main() -> None:

@@ -29,7 +29,13 @@ import time
 
 import numpy as np
 
-from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, SetMembershipEstimator, UncertainLinearSystem, confidence_ellipsoid
+from minimaxplan.models import (
+    Box,
+    ConfidenceEllipsoidEstimator,
+    SetMembershipEstimator,
+    UncertainLinearSystem,
+    confidence_ellipsoid,
+)
 from minimaxplan.verify import feasible_parameter_box
 
 SEED = 20261122
@@ -47,7 +53,9 @@ def robot() -> UncertainLinearSystem:
     phi[0, 2, 2] = phi[1, 3, 3] = -DT
     B = np.vstack([np.zeros((2, 2)), DT * np.eye(2)])
     D = np.vstack([np.zeros((2, 2)), np.eye(2)])
-    return UncertainLinearSystem(A0, phi, B, D=D, w=Box.from_center(np.zeros(2), W_BOUND), theta=Box([0.0, 0.0], [3.0, 3.0]))
+    return UncertainLinearSystem(
+        A0, phi, B, D=D, w=Box.from_center(np.zeros(2), W_BOUND), theta=Box([0.0, 0.0], [3.0, 3.0])
+    )
 
 
 def trajectory(system, rng, n, *, noise="uniform"):
@@ -97,6 +105,7 @@ def main() -> None:
     online_fits, t_online = timed(run_online)
     _, t_reference = timed(lambda: [reference_refit(E[: k + 1], y[: k + 1], **RLS) for k in range(N_STEPS)])
     batch_fits, t_batch = timed(lambda: [confidence_ellipsoid(E[: k + 1], y[: k + 1], **RLS) for k in range(N_STEPS)])
+
     def relative(a, b):
         scale = np.linalg.norm(b)
         return float(np.linalg.norm(a - b) / scale) if scale > 0 else float(np.linalg.norm(a))
@@ -126,7 +135,11 @@ def main() -> None:
         for k in range(N_STEPS):
             sm.update(E[k], y[k])
             if k + 1 in CHECKPOINTS:
-                snapshots[k + 1] = (sm.radius, sm.parameter_set().radius.copy(), np.linalg.norm(sm.estimate - THETA_TRUE))
+                snapshots[k + 1] = (
+                    sm.radius,
+                    sm.parameter_set().radius.copy(),
+                    np.linalg.norm(sm.estimate - THETA_TRUE),
+                )
                 sm_boxes[k + 1] = sm.parameter_set()
         return snapshots
 
@@ -134,7 +147,7 @@ def main() -> None:
     snapshots, t_sm = timed(run_set_membership)
     rows = []
     for n in CHECKPOINTS:
-        lp_box, t_lp = timed(lambda: feasible_parameter_box(system, states[: n + 1], controls[:n]))
+        lp_box, t_lp = timed(lambda n=n: feasible_parameter_box(system, states[: n + 1], controls[:n]))
         rls_box = online_fits[n - 1].bounding_box()
         radius, sm_half, error = snapshots[n]
         rows.append((n, rls_box.radius, sm_half, lp_box.radius, radius, error, t_lp))
@@ -175,7 +188,10 @@ def main() -> None:
         "",
         "| N | RLS ellipsoid bounding box (delta = 0.1) | set-membership box | LP feasible box (tightest) | set-membership radius | ||estimate - theta*|| | LP time |",
         "|---|---|---|---|---|---|---|",
-        *[f"| {n} | {fmt(r)} | {fmt(s)} | {fmt(lp)} | {rad:.3g} | {err:.2g} | {t:.3f} s |" for n, r, s, lp, rad, err, t in rows],
+        *[
+            f"| {n} | {fmt(r)} | {fmt(s)} | {fmt(lp)} | {rad:.3g} | {err:.2g} | {t:.3f} s |"
+            for n, r, s, lp, rad, err, t in rows
+        ],
         "",
         "The set-membership box is sound for bounded noise (always contains theta*); the",
         "confidence ellipsoid holds theta* with probability >= 1 - delta for sub-Gaussian",

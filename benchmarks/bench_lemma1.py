@@ -84,15 +84,17 @@ def sweep(make_models, actions, state, repeats=1):
             lowers.append(decision.lower)
             uppers.append(decision.upper)
             depths.append(decision.depth)
-        rows.append({
-            "K": budget,
-            "lower": float(np.mean(lowers)),
-            "upper": float(np.mean(uppers)),
-            "gap": float(np.mean(gaps)),
-            "depth": float(np.mean(depths)),
-            "depth_bound": float(np.mean([GAMMA ** (d - 1) / (1 - GAMMA) for d in depths])),
-            "ms": 1e3 * float(np.median(times)),
-        })
+        rows.append(
+            {
+                "K": budget,
+                "lower": float(np.mean(lowers)),
+                "upper": float(np.mean(uppers)),
+                "gap": float(np.mean(gaps)),
+                "depth": float(np.mean(depths)),
+                "depth_bound": float(np.mean([GAMMA ** (d - 1) / (1 - GAMMA) for d in depths])),
+                "ms": 1e3 * float(np.median(times)),
+            }
+        )
     for previous, row in zip(rows, rows[1:]):
         if repeats == 1:  # one fixed problem: the bounds are monotone in K (Theorem 3)
             assert row["lower"] >= previous["lower"] and row["upper"] <= previous["upper"]
@@ -108,12 +110,17 @@ def rate(rows):
 
 
 def table(title, rows, slope, kappa):
-    lines = [f"### {title}", "",
-             "| K | lower | upper | gap = upper - lower | depth d | gamma^(d-1)/(1-gamma) | time per plan (ms) |",
-             "|---:|---:|---:|---:|---:|---:|---:|"]
+    lines = [
+        f"### {title}",
+        "",
+        "| K | lower | upper | gap = upper - lower | depth d | gamma^(d-1)/(1-gamma) | time per plan (ms) |",
+        "|---:|---:|---:|---:|---:|---:|---:|",
+    ]
     for r in rows:
-        lines.append(f"| {r['K']} | {r['lower']:.4f} | {r['upper']:.4f} | {r['gap']:.4f} | {r['depth']:.1f} | "
-                     f"{r['depth_bound']:.4f} | {r['ms']:.2f} |")
+        lines.append(
+            f"| {r['K']} | {r['lower']:.4f} | {r['upper']:.4f} | {r['gap']:.4f} | {r['depth']:.1f} | "
+            f"{r['depth_bound']:.4f} | {r['ms']:.2f} |"
+        )
     lines += ["", f"Empirical rate (K >= 10): gap ~ K^{slope:.3f}, i.e. kappa_eff = gamma^(1/slope) = {kappa:.2f}.", ""]
     return lines
 
@@ -121,17 +128,27 @@ def table(title, rows, slope, kappa):
 def main():
     integrator = sweep(
         lambda r: [DoubleIntegrator(0.0, 1.0), DoubleIntegrator(0.3, 0.8), DoubleIntegrator(0.6, 1.2)],
-        (-1.0, 0.0, 1.0), (0.0, 0.0))
+        (-1.0, 0.0, 1.0),
+        (0.0, 0.0),
+    )
     trees = sweep(lambda r: [RandomTree(1000 * r + m) for m in range(3)], (0, 1), (), repeats=10)
-    results = [("Double integrator, M = 3 hypotheses (c, b) in {(0, 1), (0.3, 0.8), (0.6, 1.2)}, |A| = 3, gamma = 0.9",
-                integrator, *rate(integrator)),
-               ("Random reward trees, M = 3, |A| = 2, gamma = 0.9 (mean of 10 trees)",
-                trees, *rate(trees))]
-    lines = ["# Lemma 1: root gap upper - lower against the budget K (RobustTreePlanner)", "",
-             f"Machine: {platform.processor() or platform.machine()}, {platform.system()} {platform.release()}, "
-             f"Python {platform.python_version()}; date: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.",
-             "The gap bounds the robust regret of the chosen action (Theorem 3); K = number of expansions, "
-             "each stepping every model for every action.", ""]
+    results = [
+        (
+            "Double integrator, M = 3 hypotheses (c, b) in {(0, 1), (0.3, 0.8), (0.6, 1.2)}, |A| = 3, gamma = 0.9",
+            integrator,
+            *rate(integrator),
+        ),
+        ("Random reward trees, M = 3, |A| = 2, gamma = 0.9 (mean of 10 trees)", trees, *rate(trees)),
+    ]
+    lines = [
+        "# Lemma 1: root gap upper - lower against the budget K (RobustTreePlanner)",
+        "",
+        f"Machine: {platform.processor() or platform.machine()}, {platform.system()} {platform.release()}, "
+        f"Python {platform.python_version()}; date: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.",
+        "The gap bounds the robust regret of the chosen action (Theorem 3); K = number of expansions, "
+        "each stepping every model for every action.",
+        "",
+    ]
     for title, rows, slope, kappa in results:
         lines += table(title, rows, slope, kappa)
     text = "\n".join(lines)
@@ -140,6 +157,7 @@ def main():
     (RESULTS / "lemma1.md").write_text(text)
 
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

@@ -49,7 +49,10 @@ reference = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(reference)
 
 
-def robot(phi, B_scale=1.0, theta=Box([0.2, 0.2], [0.8, 0.8])):
+FRICTION_PRIOR = Box([0.2, 0.2], [0.8, 0.8])
+
+
+def robot(phi, B_scale=1.0, theta=FRICTION_PRIOR):
     A = np.zeros((4, 4))
     A[0, 2] = A[1, 3] = 1.0
     B = np.zeros((4, 2))
@@ -89,8 +92,19 @@ def reference_envs(pairs, reward, controls, substeps, lower, upper, time_index):
         vertex_matrices = list(IntervalPredictor(system, parameters).vertex_matrices)
         envs.append(
             reference.ReferenceIntervalEnv(
-                vertex_matrices, system.B, system.D, system.w.low, system.w.high, controls, substeps,
-                reward.goal, obstacles, reward.robot_radius, lower, upper, time_index,
+                vertex_matrices,
+                system.B,
+                system.D,
+                system.w.low,
+                system.w.high,
+                controls,
+                substeps,
+                reward.goal,
+                obstacles,
+                reward.robot_radius,
+                lower,
+                upper,
+                time_index,
             )
         )
     return envs
@@ -189,7 +203,9 @@ def measure(substeps, rng):
     controls = [np.array(u) for u in ([-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0])]
     from minimaxplan.planners import RobustTreePlanner
 
-    planner = multi_model_robust_planner(pairs, reward, [OpenLoop(u) for u in controls], gamma=GAMMA, budget=BUDGET, substeps=substeps)
+    planner = multi_model_robust_planner(
+        pairs, reward, [OpenLoop(u) for u in controls], gamma=GAMMA, budget=BUDGET, substeps=substeps
+    )
     python_planner = RobustTreePlanner(planner.models, planner.actions, gamma=GAMMA, budget=BUDGET, engine="python")
     ref_planner = reference.ReferenceRobustPlanner(len(controls), gamma=GAMMA, budget=BUDGET)
     ours, theirs, ours_cpu, theirs_cpu, python_engine, depths, checks = [], [], [], [], [], [], 0
@@ -214,7 +230,10 @@ def measure(substeps, rng):
             theirs_cpu.append(time.process_time() - started_cpu)
         # the same tree search must reach the same decision
         assert ref["action"] == decision.action_index, (ref, decision)
-        assert abs(ref["lower"] - decision.lower) <= 1e-9 and abs(ref["upper"] - decision.upper) <= 1e-9, (ref, decision)
+        assert abs(ref["lower"] - decision.lower) <= 1e-9 and abs(ref["upper"] - decision.upper) <= 1e-9, (
+            ref,
+            decision,
+        )
         assert ref["expansions"] == decision.expansions == BUDGET, (ref["expansions"], decision.expansions)
         depths.append(decision.depth)
         checks += 1

@@ -55,7 +55,9 @@ def random_metzler_model(rng, p=P, d=D_PARAMS, margin=(0.2, 1.5)):
 def make_lpv(A, phi, B, D, w, theta, x0: Box) -> LPV:
     a0, da = polytope(lambda t: A + np.tensordot(t, phi, axes=1), np.array([theta.low, theta.high]))
     with contextlib.redirect_stdout(io.StringIO()):  # LPV prints when it cannot find a Metzler basis
-        return LPV(x0=x0.center, a0=a0, da=da, b=B, d=D, omega_i=np.array([w.low, w.high]), x_i=np.array([x0.low, x0.high]))
+        return LPV(
+            x0=x0.center, a0=a0, da=da, b=B, d=D, omega_i=np.array([w.low, w.high]), x_i=np.array([x0.low, x0.high])
+        )
 
 
 def lpv_tube(lpv: LPV, controls, dt) -> tuple[np.ndarray, np.ndarray]:
@@ -83,9 +85,15 @@ def width_comparison(rng, runs=20, dt=0.01, horizon=300):
         assert corrected.guaranteed  # dt is small enough for the Euler predictors to be sound
         ratios.append(np.mean(ours.widths[-1]) / np.mean(ref_upper[-1] - ref_lower[-1]))
         corrected_ratios.append(np.mean(corrected.widths[-1]) / np.mean(ref_upper[-1] - ref_lower[-1]))
-    return {"runs": runs, "dt": dt, "horizon": horizon, "ratio_mean": float(np.mean(ratios)),
-            "ratio_max": float(np.max(ratios)), "ratio_min": float(np.min(ratios)),
-            "corrected_eq9_ratio_mean": float(np.mean(corrected_ratios))}
+    return {
+        "runs": runs,
+        "dt": dt,
+        "horizon": horizon,
+        "ratio_mean": float(np.mean(ratios)),
+        "ratio_max": float(np.max(ratios)),
+        "ratio_min": float(np.min(ratios)),
+        "corrected_eq9_ratio_mean": float(np.mean(corrected_ratios)),
+    }
 
 
 def violation_count(rng, runs=200, dt=0.4, horizon=20):
@@ -107,8 +115,14 @@ def violation_count(rng, runs=200, dt=0.4, horizon=20):
         ref_lower, ref_upper = lpv_tube(make_lpv(A, phi, B, D, w, theta, x0), controls, dt)
         lpv_violations += not (np.all(states >= ref_lower - slack) and np.all(states <= ref_upper + slack))
         ours_violations += not predict_tube(system, x0, controls).contains(states)
-    return {"runs": runs, "dt": dt, "horizon": horizon, "lpv": int(lpv_violations), "ours": int(ours_violations),
-            "condition_fails": int(condition_fails)}
+    return {
+        "runs": runs,
+        "dt": dt,
+        "horizon": horizon,
+        "lpv": int(lpv_violations),
+        "ours": int(ours_violations),
+        "condition_fails": int(condition_fails),
+    }
 
 
 def best_time(function, repeats=5, number=200) -> float:
@@ -142,16 +156,26 @@ def speed(rng, dt=0.05, boxes=1000):
     batch_lower, batch_upper = predictor.enter(centres - 0.1, centres + 0.1)
     batch_u = rng.normal(size=(boxes, 1))
     t_batch = best_time(lambda: predictor.step(batch_lower, batch_upper, batch_u), repeats=5, number=20)
-    return {"p": P, "vertices": predictor.nvertices, "lpv_step_us": t_lpv * 1e6, "ours_step_us": t_ours * 1e6,
-            "single_speedup": t_lpv / t_ours, "boxes": boxes, "lpv_boxes_ms": t_lpv * boxes * 1e3,
-            "ours_batch_ms": t_batch * 1e3, "batch_speedup": t_lpv * boxes / t_batch}
+    return {
+        "p": P,
+        "vertices": predictor.nvertices,
+        "lpv_step_us": t_lpv * 1e6,
+        "ours_step_us": t_ours * 1e6,
+        "single_speedup": t_lpv / t_ours,
+        "boxes": boxes,
+        "lpv_boxes_ms": t_lpv * boxes * 1e3,
+        "ours_batch_ms": t_batch * 1e3,
+        "batch_speedup": t_lpv * boxes / t_batch,
+    }
 
 
 def main() -> dict:
     rng = np.random.default_rng(SEED)
     started = time.perf_counter()
     results = {"width": width_comparison(rng), "violations": violation_count(rng), "speed": speed(rng)}
-    results["machine"] = f"{platform.machine()} {platform.processor() or ''} {platform.python_implementation()} {platform.python_version()}".strip()
+    results["machine"] = (
+        f"{platform.machine()} {platform.processor() or ''} {platform.python_implementation()} {platform.python_version()}".strip()
+    )
     results["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     results["seconds"] = time.perf_counter() - started
     width, violations, spd = results["width"], results["violations"], results["speed"]

@@ -46,7 +46,22 @@ class ReferenceIntervalEnv:
         The current box and sub-step index.
     """
 
-    def __init__(self, vertex_matrices, B, D, w_low, w_high, controls, substeps, goal, obstacles, robot_radius, lower, upper, time=0):
+    def __init__(
+        self,
+        vertex_matrices,
+        B,
+        D,
+        w_low,
+        w_high,
+        controls,
+        substeps,
+        goal,
+        obstacles,
+        robot_radius,
+        lower,
+        upper,
+        time=0,
+    ):
         self.vertex_matrices = [np.array(m, dtype=float) for m in vertex_matrices]
         self.B = np.array(B, dtype=float)
         self.D = np.array(D, dtype=float)
@@ -108,7 +123,19 @@ class ReferenceIntervalEnv:
 
 
 class _Node:
-    __slots__ = ("parent", "path", "depth", "children", "envs", "returns", "terminal", "leaf_lower", "leaf_upper", "lower", "upper")
+    __slots__ = (
+        "parent",
+        "path",
+        "depth",
+        "children",
+        "envs",
+        "returns",
+        "terminal",
+        "leaf_lower",
+        "leaf_upper",
+        "lower",
+        "upper",
+    )
 
     def __init__(self, parent, path, envs, returns, terminal, leaf_lower, leaf_upper):
         self.parent = parent

@@ -66,8 +66,9 @@ ROUNDS = {("dwa", 1): DWA_ROUND1, ("dwa", 2): DWA_ROUND2, ("teb", 1): TEB_ROUND1
 
 def scene_of(world) -> NavigationScene:
     crowd = world.crowd
-    return NavigationScene(world.goal, world.obstacles.centers, world.obstacles.radii,
-                           crowd.positions, crowd.announced, crowd.radii)
+    return NavigationScene(
+        world.goal, world.obstacles.centers, world.obstacles.radii, crowd.positions, crowd.announced, crowd.radii
+    )
 
 
 def run_episode(planner, kind: str, seed: int) -> tuple[str, float, list[float]]:
@@ -115,24 +116,38 @@ def main(which: str, episodes: int, round_: int) -> None:
     seeds = range(TUNING_SEED0, TUNING_SEED0 + episodes)
     system = make_world("static", TUNING_SEED0).system  # the same model structure in every world
     if which == "dwa":
-        candidates = [(c, lambda c=c: DynamicWindowPlanner(system, params=DWAParameters(**c))) for c in ROUNDS["dwa", round_]]
+        candidates = [
+            (c, lambda c=c: DynamicWindowPlanner(system, params=DWAParameters(**c))) for c in ROUNDS["dwa", round_]
+        ]
     else:
-        candidates = [(c, lambda c=c: TimedElasticBand(system, params=TEBParameters(**c))) for c in ROUNDS["teb", round_]]
+        candidates = [
+            (c, lambda c=c: TimedElasticBand(system, params=TEBParameters(**c))) for c in ROUNDS["teb", round_]
+        ]
     rows = []
-    print(f"| {which} change from defaults | static coll/timeout/goal | static time (s) | "
-          "pedestrian coll/timeout/goal | pedestrian time (s) | median call (ms) |")
+    print(
+        f"| {which} change from defaults | static coll/timeout/goal | static time (s) | "
+        "pedestrian coll/timeout/goal | pedestrian time (s) | median call (ms) |"
+    )
     print("|---|---|---|---|---|---|")
     for change, make in candidates:
         row = evaluate(make, seeds)
         rows.append((change, row))
         s, p = row["static"], row["pedestrian"]
-        print(f"| {change or 'defaults'} | {s['collision']}/{s['timeout']}/{s['goal']} | {s['mean_time']:.1f} | "
-              f"{p['collision']}/{p['timeout']}/{p['goal']} | {p['mean_time']:.1f} | "
-              f"{max(s['median_ms'], p['median_ms']):.1f} |", flush=True)
+        print(
+            f"| {change or 'defaults'} | {s['collision']}/{s['timeout']}/{s['goal']} | {s['mean_time']:.1f} | "
+            f"{p['collision']}/{p['timeout']}/{p['goal']} | {p['mean_time']:.1f} | "
+            f"{max(s['median_ms'], p['median_ms']):.1f} |",
+            flush=True,
+        )
     best = min(rows, key=lambda r: rank_key(r[1]))
-    print(f"\nbest on {episodes} tuning seeds per world ({TUNING_SEED0}..{TUNING_SEED0 + episodes - 1}): {best[0] or 'defaults'}")
+    print(
+        f"\nbest on {episodes} tuning seeds per world ({TUNING_SEED0}..{TUNING_SEED0 + episodes - 1}): {best[0] or 'defaults'}"
+    )
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "dwa", int(sys.argv[2]) if len(sys.argv) > 2 else 40,
-         int(sys.argv[3]) if len(sys.argv) > 3 else 1)
+    main(
+        sys.argv[1] if len(sys.argv) > 1 else "dwa",
+        int(sys.argv[2]) if len(sys.argv) > 2 else 40,
+        int(sys.argv[3]) if len(sys.argv) > 3 else 1,
+    )

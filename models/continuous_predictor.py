@@ -130,4 +130,9 @@ def predict_tube_continuous(A, phi, B, *, D=None, w: Box, x0: Box, controls, dt:
     _check_no_overflow(lower, upper)
     guaranteed = euler_keeps_inclusion(nominal, dt)
     condition = "holds" if guaranteed else "fails: inclusion not guaranteed"
-    return Tube(lower, upper, guaranteed=guaranteed, note=f"continuous-time predictor (eq. (9) corrected), Euler dt={dt:g}; I + dt A_N >= 0 {condition}")
+    return Tube(
+        lower,
+        upper,
+        guaranteed=guaranteed,
+        note=f"continuous-time predictor (eq. (9) corrected), Euler dt={dt:g}; I + dt A_N >= 0 {condition}",
+    )

@@ -85,9 +85,13 @@ def confidence_ellipsoid(regressors, targets, *, sigma: float, lam: float, delta
         raise DimensionError(f"regressors must have shape (N, p, d) with p, d >= 1, got shape {E.shape}")
     y = as_finite_array("targets", targets, ndim=2)
     if y.shape != (n, p):
-        raise DimensionError(f"targets must have shape ({n}, {p}) to match regressors of shape {E.shape}, got shape {y.shape}")
+        raise DimensionError(
+            f"targets must have shape ({n}, {p}) to match regressors of shape {E.shape}, got shape {y.shape}"
+        )
     U = E / sigma
-    gramian_ext = np.einsum("npi,npj->ij", U.astype(_EXTENDED), U.astype(_EXTENDED)) + _EXTENDED(lam) * np.eye(d, dtype=_EXTENDED)
+    gramian_ext = np.einsum("npi,npj->ij", U.astype(_EXTENDED), U.astype(_EXTENDED)) + _EXTENDED(lam) * np.eye(
+        d, dtype=_EXTENDED
+    )
     moment_ext = np.einsum("npi,np->i", U.astype(_EXTENDED), (y / sigma).astype(_EXTENDED))
     gramian = gramian_ext.astype(float)
     try:
@@ -136,7 +140,9 @@ def _conditioned_ellipsoid(center: np.ndarray, gramian: np.ndarray, radius: floa
     Beyond cond(G) = `MAX_CONDITION` the smallest axis is lost in rounding (eigenvalue
     errors are ~1e-16 of the largest eigenvalue).
     """
-    message = "the Gramian is numerically singular (condition number above {:.0e}{}): increase lam or rescale the regressors"
+    message = (
+        "the Gramian is numerically singular (condition number above {:.0e}{}): increase lam or rescale the regressors"
+    )
     try:
         ellipsoid = Ellipsoid(center, gramian, radius)
     except InputError as exc:  # only positive definiteness can fail for a Gramian built here

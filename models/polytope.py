@@ -373,7 +373,9 @@ class VertexPolytope:
         pts = as_points("x", x, self.dim)
         for index, point in enumerate(np.atleast_2d(pts)):
             distance = self._distance(point)
-            allowance = tol + HULL_MEMBERSHIP_TOLERANCE * (1.0 + max(float(np.max(np.abs(point))), float(np.max(np.abs(self.vertices)))))
+            allowance = tol + HULL_MEMBERSHIP_TOLERANCE * (
+                1.0 + max(float(np.max(np.abs(point))), float(np.max(np.abs(self.vertices))))
+            )
             if distance > allowance:
                 if not witness:
                     return False
@@ -390,7 +392,9 @@ class VertexPolytope:
         A_ub = np.block([[V_T, -np.ones((d, 1))], [-V_T, -np.ones((d, 1))]])
         b_ub = np.concatenate([point, -point])
         A_eq = np.concatenate([np.ones(k), [0.0]])[None]
-        result = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=[1.0], bounds=[(0, None)] * (k + 1), method="highs")
+        result = linprog(
+            cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=[1.0], bounds=[(0, None)] * (k + 1), method="highs"
+        )
         if result.status != 0:
             raise SolverFailure(f"hull-membership LP failed with status {result.status}: {result.message}")
         return float(result.x[-1])

@@ -20,7 +20,15 @@ from .sets import Box
 from .system import UncertainLinearSystem
 from .validation import as_finite_array, check_dimension, check_instance, check_same_shape, check_shape, frozen_copy
 
-__all__ = ["Tube", "IntervalPredictor", "predict_tube", "ROUNDING_TOL", "UNIT_ROUNDOFF", "interval_matvec", "summation_error_bound"]
+__all__ = [
+    "Tube",
+    "IntervalPredictor",
+    "predict_tube",
+    "ROUNDING_TOL",
+    "UNIT_ROUNDOFF",
+    "interval_matvec",
+    "summation_error_bound",
+]
 
 #: Default relative tolerance of `Tube.contains`: a state x counts as inside when
 #: ``lower - tol (1 + |x|) <= x <= upper + tol (1 + |x|)``. The tube's own bounds are
@@ -149,7 +157,9 @@ class Tube:
         """
         x = as_finite_array("states", states)
         if x.ndim < 2 or x.shape[-2:] != self.lower.shape:
-            raise DimensionError(f"states must have shape {self.lower.shape} or (..., *{self.lower.shape}), got shape {x.shape}")
+            raise DimensionError(
+                f"states must have shape {self.lower.shape} or (..., *{self.lower.shape}), got shape {x.shape}"
+            )
         slack = (ROUNDING_TOL if tol is None else float(tol)) * (1.0 + np.abs(x))
         return bool(np.all(x >= self.lower - slack) and np.all(x <= self.upper + slack))
 
@@ -161,7 +171,12 @@ class Tube:
         dict
             ``{"lower": [[...]], "upper": [[...]], "guaranteed": bool, "note": str}``.
         """
-        return {"lower": self.lower.tolist(), "upper": self.upper.tolist(), "guaranteed": self.guaranteed, "note": self.note}
+        return {
+            "lower": self.lower.tolist(),
+            "upper": self.upper.tolist(),
+            "guaranteed": self.guaranteed,
+            "note": self.note,
+        }
 
     def __repr__(self) -> str:
         return f"Tube(horizon={self.horizon}, nstates={self.lower.shape[1]}, guaranteed={self.guaranteed})"
@@ -224,7 +239,10 @@ def _choose_basis(vertex_matrices: np.ndarray, D: np.ndarray, w: Box) -> tuple[n
     nominal = vertex_matrices.mean(axis=0)
     identity_score = _trial_width(vertex_matrices, D, w, None)
     best, best_score, best_name = None, identity_score, "identity"
-    candidates = [("eigenvector", _real_eigenbasis(nominal)), ("real Schur", scipy.linalg.schur(nominal, output="real")[1])]
+    candidates = [
+        ("eigenvector", _real_eigenbasis(nominal)),
+        ("real Schur", scipy.linalg.schur(nominal, output="real")[1]),
+    ]
     for name, basis in candidates:
         if basis is None or not np.linalg.cond(basis) <= AUTO_BASIS_MAX_CONDITION:
             continue
@@ -232,7 +250,10 @@ def _choose_basis(vertex_matrices: np.ndarray, D: np.ndarray, w: Box) -> tuple[n
         if score < best_score and score < identity_score * (1.0 - AUTO_BASIS_MIN_GAIN):
             best, best_score, best_name = basis, score, name
     if best is None:
-        return None, f"basis auto: kept the identity (no candidate narrowed the trial tube, mean width {identity_score:.6g})"
+        return (
+            None,
+            f"basis auto: kept the identity (no candidate narrowed the trial tube, mean width {identity_score:.6g})",
+        )
     return best, f"basis auto: {best_name} basis, trial tube mean width {identity_score:.6g} -> {best_score:.6g}"
 
 
@@ -326,7 +347,9 @@ class IntervalPredictor:
             transform = as_finite_array("basis", basis, (p, p))
             condition = np.linalg.cond(transform)
             if not condition <= BASIS_MAX_CONDITION:
-                raise InputError(f"basis must be invertible with condition number <= {BASIS_MAX_CONDITION:g}, got {condition:.3g}")
+                raise InputError(
+                    f"basis must be invertible with condition number <= {BASIS_MAX_CONDITION:g}, got {condition:.3g}"
+                )
         self._transform = transform
         abs_matrices = np.max(np.abs(matrices), axis=0)
         if transform is None:
@@ -341,7 +364,9 @@ class IntervalPredictor:
             abs_t, abs_inv = np.abs(transform), np.abs(inverse)
             # The internal state is z = inverse @ x exactly, so x = S z with S the exact
             # inverse of `inverse`; bound |S - T| from the residual R = I - inverse @ T.
-            residual = np.abs(np.eye(p) - inverse @ transform) + summation_error_bound(p + 1) * (np.eye(p) + abs_inv @ abs_t)
+            residual = np.abs(np.eye(p) - inverse @ transform) + summation_error_bound(p + 1) * (
+                np.eye(p) + abs_inv @ abs_t
+            )
             r = float(np.max(residual.sum(axis=1)))
             if not r < 0.5:
                 raise InputError(f"basis is too ill-conditioned for rigorous bounds: ||I - T^-1 T|| bound {r:.3g}")
@@ -358,7 +383,10 @@ class IntervalPredictor:
                 + abs_inv @ (abs_matrices + formation_error) @ inverse_error
             )
             B, D = inverse @ system.B, inverse @ system.D
-            B_error, D_error = summation_error_bound(p) * abs_inv @ np.abs(system.B), summation_error_bound(p) * abs_inv @ np.abs(system.D)
+            B_error, D_error = (
+                summation_error_bound(p) * abs_inv @ np.abs(system.B),
+                summation_error_bound(p) * abs_inv @ np.abs(system.D),
+            )
             abs_matrices = np.max(np.abs(matrices), axis=0)
         self.vertex_matrices = frozen_copy(matrices)
         #: Elementwise bound on |vertex_matrices[v] - (the exact matrix they round)|, one for all v
@@ -368,9 +396,7 @@ class IntervalPredictor:
         stacked = matrices.reshape(k * p, p)
         positive, negative = np.maximum(stacked, 0.0), np.maximum(-stacked, 0.0)
         # [z_lo, z_hi] @ _product -> [all lower candidates | all upper candidates], shape (..., 2 k p).
-        self._product = np.ascontiguousarray(
-            np.block([[positive.T, -negative.T], [-negative.T, positive.T]])
-        )
+        self._product = np.ascontiguousarray(np.block([[positive.T, -negative.T], [-negative.T, positive.T]]))
         self._nvertices, self._p = k, p
         self._B_T = np.ascontiguousarray(B.T)
         w_lo, w_hi = interval_matvec(D, system.w.low, system.w.high)

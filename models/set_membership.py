@@ -236,7 +236,9 @@ class SetMembershipEstimator:
                 break
             low, high = _tighten_box(low, high, phi, float(target_i), float(gamma))
         if np.any(low > high):
-            raise EmptySetError("the data are inconsistent with the prior box and noise_bound: the feasible parameter set is empty")
+            raise EmptySetError(
+                "the data are inconsistent with the prior box and noise_bound: the feasible parameter set is empty"
+            )
         self._box = Box(low, high)
         self._center, self._factor = center, factor
         self._estimate, self._radius = self._best_certified_point()
@@ -286,7 +288,9 @@ def _absorb_row(center: np.ndarray, factor: np.ndarray, phi: np.ndarray, y: floa
     if abs(error) <= gamma or g == 0.0:
         if abs(error) > gamma * (1 + INCONSISTENCY_TOLERANCE) + INCONSISTENCY_TOLERANCE * abs(y):
             # g == 0: the measurement does not depend on the free directions and misses the strip.
-            raise EmptySetError("the data are inconsistent with the prior box and noise_bound: the feasible parameter set is empty")
+            raise EmptySetError(
+                "the data are inconsistent with the prior box and noise_bound: the feasible parameter set is empty"
+            )
         return center, factor
     excess = abs(error) - gamma
     shrink = 1.0 - excess**2 / g

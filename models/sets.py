@@ -170,7 +170,9 @@ def _centered_support(ellipsoid: Ellipsoid, directions: np.ndarray) -> np.ndarra
     The margin is ``SUPPORT_MARGIN + SUPPORT_ROUNDING * d eps cond(G)`` (relative).
     """
     eps = np.finfo(float).eps
-    support = ellipsoid.radius * np.sqrt(np.einsum("ji,ji->i", directions, np.linalg.solve(ellipsoid.gramian, directions)))
+    support = ellipsoid.radius * np.sqrt(
+        np.einsum("ji,ji->i", directions, np.linalg.solve(ellipsoid.gramian, directions))
+    )
     return support * (1.0 + SUPPORT_MARGIN + SUPPORT_ROUNDING * ellipsoid.dim * eps * np.linalg.cond(ellipsoid.gramian))
 
 

@@ -67,7 +67,9 @@ class UncertainLinearSystem:
     w: Box
     theta: Box
 
-    def __init__(self, A0: ArrayLike, phi: ArrayLike, B: ArrayLike, *, D: ArrayLike | None = None, w: Box, theta: Box) -> None:
+    def __init__(
+        self, A0: ArrayLike, phi: ArrayLike, B: ArrayLike, *, D: ArrayLike | None = None, w: Box, theta: Box
+    ) -> None:
         A0_ = as_finite_array("A0", A0, ndim=2)
         p = A0_.shape[0]
         check_shape("A0", A0_, (p, p))
@@ -308,7 +310,9 @@ class UncertainLinearSystem:
         phi_time = as_choice("phi_time", phi_time, ("continuous", "discrete", None))
         sys_dt = sys.dt
         if sys_dt is None:  # python-control's "unspecified timebase": continuous and discrete at once
-            raise InputError("sys has an unspecified timebase (dt=None): build it with dt=0 (continuous) or its sampling time")
+            raise InputError(
+                "sys has an unspecified timebase (dt=None): build it with dt=0 (continuous) or its sampling time"
+            )
         is_continuous = sys_dt is not True and float(sys_dt) == 0.0
         if is_continuous:
             if phi_time == "discrete":

@@ -58,9 +58,7 @@ def check_shape(name: str, array: np.ndarray, shape: Sequence[int | None]) -> No
         shape given.
     """
     if array.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, array.shape)):
-        raise DimensionError(
-            f"{name} must have shape {_shape_text(shape)}, got shape {array.shape}"
-        )
+        raise DimensionError(f"{name} must have shape {_shape_text(shape)}, got shape {array.shape}")
 
 
 def check_same_shape(first: str, a: np.ndarray, second: str, b: np.ndarray) -> None:

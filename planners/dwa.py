@@ -20,9 +20,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape
 from minimaxplan.models.errors import InputError
 from minimaxplan.models.system import UncertainLinearSystem
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape
 
 from .navigation import NavigationFunction
 

@@ -35,9 +35,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from minimaxplan.models.validation import as_finite_array, as_positive_scalar
 from minimaxplan.models.errors import InputError, SolverFailure
 from minimaxplan.models.system import UncertainLinearSystem
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar
 
 from .dwa import NavigationScene, planar_robot_model
 from .navigation import NavigationFunction

@@ -58,8 +58,10 @@ def _pairwise_gaps_sq(lower, upper, other_lower, other_upper) -> np.ndarray:
     """`box_gap_sq` of every broadcast pair of boxes (arrays (..., 2)), shape (...)."""
     shape = np.broadcast_shapes(lower.shape, upper.shape, other_lower.shape, other_upper.shape)
     n = math.prod(shape[:-1])
-    rows = [np.ascontiguousarray(np.broadcast_to(a, shape), dtype=float).reshape(n, 2)
-            for a in (lower, upper, other_lower, other_upper)]
+    rows = [
+        np.ascontiguousarray(np.broadcast_to(a, shape), dtype=float).reshape(n, 2)
+        for a in (lower, upper, other_lower, other_upper)
+    ]
     out = np.empty(n)
     box_gaps_sq(*rows, out)  # type: ignore[call-arg]  # numba's Dispatcher stub does not declare the compiled signature
     return out.reshape(shape[:-1])
@@ -85,7 +87,9 @@ def box_point_sq_distance(lower: np.ndarray, upper: np.ndarray, points: np.ndarr
     return _pairwise_gaps_sq(lower[..., None, :], upper[..., None, :], points, points)
 
 
-def box_box_sq_distance(lower: np.ndarray, upper: np.ndarray, other_lower: np.ndarray, other_upper: np.ndarray) -> np.ndarray:
+def box_box_sq_distance(
+    lower: np.ndarray, upper: np.ndarray, other_lower: np.ndarray, other_upper: np.ndarray
+) -> np.ndarray:
     """Squared distance between boxes, broadcasting ``(..., 1, 2)`` against ``(n, 2)``-like shapes.
 
     Parameters
@@ -476,7 +480,9 @@ def fcl_box_meets_grown_box(lower, upper, other_lower, other_upper, reach: float
     return any(_fcl_collide(other, _fcl_disc(c, reach)) for c in corners)
 
 
-def fcl_boxes_meet_boxes(lower, upper, other_lower, other_upper, radii, margin: float = 0.0, *, tol: float = 0.0) -> np.ndarray:
+def fcl_boxes_meet_boxes(
+    lower, upper, other_lower, other_upper, radii, margin: float = 0.0, *, tol: float = 0.0
+) -> np.ndarray:
     """`boxes_meet_boxes` computed with fcl for boxes (k, 2) against other boxes (n, 2) (slow, authoritative).
 
     Uses `fcl_box_meets_grown_box` with ``reach = radii[j] + margin + tol``.

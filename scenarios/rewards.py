@@ -602,9 +602,15 @@ class SpeedLaneReward(RewardFamily):
         object.__setattr__(self, "position_indices", collision.position_indices)
         object.__setattr__(self, "_speed_sel", _selector(speed))
         params = SpeedLaneParams(
-            collision_params(collision), np.array(speed, dtype=np.int64),
-            -1 if self.lateral_index is None else self.lateral_index, self.target_speed, self.speed_range,
-            c1, c2, self.lane_width, float(self.n_lanes),
+            collision_params(collision),
+            np.array(speed, dtype=np.int64),
+            -1 if self.lateral_index is None else self.lateral_index,
+            self.target_speed,
+            self.speed_range,
+            c1,
+            c2,
+            self.lane_width,
+            float(self.n_lanes),
         )
         object.__setattr__(self, "_kernel_params", params)
 

@@ -295,8 +295,12 @@ class ArcLane:
     def to_dict(self) -> dict:
         """The lane as plain data."""
         return {
-            "kind": "arc", "center": self.center.tolist(), "radius": self.radius,
-            "start_angle": self.start_angle, "sweep": self.sweep, "width": self.width,
+            "kind": "arc",
+            "center": self.center.tolist(),
+            "radius": self.radius,
+            "start_angle": self.start_angle,
+            "sweep": self.sweep,
+            "width": self.width,
         }
 
 
@@ -412,9 +416,16 @@ class Road:
                 mid_angles[i] = lane.start_angle + lane.sweep / 2
                 signs[i] = lane.direction_sign
         arrays = {
-            "kinds": kinds, "starts": starts, "directions": directions, "centers": centers, "radii": radii,
-            "start_angles": start_angles, "mid_angles": mid_angles, "signs": signs,
-            "lengths": np.array([lane.length for lane in lanes]), "widths": np.array([lane.width for lane in lanes]),
+            "kinds": kinds,
+            "starts": starts,
+            "directions": directions,
+            "centers": centers,
+            "radii": radii,
+            "start_angles": start_angles,
+            "mid_angles": mid_angles,
+            "signs": signs,
+            "lengths": np.array([lane.length for lane in lanes]),
+            "widths": np.array([lane.width for lane in lanes]),
             "side_of": side_of,
         }
         for name, value in arrays.items():
@@ -535,8 +546,9 @@ class Road:
         s, offset : array_like
             Lane coordinates, m.
         """
-        lane, s, offset = np.broadcast_arrays(np.asarray(lane, dtype=int), np.asarray(s, dtype=float),
-                                              np.asarray(offset, dtype=float))
+        lane, s, offset = np.broadcast_arrays(
+            np.asarray(lane, dtype=int), np.asarray(s, dtype=float), np.asarray(offset, dtype=float)
+        )
         u = self.directions[lane]
         normal = np.stack([-u[..., 1], u[..., 0]], axis=-1)
         straight = self.starts[lane] + s[..., None] * u + offset[..., None] * normal
@@ -617,8 +629,12 @@ class Road:
         pts = np.asarray(points, dtype=float)
         inside = np.zeros(pts.shape[:-1], dtype=bool)
         for (x0, y0), (x1, y1) in self.areas:
-            inside |= ((pts[..., 0] >= x0 - margin) & (pts[..., 0] <= x1 + margin)
-                       & (pts[..., 1] >= y0 - margin) & (pts[..., 1] <= y1 + margin))
+            inside |= (
+                (pts[..., 0] >= x0 - margin)
+                & (pts[..., 0] <= x1 + margin)
+                & (pts[..., 1] >= y0 - margin)
+                & (pts[..., 1] <= y1 + margin)
+            )
         return inside
 
     def on_road(self, points, margin: float = 0.0) -> np.ndarray:
@@ -659,9 +675,12 @@ class Road:
     def to_dict(self) -> dict:
         """The road as plain data."""
         return {
-            "lanes": [lane.to_dict() for lane in self.lanes], "names": list(self.names),
-            "connections": [list(c) for c in self.connections], "side_groups": [list(g) for g in self.side_groups],
-            "priorities": list(self.priorities), "areas": [list(map(list, a)) for a in self.areas],
+            "lanes": [lane.to_dict() for lane in self.lanes],
+            "names": list(self.names),
+            "connections": [list(c) for c in self.connections],
+            "side_groups": [list(g) for g in self.side_groups],
+            "priorities": list(self.priorities),
+            "areas": [list(map(list, a)) for a in self.areas],
             "conflict_distance": self.conflict_distance,
         }
 
@@ -708,11 +727,14 @@ def highway_road(geometry: HighwayGeometry = HighwayGeometry()) -> Road:
         Lane count, width and length.
     """
     w = geometry.lane_width
-    lanes = tuple(StraightLane(np.array([0.0, k * w]), np.array([geometry.length, k * w]), w)
-                  for k in range(geometry.lane_count))
+    lanes = tuple(
+        StraightLane(np.array([0.0, k * w]), np.array([geometry.length, k * w]), w) for k in range(geometry.lane_count)
+    )
     return Road(
-        lanes=lanes, names=tuple(f"lane{k}" for k in range(geometry.lane_count)),
-        side_groups=(tuple(range(geometry.lane_count)),), priorities=(0,) * geometry.lane_count,
+        lanes=lanes,
+        names=tuple(f"lane{k}" for k in range(geometry.lane_count)),
+        side_groups=(tuple(range(geometry.lane_count)),),
+        priorities=(0,) * geometry.lane_count,
     )
 
 
@@ -805,12 +827,22 @@ def tjunction_road(geometry: TJunctionGeometry = TJunctionGeometry()) -> Road:
     names = tuple(name for name, _, _ in spec)
     idx = {name: i for i, name in enumerate(names)}
     pairs = [
-        ("west_in", "west_east"), ("west_east", "east_out"), ("west_in", "west_south"), ("west_south", "south_out"),
-        ("east_in", "east_west"), ("east_west", "west_out"), ("east_in", "east_south"), ("east_south", "south_out"),
-        ("south_in", "south_west"), ("south_west", "west_out"), ("south_in", "south_east"), ("south_east", "east_out"),
+        ("west_in", "west_east"),
+        ("west_east", "east_out"),
+        ("west_in", "west_south"),
+        ("west_south", "south_out"),
+        ("east_in", "east_west"),
+        ("east_west", "west_out"),
+        ("east_in", "east_south"),
+        ("east_south", "south_out"),
+        ("south_in", "south_west"),
+        ("south_west", "west_out"),
+        ("south_in", "south_east"),
+        ("south_east", "east_out"),
     ]
     return Road(
-        lanes=tuple(lane for _, lane, _ in spec), names=names,
+        lanes=tuple(lane for _, lane, _ in spec),
+        names=names,
         connections=tuple((idx[a], idx[b]) for a, b in pairs),
         priorities=tuple(p for _, _, p in spec),
         areas=(((-w, -o), (w, -w)),),

@@ -58,6 +58,7 @@ __all__ = [
 ROAD_WORLD_KINDS = ("highway", "tjunction")
 ROAD_OUTCOMES = ("running", "goal", "collision", "off_road", "timeout")
 
+
 #: Slab height lifting the planar rectangles into fcl's 3-D world (any value > 0 works).
 def _noise_tuple(value) -> tuple:
     noise = tuple(float(v) for v in value)
@@ -317,8 +318,12 @@ def rectangles_collide(state_a, state_b, vehicle: VehicleParameters = DEFAULT_VE
     b = np.asarray(state_b, dtype=float)
     if a.shape != (4,) or b.shape != (4,):
         raise DimensionError(f"states must have shape (4,), got shapes {a.shape} and {b.shape}")
-    return fcl.collide(_fcl_rectangle(a, vehicle), _fcl_rectangle(b, vehicle),
-                       fcl.CollisionRequest(), fcl.CollisionResult()) > 0
+    return (
+        fcl.collide(
+            _fcl_rectangle(a, vehicle), _fcl_rectangle(b, vehicle), fcl.CollisionRequest(), fcl.CollisionResult()
+        )
+        > 0
+    )
 
 
 def _colliding_pairs(states: np.ndarray, active: np.ndarray, vehicle: VehicleParameters) -> list[tuple[int, int]]:
@@ -330,18 +335,28 @@ def _colliding_pairs(states: np.ndarray, active: np.ndarray, vehicle: VehiclePar
     pos = states[idx, :2]
     d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
     a, b = np.nonzero(np.triu(d <= reach, k=1))
-    return [(int(idx[i]), int(idx[j])) for i, j in zip(a, b) if rectangles_collide(states[idx[i]], states[idx[j]], vehicle)]
+    return [
+        (int(idx[i]), int(idx[j])) for i, j in zip(a, b) if rectangles_collide(states[idx[i]], states[idx[j]], vehicle)
+    ]
 
 
 # -------------------------------------------------------------------- layouts
 def _base_traffic(count: int) -> dict:
     return {
-        "states": np.zeros((count, 4)), "controlled": np.zeros(count, dtype=bool),
-        "spawned": np.ones(count, dtype=bool), "exited": np.zeros(count, dtype=bool),
-        "spawn_step": np.zeros(count, dtype=int), "routes": np.full((count, 3), -1, dtype=int),
-        "route_index": np.zeros(count, dtype=int), "theta_a": np.zeros((count, 3)), "theta_b": np.zeros((count, 2)),
-        "target_speed": np.zeros(count), "timer": np.zeros(count), "interval": np.ones(count),
-        "courteous": np.zeros(count, dtype=bool), "committed": np.zeros(count, dtype=bool),
+        "states": np.zeros((count, 4)),
+        "controlled": np.zeros(count, dtype=bool),
+        "spawned": np.ones(count, dtype=bool),
+        "exited": np.zeros(count, dtype=bool),
+        "spawn_step": np.zeros(count, dtype=int),
+        "routes": np.full((count, 3), -1, dtype=int),
+        "route_index": np.zeros(count, dtype=int),
+        "theta_a": np.zeros((count, 3)),
+        "theta_b": np.zeros((count, 2)),
+        "target_speed": np.zeros(count),
+        "timer": np.zeros(count),
+        "interval": np.ones(count),
+        "courteous": np.zeros(count, dtype=bool),
+        "committed": np.zeros(count, dtype=bool),
         "yield_time": np.zeros(count),
     }
 
@@ -362,7 +377,9 @@ def _highway_layout(rng: np.random.Generator, scenario: HighwayScenario, road: R
     phases = rng.uniform(0.0, 1.0, size=count)
     x0 = scenario.ego_start
     low = scenario.spacing[0]
-    safe_behind = vehicle.length + (behaviour.standstill_distance + behaviour.time_headway * scenario.vehicle_speed[1]) * low
+    safe_behind = (
+        vehicle.length + (behaviour.standstill_distance + behaviour.time_headway * scenario.vehicle_speed[1]) * low
+    )
     safe_ahead = vehicle.length + (behaviour.standstill_distance + behaviour.time_headway * scenario.ego_speed) * low
     front = x0 - scenario.spawn_behind + jitter
     positions = np.zeros(count)
@@ -374,7 +391,9 @@ def _highway_layout(rng: np.random.Generator, scenario: HighwayScenario, road: R
         elif k != ego_lane and abs(x - x0) < scenario.ego_clearance:
             x = x0 + scenario.ego_clearance
         positions[i] = x
-        front[k] = x + vehicle.length + (behaviour.standstill_distance + behaviour.time_headway * speeds[i]) * factors[i]
+        front[k] = (
+            x + vehicle.length + (behaviour.standstill_distance + behaviour.time_headway * speeds[i]) * factors[i]
+        )
     rows = (1 if include_ego else 0) + count
     t = _base_traffic(rows)
     o = 1 if include_ego else 0
@@ -402,8 +421,10 @@ def _tjunction_layout(rng: np.random.Generator, scenario: TJunctionScenario, roa
     ego_s = float(rng.uniform(*scenario.ego_start))
     earliest = -access / scenario.main_speed[0]
     arms = []  # (route, arrival time, speed, courteous)
-    for entry, straight, turn in (("west_in", ("west_east", "east_out"), ("west_south", "south_out")),
-                                  ("east_in", ("east_west", "west_out"), ("east_south", "south_out"))):
+    for entry, straight, turn in (
+        ("west_in", ("west_east", "east_out"), ("west_south", "south_out")),
+        ("east_in", ("east_west", "west_out"), ("east_south", "south_out")),
+    ):
         t = earliest + float(rng.uniform(0.0, scenario.headway_min))
         while t < scenario.time_limit:
             speed = float(rng.uniform(*scenario.main_speed))
@@ -411,12 +432,19 @@ def _tjunction_layout(rng: np.random.Generator, scenario: TJunctionScenario, roa
             courteous = bool(rng.uniform() < scenario.courteous_probability)
             route = road.route(entry, *(turn if turning else straight))
             arms.append((route, t, speed, courteous))
-            t += scenario.headway_min + float(rng.exponential(scenario.headway_mean_extra)) if scenario.headway_mean_extra > 0 \
+            t += (
+                scenario.headway_min + float(rng.exponential(scenario.headway_mean_extra))
+                if scenario.headway_mean_extra > 0
                 else scenario.headway_min
+            )
     stem = []
     for q in range(int(scenario.stem_vehicles)):
         left = rng.uniform() < 0.5
-        route = road.route("south_in", "south_west", "west_out") if left else road.route("south_in", "south_east", "east_out")
+        route = (
+            road.route("south_in", "south_west", "west_out")
+            if left
+            else road.route("south_in", "south_east", "east_out")
+        )
         stem.append((route, ego_s - (q + 1) * scenario.stem_spacing, scenario.ego_speed))
     count = len(arms) + len(stem)
     theta_a, theta_b = draw_parameters(rng, count, behaviour)
@@ -499,8 +527,14 @@ class RoadWorld:
         i)`` other vehicles with a corner off the road (both should stay empty).
     """
 
-    def __init__(self, kind: str, seed: int, *, scenario: HighwayScenario | TJunctionScenario | None = None,
-                 include_ego: bool = True):
+    def __init__(
+        self,
+        kind: str,
+        seed: int,
+        *,
+        scenario: HighwayScenario | TJunctionScenario | None = None,
+        include_ego: bool = True,
+    ):
         if kind not in ROAD_WORLD_KINDS:
             raise InputError(f"kind must be one of {ROAD_WORLD_KINDS}, got {kind!r}")
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -625,7 +659,9 @@ class RoadWorld:
             raise NonFiniteError("control contains NaN or infinite entries")
         bound_a, bound_d = self.scenario.ego_acceleration_bound, self.scenario.vehicle.max_steering
         if abs(u[0]) > bound_a or abs(u[1]) > bound_d:
-            raise InputError(f"control must lie in [-{bound_a}, {bound_a}] x [-{bound_d:.6g}, {bound_d:.6g}], got {u.tolist()}")
+            raise InputError(
+                f"control must lie in [-{bound_a}, {bound_a}] x [-{bound_d:.6g}, {bound_d:.6g}], got {u.tolist()}"
+            )
         return u
 
     def apply(self, control=None) -> str:
@@ -648,8 +684,15 @@ class RoadWorld:
             raise InputError("this world has no ego: control must be None")
         scenario = self.scenario
         self.traffic, record = traffic_step(
-            self.traffic, self.road, controls, dt=scenario.dt, step_index=self.step_index, rng=self._dynamics_rng,
-            behaviour=scenario.behaviour, rules=scenario.rules, vehicle=scenario.vehicle,
+            self.traffic,
+            self.road,
+            controls,
+            dt=scenario.dt,
+            step_index=self.step_index,
+            rng=self._dynamics_rng,
+            behaviour=scenario.behaviour,
+            rules=scenario.rules,
+            vehicle=scenario.vehicle,
         )
         self.records.append(record)
         self.step_index += 1
@@ -697,16 +740,23 @@ class RoadWorld:
         """The episode's setup (not its state): kind, seed, scenario, initial traffic and parameters."""
         t = self._initial
         return {
-            "kind": self.kind, "seed": self.seed, "include_ego": self.include_ego,
+            "kind": self.kind,
+            "seed": self.seed,
+            "include_ego": self.include_ego,
             "scenario": self.scenario.to_dict(),
-            "initial_states": t.states.tolist(), "routes": t.routes.tolist(), "spawn_step": t.spawn_step.tolist(),
-            "theta_a": t.theta_a.tolist(), "theta_b": t.theta_b.tolist(), "target_speed": t.target_speed.tolist(),
+            "initial_states": t.states.tolist(),
+            "routes": t.routes.tolist(),
+            "spawn_step": t.spawn_step.tolist(),
+            "theta_a": t.theta_a.tolist(),
+            "theta_b": t.theta_b.tolist(),
+            "target_speed": t.target_speed.tolist(),
             "courteous": t.courteous.tolist(),
         }
 
 
-def make_road_world(kind: str, seed: int, *, scenario: HighwayScenario | TJunctionScenario | None = None,
-                    include_ego: bool = True) -> RoadWorld:
+def make_road_world(
+    kind: str, seed: int, *, scenario: HighwayScenario | TJunctionScenario | None = None, include_ego: bool = True
+) -> RoadWorld:
     """A new seeded driving episode; the same seed gives the same episode, bit for bit.
 
     Parameters
@@ -723,4 +773,3 @@ def make_road_world(kind: str, seed: int, *, scenario: HighwayScenario | TJuncti
         False: the same traffic without the ego.
     """
     return RoadWorld(kind, seed, scenario=scenario, include_ego=include_ego)
-

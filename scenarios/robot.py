@@ -86,8 +86,18 @@ class RobotParameters:
     goal_distance_high: float = 18.0
 
     def __post_init__(self) -> None:
-        for name in ("dt", "friction_high", "disturbance_bound", "control_bound", "robot_radius",
-                     "goal_tolerance", "time_limit", "arena_size", "goal_distance_high", "gaussian_measurement_std"):
+        for name in (
+            "dt",
+            "friction_high",
+            "disturbance_bound",
+            "control_bound",
+            "robot_radius",
+            "goal_tolerance",
+            "time_limit",
+            "arena_size",
+            "goal_distance_high",
+            "gaussian_measurement_std",
+        ):
             as_positive_scalar(name, getattr(self, name))
         for name in ("friction_low", "measurement_noise", "goal_distance_low"):
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
@@ -95,10 +105,14 @@ class RobotParameters:
         if self.friction_low > self.friction_high:
             raise InputError(f"friction_low must be <= friction_high, got {self.friction_low} > {self.friction_high}")
         if self.goal_distance_low > self.goal_distance_high:
-            raise InputError("goal_distance_low must be <= goal_distance_high, "
-                             f"got {self.goal_distance_low} > {self.goal_distance_high}")
+            raise InputError(
+                "goal_distance_low must be <= goal_distance_high, "
+                f"got {self.goal_distance_low} > {self.goal_distance_high}"
+            )
         if self.goal_distance_high >= self.arena_size * np.sqrt(2):
-            raise InputError(f"goal_distance_high={self.goal_distance_high} does not fit in the arena of side {self.arena_size}")
+            raise InputError(
+                f"goal_distance_high={self.goal_distance_high} does not fit in the arena of side {self.arena_size}"
+            )
 
     @property
     def decision_period(self) -> float:
@@ -148,7 +162,11 @@ def _friction_structure(isotropic: bool) -> np.ndarray:
 
 
 def robot_system(
-    params: RobotParameters = DEFAULT_ROBOT, *, isotropic: bool = False, input_gain: float = 1.0, dt: float | None = None
+    params: RobotParameters = DEFAULT_ROBOT,
+    *,
+    isotropic: bool = False,
+    input_gain: float = 1.0,
+    dt: float | None = None,
 ) -> UncertainLinearSystem:
     """The robot's discrete-time model ``x+ = A(theta) x + B u + D w``.
 

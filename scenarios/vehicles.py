@@ -68,6 +68,7 @@ __all__ = [
     "traffic_step",
 ]
 
+
 @dataclass(frozen=True)
 class VehicleParameters:
     """The kinematic bicycle shared by every vehicle (the ego's are known exactly).
@@ -146,7 +147,12 @@ class BehaviourParameters:
     speed_epsilon: float = 0.01
 
     def __post_init__(self) -> None:
-        for name, length in (("theta_a_nominal", 3), ("theta_a_scale", 2), ("theta_b_nominal", 2), ("theta_b_spread", 2)):
+        for name, length in (
+            ("theta_a_nominal", 3),
+            ("theta_a_scale", 2),
+            ("theta_b_nominal", 2),
+            ("theta_b_spread", 2),
+        ):
             value = tuple(float(v) for v in getattr(self, name))
             if len(value) != length:
                 raise DimensionError(f"{name} must have length {length}, got length {len(value)}")
@@ -155,8 +161,14 @@ class BehaviourParameters:
             raise InputError(f"theta_a_scale must satisfy 0 <= low <= high, got {self.theta_a_scale}")
         if min(self.theta_b_spread) < 0:
             raise InputError(f"theta_b_spread must be >= 0, got {self.theta_b_spread}")
-        for name in ("standstill_distance", "time_headway", "pursuit_time", "acceleration_bound",
-                     "disturbance_bound", "speed_epsilon"):
+        for name in (
+            "standstill_distance",
+            "time_headway",
+            "pursuit_time",
+            "acceleration_bound",
+            "disturbance_bound",
+            "speed_epsilon",
+        ):
             value = getattr(self, name)
             if not np.isfinite(value) or value < 0 or (value == 0 and name in ("acceleration_bound", "speed_epsilon")):
                 raise InputError(f"{name} must be finite and >= 0 (> 0 for bounds), got {value!r}")
@@ -239,14 +251,24 @@ class TrafficRules:
         object.__setattr__(self, "lane_change_interval", (low, high))
         if not 0 <= self.lane_change_probability <= 1:
             raise InputError(f"lane_change_probability must lie in [0, 1], got {self.lane_change_probability}")
-        for name in ("lane_change_settled", "lane_change_margin", "critical_gap", "commit_distance",
-                     "courtesy_patience", "waiting_distance", "spawn_clearance", "curve_approach"):
+        for name in (
+            "lane_change_settled",
+            "lane_change_margin",
+            "critical_gap",
+            "commit_distance",
+            "courtesy_patience",
+            "waiting_distance",
+            "spawn_clearance",
+            "curve_approach",
+        ):
             value = getattr(self, name)
             if not np.isfinite(value) or value < 0:
                 raise InputError(f"{name} must be finite and >= 0, got {value!r}")
 
         if not np.isfinite(self.curve_lateral_acceleration) or self.curve_lateral_acceleration <= 0:
-            raise InputError(f"curve_lateral_acceleration must be finite and > 0, got {self.curve_lateral_acceleration!r}")
+            raise InputError(
+                f"curve_lateral_acceleration must be finite and > 0, got {self.curve_lateral_acceleration!r}"
+            )
 
     def to_dict(self) -> dict:
         """The rules as plain data."""
@@ -311,9 +333,20 @@ class TrafficState:
     def __post_init__(self) -> None:
         n = np.asarray(self.states).shape[0]
         shapes = {
-            "states": (n, 4), "controlled": (n,), "spawned": (n,), "exited": (n,), "spawn_step": (n,),
-            "route_index": (n,), "theta_a": (n, 3), "theta_b": (n, 2), "target_speed": (n,), "timer": (n,),
-            "interval": (n,), "courteous": (n,), "committed": (n,), "yield_time": (n,),
+            "states": (n, 4),
+            "controlled": (n,),
+            "spawned": (n,),
+            "exited": (n,),
+            "spawn_step": (n,),
+            "route_index": (n,),
+            "theta_a": (n, 3),
+            "theta_b": (n, 2),
+            "target_speed": (n,),
+            "timer": (n,),
+            "interval": (n,),
+            "courteous": (n,),
+            "committed": (n,),
+            "yield_time": (n,),
         }
         for name, shape in shapes.items():
             value = np.asarray(getattr(self, name))
@@ -568,8 +601,9 @@ def vehicle_corners(states, vehicle: VehicleParameters = VehicleParameters()) ->
     forward = np.stack([c, s], axis=-1) * (vehicle.length / 2)
     left = np.stack([-s, c], axis=-1) * (vehicle.width / 2)
     centre = x[..., :2]
-    return np.stack([centre + forward + left, centre + forward - left, centre - forward - left,
-                     centre - forward + left], axis=-2)
+    return np.stack(
+        [centre + forward + left, centre + forward - left, centre - forward - left, centre - forward + left], axis=-2
+    )
 
 
 # ------------------------------------------------------------ traffic logic
@@ -589,8 +623,14 @@ def _occupancy(traffic: TrafficState, road: Road, s: np.ndarray, offset: np.ndar
     return occ & traffic.active[:, None]
 
 
-def desired_speed(traffic: TrafficState, road: Road, rules: TrafficRules = TrafficRules(),
-                  vehicle: VehicleParameters = VehicleParameters(), *, s: np.ndarray | None = None) -> np.ndarray:
+def desired_speed(
+    traffic: TrafficState,
+    road: Road,
+    rules: TrafficRules = TrafficRules(),
+    vehicle: VehicleParameters = VehicleParameters(),
+    *,
+    s: np.ndarray | None = None,
+) -> np.ndarray:
     """The v_target of the acceleration law: the target speed, capped on and before arcs.
 
     Parameters
@@ -737,8 +777,9 @@ def _progress(traffic: TrafficState, road: Road, vehicle: VehicleParameters) -> 
     return traffic.evolve(route_index=k, routes=routes, exited=traffic.exited | leaving)
 
 
-def _yield_gaps(traffic: TrafficState, road: Road, rules: TrafficRules, vehicle: VehicleParameters,
-                s_c: np.ndarray, dt: float):
+def _yield_gaps(
+    traffic: TrafficState, road: Road, rules: TrafficRules, vehicle: VehicleParameters, s_c: np.ndarray, dt: float
+):
     """Stop-line gaps (inf when not yielding) and the updated committed / yield_time arrays."""
     n = len(traffic)
     rows = np.arange(n)
@@ -766,7 +807,9 @@ def _yield_gaps(traffic: TrafficState, road: Road, rules: TrafficRules, vehicle:
     higher_on = prio[on_lane][None, :] > prio_me[:, None]
     higher_next = prio[j_next][None, :] > prio_me[:, None]
     others = traffic.active[None, :] & (rows[None, :] != rows[:, None])
-    blocked_rule = others & ((conflict_on & higher_on) | (conflict_next & higher_next & (time_to[None, :] < rules.critical_gap)))
+    blocked_rule = others & (
+        (conflict_on & higher_on) | (conflict_next & higher_next & (time_to[None, :] < rules.critical_gap))
+    )
     waiting = conflict_next & (to_line[None, :] <= rules.waiting_distance)
     held = speed < 1.0
     patient = traffic.yield_time < rules.courtesy_patience
@@ -778,9 +821,18 @@ def _yield_gaps(traffic: TrafficState, road: Road, rules: TrafficRules, vehicle:
     return np.where(must_stop, np.maximum(to_line, 0.0), np.inf), committed, yield_time
 
 
-def _lane_changes(traffic: TrafficState, road: Road, behaviour: BehaviourParameters, rules: TrafficRules,
-                  vehicle: VehicleParameters, s_c: np.ndarray, off_c: np.ndarray, occ: np.ndarray,
-                  draws: np.ndarray, dt: float):
+def _lane_changes(
+    traffic: TrafficState,
+    road: Road,
+    behaviour: BehaviourParameters,
+    rules: TrafficRules,
+    vehicle: VehicleParameters,
+    s_c: np.ndarray,
+    off_c: np.ndarray,
+    occ: np.ndarray,
+    draws: np.ndarray,
+    dt: float,
+):
     """Timer-driven lane-change decisions with gap acceptance (sequential over the deciding agents)."""
     n = len(traffic)
     rows = np.arange(n)
@@ -907,9 +959,16 @@ def traffic_step(
     moved = bicycle_step(traffic.states, accel, steer, dt, vehicle)
     states = np.where(active[:, None], moved, traffic.states)
     record = StepRecord(
-        acceleration=accel, steering=steer, disturbance=disturbance, features=features, steering_features=g,
-        leader=np.where(active, leader, -1), gap=np.where(active, gap, np.inf), yielding=yielding & active,
-        intention=np.where(active, lane, -1), lane_change=started,
+        acceleration=accel,
+        steering=steer,
+        disturbance=disturbance,
+        features=features,
+        steering_features=g,
+        leader=np.where(active, leader, -1),
+        gap=np.where(active, gap, np.inf),
+        yielding=yielding & active,
+        intention=np.where(active, lane, -1),
+        lane_change=started,
     )
     after = traffic.evolve(states=states, committed=committed, yield_time=yield_time)
     return _progress(after, road, vehicle), record

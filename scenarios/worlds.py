@@ -95,8 +95,14 @@ class WorldLayout:
 
 
 def layout_has_path(
-    start, goal, obstacles: CircularObstacles, *, robot_radius: float, arena_size: float,
-    resolution: float = GRID_RESOLUTION, margin: float = CORRIDOR_MARGIN,
+    start,
+    goal,
+    obstacles: CircularObstacles,
+    *,
+    robot_radius: float,
+    arena_size: float,
+    resolution: float = GRID_RESOLUTION,
+    margin: float = CORRIDOR_MARGIN,
 ) -> bool:
     """Whether a grid path joins start to goal with clearance ``robot_radius + margin``.
 
@@ -220,7 +226,9 @@ def _crowd(rng: np.random.Generator, count: int, start, goal) -> PedestrianCrowd
         fraction = rng.uniform(0.3, 0.8)
         crossing = start + fraction * route
         side = rng.choice([-1.0, 1.0])
-        heading = route_heading + side * np.pi / 2 + rng.uniform(-PEDESTRIAN_CROSSING_SPREAD, PEDESTRIAN_CROSSING_SPREAD)
+        heading = (
+            route_heading + side * np.pi / 2 + rng.uniform(-PEDESTRIAN_CROSSING_SPREAD, PEDESTRIAN_CROSSING_SPREAD)
+        )
         speed = rng.uniform(*PEDESTRIAN_SPEED)
         arrival = fraction * length / CROSSING_TIMING_SPEED * rng.uniform(0.7, 1.3)
         position = crossing - speed * arrival * np.array([np.cos(heading), np.sin(heading)])
@@ -234,8 +242,13 @@ def _crowd(rng: np.random.Generator, count: int, start, goal) -> PedestrianCrowd
     positions = np.array(position_list, dtype=float).reshape(count, 2)
     announced = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
     return PedestrianCrowd(
-        positions=positions, announced=announced, speeds=speeds, headings=headings,
-        deviations=np.zeros(count), radii=np.full(count, PEDESTRIAN_RADIUS), rng=rng,
+        positions=positions,
+        announced=announced,
+        speeds=speeds,
+        headings=headings,
+        deviations=np.zeros(count),
+        radii=np.full(count, PEDESTRIAN_RADIUS),
+        rng=rng,
     )
 
 
@@ -296,7 +309,9 @@ class RobotWorld:
         self.state = np.concatenate([self.start, np.zeros(2)])
         self.step_index = 0
         # Only the pedestrians' radii matter here: their true positions are passed at evaluation.
-        self._true_reward = self.goal_reward.with_obstacles(moving_obstacles=self.pedestrians) if len(self.crowd) else self.goal_reward
+        self._true_reward = (
+            self.goal_reward.with_obstacles(moving_obstacles=self.pedestrians) if len(self.crowd) else self.goal_reward
+        )
         self.outcome = "running"
         self.last_disturbance = np.zeros(2)
 
@@ -328,8 +343,12 @@ class RobotWorld:
         `MovingObstacles` whose ``time0`` is the current sub-step index (the boxes are
         sound from here on)."""
         return MovingObstacles(
-            self.crowd.positions.copy(), self.crowd.announced.copy(), self.crowd.radii.copy(),
-            velocity_uncertainty=PEDESTRIAN_VELOCITY_UNCERTAINTY, dt=self.params.dt, time0=self.step_index,
+            self.crowd.positions.copy(),
+            self.crowd.announced.copy(),
+            self.crowd.radii.copy(),
+            velocity_uncertainty=PEDESTRIAN_VELOCITY_UNCERTAINTY,
+            dt=self.params.dt,
+            time0=self.step_index,
         )
 
     def measure(self) -> np.ndarray:
@@ -439,12 +458,17 @@ class RobotWorld:
             "start": self.start.tolist(),
             "goal": self.goal.tolist(),
             "obstacles": self.obstacles.to_dict(),
-            "pedestrians": {"positions": self._initial_pedestrians[0].tolist(), "announced": self._initial_pedestrians[1].tolist()},
+            "pedestrians": {
+                "positions": self._initial_pedestrians[0].tolist(),
+                "announced": self._initial_pedestrians[1].tolist(),
+            },
             "params": self.params.to_dict(),
         }
 
 
-def make_world(kind: str, seed: int, *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT) -> RobotWorld:
+def make_world(
+    kind: str, seed: int, *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT
+) -> RobotWorld:
     """A new seeded episode of robot navigation; see `RobotWorld`.
 
     Parameters

@@ -222,8 +222,16 @@ def test_missing_model_file_exits_2(tmp_path, capsys, command):
         ("d.txt", "x0,u0\n", r"must end in \.csv or \.npz, got '\.txt'"),
         ("absent.csv", None, r"data file '.*absent\.csv' does not exist"),
         ("nan.csv", "x0,x1,x2,x3,u0,u1\n0,0,0,0,nan,0\n0,0,0,0,,\n", r"line 2, column 'u0' is not finite: 'nan'"),
-        ("short.csv", "x0,x1,u0\n0,0,1\n0,0,\n", r"the models have 4 states and 2 inputs.*got states shape \(2, 2\) and controls shape \(1, 1\)"),
-        ("gap.csv", "x0,x1,x2,x4,u0,u1\n0,0,0,0,0,0\n0,0,0,0,,\n", r"x columns must be numbered 0\.\.3, got \[0, 1, 2, 4\]"),
+        (
+            "short.csv",
+            "x0,x1,u0\n0,0,1\n0,0,\n",
+            r"the models have 4 states and 2 inputs.*got states shape \(2, 2\) and controls shape \(1, 1\)",
+        ),
+        (
+            "gap.csv",
+            "x0,x1,x2,x4,u0,u1\n0,0,0,0,0,0\n0,0,0,0,,\n",
+            r"x columns must be numbered 0\.\.3, got \[0, 1, 2, 4\]",
+        ),
     ],
 )
 def test_bad_data_file_exits_2(tmp_path, capsys, name, content, message):

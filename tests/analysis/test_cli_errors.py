@@ -114,8 +114,21 @@ def test_an_unreachable_dask_scheduler_fails_fast_on_one_line(capsys, no_work, t
     pytest.importorskip("distributed")  # the 'cluster' extra, installed in the dev environment
     assert experiment_module.DASK_CONNECT_TIMEOUT_S <= 5
     started = time.perf_counter()
-    code, out, err = run(capsys, "experiment", "--scenario", "static", "--methods", "dwa", "--episodes", "1",
-                         "--dask", f"tcp://127.0.0.1:{_closed_port()}", "--out", tmp_path / "out", "--no-progress")
+    code, out, err = run(
+        capsys,
+        "experiment",
+        "--scenario",
+        "static",
+        "--methods",
+        "dwa",
+        "--episodes",
+        "1",
+        "--dask",
+        f"tcp://127.0.0.1:{_closed_port()}",
+        "--out",
+        tmp_path / "out",
+        "--no-progress",
+    )
     elapsed = time.perf_counter() - started
     assert_one_line_error(code, out, err, "experiment", "cannot reach the Dask scheduler at 'tcp://127.0.0.1:")
     assert elapsed < experiment_module.DASK_CONNECT_TIMEOUT_S + 15  # distributed's default waits 30 s
@@ -124,8 +137,21 @@ def test_an_unreachable_dask_scheduler_fails_fast_on_one_line(capsys, no_work, t
 
 def test_a_malformed_dask_address_is_one_line(capsys, no_work, tmp_path):
     pytest.importorskip("distributed")
-    code, out, err = run(capsys, "experiment", "--scenario", "static", "--methods", "dwa", "--episodes", "1",
-                         "--dask", "nosuchscheme://x", "--out", tmp_path, "--no-progress")
+    code, out, err = run(
+        capsys,
+        "experiment",
+        "--scenario",
+        "static",
+        "--methods",
+        "dwa",
+        "--episodes",
+        "1",
+        "--dask",
+        "nosuchscheme://x",
+        "--out",
+        tmp_path,
+        "--no-progress",
+    )
     assert_one_line_error(code, out, err, "experiment", "unknown address scheme 'nosuchscheme'")
 
 
@@ -135,8 +161,16 @@ def test_a_malformed_dask_address_is_one_line(capsys, no_work, tmp_path):
     [
         ("A0 = [[0.5]]", f"A0 = [[{HUGE}]]", r"A0 holds an integer too large for a float"),
         ("high = [0.2]", f"high = [{HUGE}]", r"theta\.high holds an integer too large for a float"),
-        ('name = "scalar"', f'name = "scalar"\ndt = {HUGE}', r"dt must be a finite number > 0, got an integer too large"),
-        ('name = "scalar"', f"measurement_noise = {HUGE}\nname = \"scalar\"", r"measurement_noise holds an integer too large"),
+        (
+            'name = "scalar"',
+            f'name = "scalar"\ndt = {HUGE}',
+            r"dt must be a finite number > 0, got an integer too large",
+        ),
+        (
+            'name = "scalar"',
+            f'measurement_noise = {HUGE}\nname = "scalar"',
+            r"measurement_noise holds an integer too large",
+        ),
     ],
 )
 @pytest.mark.parametrize("command", ["lmi", "select"])
@@ -182,10 +216,21 @@ def test_an_unknown_option_is_reported_by_its_subcommand(capsys, no_work, argv):
 @pytest.mark.parametrize(
     ("command", "shown"),
     [
-        ("experiment", ["(default: 100)", "EPISODES x scenarios x methods", "1,000 episodes", "(default: 0)",
-                        "(default: out/experiment)", "default: all cores"]),
-        ("suboptimality", ["(default: 20)", "(default: 24)", "(default: 2,5,10,20,50,100,200,400)",
-                           "(default: out/suboptimality)"]),
+        (
+            "experiment",
+            [
+                "(default: 100)",
+                "EPISODES x scenarios x methods",
+                "1,000 episodes",
+                "(default: 0)",
+                "(default: out/experiment)",
+                "default: all cores",
+            ],
+        ),
+        (
+            "suboptimality",
+            ["(default: 20)", "(default: 24)", "(default: 2,5,10,20,50,100,200,400)", "(default: out/suboptimality)"],
+        ),
         ("demo", ["(default: 5)", "(default: 0)", "(default: out/demo)"]),
         ("lmi", ["(default: CLARABEL)", "(default: stdout)"]),
     ],
@@ -212,7 +257,6 @@ def test_help_imports_neither_cvxpy_nor_numba():
     )
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=True)
     assert "HEAVY []" in done.stderr, done.stderr
-
 
 
 def test_the_constants_spelled_out_for_a_light_parser_match_the_library():
@@ -248,8 +292,12 @@ def test_the_library_entry_points_check_their_counts_before_any_episode(no_work)
         suboptimality_study(np.array([0, 5]), episodes=1)
     with pytest.raises(InputError, match="samples must be a non-empty sequence"):
         suboptimality_study([], episodes=1)
-    for kwargs, message in [({"episodes": 0}, "episodes must be"), ({"seed": -1}, "seed must be an integer >= 0"),
-                            ({"horizon": 0}, "horizon must be"), ({"workers": 0}, "workers must be")]:
+    for kwargs, message in [
+        ({"episodes": 0}, "episodes must be"),
+        ({"seed": -1}, "seed must be an integer >= 0"),
+        ({"horizon": 0}, "horizon must be"),
+        ({"workers": 0}, "workers must be"),
+    ]:
         with pytest.raises(InputError, match=message):
             suboptimality_study((5,), **{"episodes": 1, **kwargs})
     with pytest.raises(InputError, match="workers must be a positive integer, got 0"):
@@ -261,8 +309,10 @@ def test_the_library_entry_points_check_their_counts_before_any_episode(no_work)
 def test_the_demo_walkthrough_checks_its_arguments():
     from minimaxplan.models import InputError
 
-    for kwargs, message in [({"seed": -5}, "seed must be an integer >= 0, got -5"),
-                            ({"steps": 0}, "steps must be a positive integer"),
-                            ({"horizon": 0}, "horizon must be a positive integer")]:
+    for kwargs, message in [
+        ({"seed": -5}, "seed must be an integer >= 0, got -5"),
+        ({"steps": 0}, "steps must be a positive integer"),
+        ({"horizon": 0}, "horizon must be a positive integer"),
+    ]:
         with pytest.raises(InputError, match=message):
             demo_module.run(**kwargs)

@@ -83,10 +83,22 @@ def test_malformed_csv_is_rejected_naming_the_cell(tmp_path, text, message):
     ("arrays", "message"),
     [
         ({"states": np.zeros((3, 2))}, r"missing array\(s\) \['controls'\]"),
-        ({"states": np.zeros((3, 2)), "controls": np.zeros((3, 1))}, r"one row more than controls.*states shape \(3, 2\) and controls shape \(3, 1\)"),
-        ({"states": np.zeros(3), "controls": np.zeros((2, 1))}, r"states must be a non-empty 2-dimensional array, got shape \(3,\)"),
-        ({"states": np.array([[0.0], [np.nan]]), "controls": np.zeros((1, 1))}, r"states contains NaN or infinite entries \(first at index \[1, 0\]\)"),
-        ({"states": np.zeros((2, 1)), "controls": np.array([["a"]])}, r"controls must be a real numeric array, got dtype <U1"),
+        (
+            {"states": np.zeros((3, 2)), "controls": np.zeros((3, 1))},
+            r"one row more than controls.*states shape \(3, 2\) and controls shape \(3, 1\)",
+        ),
+        (
+            {"states": np.zeros(3), "controls": np.zeros((2, 1))},
+            r"states must be a non-empty 2-dimensional array, got shape \(3,\)",
+        ),
+        (
+            {"states": np.array([[0.0], [np.nan]]), "controls": np.zeros((1, 1))},
+            r"states contains NaN or infinite entries \(first at index \[1, 0\]\)",
+        ),
+        (
+            {"states": np.zeros((2, 1)), "controls": np.array([["a"]])},
+            r"controls must be a real numeric array, got dtype <U1",
+        ),
         ({"states": np.zeros((2, 1)), "controls": np.array([[None]], dtype=object)}, r"cannot read data file .*pickle"),
     ],
 )

@@ -37,14 +37,18 @@ def test_history_equals_direct_calls_on_each_prefix():
 def test_parameter_set_history_equals_direct_calls():
     system = MODELS.select("anisotropic friction").systems[0]
     sizes = [0, 1, 5, 30]
-    history = parameter_set_history(system, DATA.states, DATA.controls, sizes, sigma=0.01, lam=0.5, delta=0.05, bound=2.0)
+    history = parameter_set_history(
+        system, DATA.states, DATA.controls, sizes, sigma=0.01, lam=0.5, delta=0.05, bound=2.0
+    )
     regressors = system.regressor(DATA.states[:-1])
     targets = DATA.states[1:] - DATA.states[:-1] @ system.A0.T - DATA.controls @ system.B.T
     for k, n in enumerate(sizes):
         box = feasible_parameter_box(system, DATA.states[: n + 1], DATA.controls[:n])
         np.testing.assert_array_equal(history.feasible_low[k], box.low)
         np.testing.assert_array_equal(history.feasible_high[k], box.high)
-        batch = confidence_ellipsoid(regressors[:n], targets[:n], sigma=0.01, lam=0.5, delta=0.05, bound=2.0).bounding_box()
+        batch = confidence_ellipsoid(
+            regressors[:n], targets[:n], sigma=0.01, lam=0.5, delta=0.05, bound=2.0
+        ).bounding_box()
         scale = 1 + float(np.max(np.abs(batch.high - batch.low)))
         np.testing.assert_allclose(history.confidence_low[k], batch.low, rtol=0, atol=1e-9 * scale)
         np.testing.assert_allclose(history.confidence_high[k], batch.high, rtol=0, atol=1e-9 * scale)

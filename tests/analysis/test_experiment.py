@@ -31,8 +31,12 @@ def _record(method, seed, outcome, time_s, ret=0.5):
 
 
 def test_summary_counts_failures_and_averages_time_over_successes():
-    records = [_record("robust", 0, "goal", 10.0), _record("robust", 1, "goal", 14.0),
-               _record("robust", 2, "collision", 3.0), _record("robust", 3, "timeout", 60.0)]
+    records = [
+        _record("robust", 0, "goal", 10.0),
+        _record("robust", 1, "goal", 14.0),
+        _record("robust", 2, "collision", 3.0),
+        _record("robust", 3, "timeout", 60.0),
+    ]
     (summary,) = summarise(records)
     assert summary["episodes"] == 4 and summary["failures"] == 2
     assert summary["mean_time_s"] == pytest.approx(12.0)
@@ -68,8 +72,7 @@ def _committed_rows(scenario: str, method: str, seeds) -> list[dict]:
 
 
 def _as_cells(result) -> list[dict]:
-    return [{k: "" if v is None else str(v) for k, v in r.row().items() if k != "wall_time_s"}
-            for r in result.records]
+    return [{k: "" if v is None else str(v) for k, v in r.row().items() if k != "wall_time_s"} for r in result.records]
 
 
 def test_a_real_episode_on_the_pool_reproduces_the_committed_record():
@@ -85,11 +88,20 @@ def test_dask_local_cluster_gives_the_same_summary():
         from distributed import LocalCluster  # the cluster extra must be installed in CI
     else:
         LocalCluster = pytest.importorskip("distributed").LocalCluster
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=None) as cluster:
-        on_dask = run_experiment(["pedestrian"], ["robust", "dwa"], episodes=1, seed=3,
-                                 dask_address=cluster.scheduler_address, progress=False)
-    assert _as_cells(on_dask) == _committed_rows("pedestrian", "robust", [3]) + _committed_rows("pedestrian", "dwa", [3])
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        on_dask = run_experiment(
+            ["pedestrian"],
+            ["robust", "dwa"],
+            episodes=1,
+            seed=3,
+            dask_address=cluster.scheduler_address,
+            progress=False,
+        )
+    assert _as_cells(on_dask) == _committed_rows("pedestrian", "robust", [3]) + _committed_rows(
+        "pedestrian", "dwa", [3]
+    )
 
 
 def test_every_hypothesis_eliminated_is_a_failure(monkeypatch):
@@ -106,7 +118,7 @@ def test_planning_system_adds_the_control_error_through_B():
     system = robot_hypotheses()[0].system
     augmented = planning_system(system, 0.03)
     assert augmented.ndisturbances == system.ndisturbances + system.ninputs
-    np.testing.assert_array_equal(augmented.D[:, system.ndisturbances:], system.B)
+    np.testing.assert_array_equal(augmented.D[:, system.ndisturbances :], system.B)
     assert augmented.w == Box(np.r_[system.w.low, -0.03, -0.03], np.r_[system.w.high, 0.03, 0.03])
 
 
@@ -124,13 +136,38 @@ def test_robust_episode_record_is_consistent():
 
 def test_experiment_command_writes_every_output(tmp_path):
     out = tmp_path / "run"
-    code = main(["experiment", "--scenario", "static", "--methods", "dwa,nominal", "--episodes", "1",
-                 "--workers", "1", "--seed", "2", "--out", str(out), "--no-progress"])
+    code = main(
+        [
+            "experiment",
+            "--scenario",
+            "static",
+            "--methods",
+            "dwa,nominal",
+            "--episodes",
+            "1",
+            "--workers",
+            "1",
+            "--seed",
+            "2",
+            "--out",
+            str(out),
+            "--no-progress",
+        ]
+    )
     assert code == 0
     summary = json.loads((out / "summary.json").read_text())
     assert {s["method"] for s in summary} == {"dwa", "nominal"}
-    for key in ("scenario", "method", "episodes", "failures", "failure_ci95", "mean_time_s", "median_time_s",
-                "max_time_s", "mean_return"):
+    for key in (
+        "scenario",
+        "method",
+        "episodes",
+        "failures",
+        "failure_ci95",
+        "mean_time_s",
+        "median_time_s",
+        "max_time_s",
+        "mean_return",
+    ):
         assert key in summary[0]
     csv_text = (out / "episodes.csv").read_text()
     assert csv_text.count("\n") == 3 and "assumption4_velocity_subsystem" in csv_text.splitlines()[0]
@@ -162,8 +199,9 @@ def test_frozen_prior_data_and_decision_horizon():
 def test_suboptimality_study_shape_and_trend_fit():
     from minimaxplan.analysis.suboptimality import fit_trend, markdown, suboptimality_study
 
-    study = suboptimality_study((3, 60), episodes=1, seed=4, horizon=3, workers=1, progress=False,
-                                config=LoopConfig(budget=8))
+    study = suboptimality_study(
+        (3, 60), episodes=1, seed=4, horizon=3, workers=1, progress=False, config=LoopConfig(budget=8)
+    )
     assert [row["n"] for row in study["rows"]] == [3, 60]
     for row in study["rows"]:
         assert row["min"] <= row["mean"] <= row["max"] and len(row["per_episode"]) == 1
@@ -192,8 +230,9 @@ def test_boxes_of_the_robust_model_contain_the_loop_driven_by_noisy_measurements
     config = LoopConfig()
     noise = 0.01
     controllers = velocity_controllers(config)
-    model = IntervalModel(planning_system(system, config.gain * noise), params_box,
-                          GoalReward([50.0, 50.0]), controllers, substeps=5)
+    model = IntervalModel(
+        planning_system(system, config.gain * noise), params_box, GoalReward([50.0, 50.0]), controllers, substeps=5
+    )
     # Start near the first action's reference velocity so that the feedback does not
     # saturate, and keep the noise and the disturbance at extremes of constant sign: the
     # control error then accumulates (the worst case for the boxes).

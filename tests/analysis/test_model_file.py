@@ -89,7 +89,9 @@ def hypotheses(draw):
     count = draw(st.integers(1, 3))
 
     def arr(*shape):
-        return np.array(draw(st.lists(finite, min_size=int(np.prod(shape)), max_size=int(np.prod(shape))))).reshape(shape)
+        return np.array(draw(st.lists(finite, min_size=int(np.prod(shape)), max_size=int(np.prod(shape))))).reshape(
+            shape
+        )
 
     out = []
     for index in range(count):
@@ -164,7 +166,10 @@ def test_measurement_noise_scalar_is_broadcast():
 
 
 def test_defaults_are_inherited_and_overridden():
-    text = MINIMAL.replace('name = "scalar"', "") + '[[hypothesis]]\nname = "a"\n[[hypothesis]]\nname = "b"\nA0 = [[0.25]]\n'
+    text = (
+        MINIMAL.replace('name = "scalar"', "")
+        + '[[hypothesis]]\nname = "a"\n[[hypothesis]]\nname = "b"\nA0 = [[0.25]]\n'
+    )
     parsed = parse_model_file(text)
     assert parsed.names == ["a", "b"]
     assert parsed.systems[0].A0[0, 0] == 0.5 and parsed.systems[1].A0[0, 0] == 0.25
@@ -188,7 +193,11 @@ def test_single_model_default_name_is_the_file_stem(tmp_path):
         ("B = [[1.0]]", "B = [1.0]", r"B must be a non-empty 2-dimensional array, got shape \(1,\)"),
         ("A0 = [[0.5]]", "A0 = [[0.5, 1.0]]", r"A0 must be square, got shape \(1, 2\)"),
         ("phi = [[[1.0]]]", "phi = [[1.0]]", r"phi must be a non-empty 3-dimensional array \(a list of d matrices"),
-        ("phi = [[[1.0]]]", "phi = [[[1.0, 0.0], [0.0, 1.0]]]", r"phi must have shape \(d, 1, 1\).*got shape \(1, 2, 2\)"),
+        (
+            "phi = [[[1.0]]]",
+            "phi = [[[1.0, 0.0], [0.0, 1.0]]]",
+            r"phi must have shape \(d, 1, 1\).*got shape \(1, 2, 2\)",
+        ),
         ("A0 = [[0.5]]", "A0 = [[nan]]", r"A0 contains NaN or infinite entries"),
         ("A0 = [[0.5]]", "A0 = [[-inf]]", r"A0 contains NaN or infinite entries"),
         ("low = [-0.2]", "low = [-inf]", r"theta\.low contains NaN or infinite entries"),
@@ -196,21 +205,53 @@ def test_single_model_default_name_is_the_file_stem(tmp_path):
         ("A0 = [[0.5]]", 'A0 = [["0.5"]]', r"A0 must hold only numbers, found '0.5'"),
         ("A0 = [[0.5]]", "A0 = [[true]]", r"A0 must hold only numbers, found True"),
         ("A0 = [[0.5]]", "A0 = [[0.5], [0.5, 1.0]]", r"A0 is ragged"),
-        ("high = [0.1]", "high = [0.1, 0.2]", r"w\.high must have shape \(1,\) to match the 1 states \(D is the identity\), got shape \(2,\)"),
-        ("low = [-0.2], high = [0.2]", "low = [-0.2, 0.0], high = [0.2, 0.1]", r"theta\.low must have shape \(1,\) to match the 1 matrices of phi"),
+        (
+            "high = [0.1]",
+            "high = [0.1, 0.2]",
+            r"w\.high must have shape \(1,\) to match the 1 states \(D is the identity\), got shape \(2,\)",
+        ),
+        (
+            "low = [-0.2], high = [0.2]",
+            "low = [-0.2, 0.0], high = [0.2, 0.1]",
+            r"theta\.low must have shape \(1,\) to match the 1 matrices of phi",
+        ),
         ("high = [0.2]", "high = [-0.3]", r"theta is empty: low > high at indices \[0\]"),
-        ("w = { low = [-0.1], high = [0.1] }", "w = { low = [-0.1] }", r"w must have exactly the keys 'low' and 'high' \(missing \['high'\]"),
+        (
+            "w = { low = [-0.1], high = [0.1] }",
+            "w = { low = [-0.1] }",
+            r"w must have exactly the keys 'low' and 'high' \(missing \['high'\]",
+        ),
         ("w = { low = [-0.1], high = [0.1] }", "w = [0.1]", r"w must be a table"),
-        ("B = [[1.0]]", "B = [[1.0]]\nD = [[1.0, 0.0]]", r"w\.low must have shape \(2,\) to match the columns of D \(1, 2\)"),
+        (
+            "B = [[1.0]]",
+            "B = [[1.0]]\nD = [[1.0, 0.0]]",
+            r"w\.low must have shape \(2,\) to match the columns of D \(1, 2\)",
+        ),
         ("B = [[1.0]]", "B = [[1.0]]\nD = [[1.0], [0.0]]", r"D must have shape \(1, r\)"),
-        ('name = "scalar"', 'name = "scalar"\ntime = "continuous"\ndt = 0.1', r"time = 'continuous' takes the state matrix as key 'A', found 'A0'"),
+        (
+            'name = "scalar"',
+            'name = "scalar"\ntime = "continuous"\ndt = 0.1',
+            r"time = 'continuous' takes the state matrix as key 'A', found 'A0'",
+        ),
         ('name = "scalar"\nA0', 'name = "scalar"\ntime = "continuous"\nA', r"missing required key 'dt'"),
-        ('name = "scalar"\nA0', 'name = "scalar"\nA', r"time = 'discrete' takes the state matrix as key 'A0', found 'A'"),
-        ('name = "scalar"', 'name = "scalar"\ntime = "hybrid"', r'time must be "discrete" or "continuous", got \'hybrid\''),
+        (
+            'name = "scalar"\nA0',
+            'name = "scalar"\nA',
+            r"time = 'discrete' takes the state matrix as key 'A0', found 'A'",
+        ),
+        (
+            'name = "scalar"',
+            'name = "scalar"\ntime = "hybrid"',
+            r'time must be "discrete" or "continuous", got \'hybrid\'',
+        ),
         ('name = "scalar"', 'name = "scalar"\ndt = -1.0', r"dt must be a finite number > 0, got -1.0"),
         ('name = "scalar"', 'name = "scalar"\ndt = inf', r"dt must be a finite number > 0, got inf"),
         ('name = "scalar"', "name = 3", r"name must be a non-empty string, got 3"),
-        ('name = "scalar"', 'name = "scalar"\nmeasurement_noise = [0.1, 0.2]', r"measurement_noise must be a number or have shape \(1,\)"),
+        (
+            'name = "scalar"',
+            'name = "scalar"\nmeasurement_noise = [0.1, 0.2]',
+            r"measurement_noise must be a number or have shape \(1,\)",
+        ),
         ('name = "scalar"', 'name = "scalar"\nmeasurement_noise = -0.1', r"measurement_noise must be >= 0"),
         ('name = "scalar"', 'name = "scalar"\nmeasurement_noise = nan', r"measurement_noise contains NaN"),
         ("A0 = [[0.5]]", "A0 = [[0.5]", r"not valid TOML"),

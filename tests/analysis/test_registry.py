@@ -139,8 +139,11 @@ def test_toy_scenario_and_method_run_sequentially_and_on_a_pool_of_two():
     second = run_experiment(["toy-line", "toy-line-far"], methods, workers=2, **kwargs)
     assert _comparable(first) == _comparable(second)
     assert [(r.scenario, r.method, r.seed) for r in first.records][:4] == [
-        ("toy-line", "toy-proportional", 5), ("toy-line", "toy-proportional", 6),
-        ("toy-line", "toy-proportional", 7), ("toy-line", "toy-quitter", 5)]
+        ("toy-line", "toy-proportional", 5),
+        ("toy-line", "toy-proportional", 6),
+        ("toy-line", "toy-proportional", 7),
+        ("toy-line", "toy-quitter", 5),
+    ]
     by_key = {(r.scenario, r.method, r.seed): r for r in first.records}
     near = by_key[("toy-line", "toy-proportional", 5)]
     assert near.outcome == "goal" and near.success
@@ -207,8 +210,11 @@ def test_registered_names_and_unknown_names():
 
 
 def test_a_method_rejects_a_scenario_it_does_not_support():
-    with pytest.raises(UnsupportedScenario, match=r"method 'dwa' supports no scenario of type LineScenario: "
-                                                  r"DWAMethod drives only RobotScenario worlds"):
+    with pytest.raises(
+        UnsupportedScenario,
+        match=r"method 'dwa' supports no scenario of type LineScenario: "
+        r"DWAMethod drives only RobotScenario worlds",
+    ):
         run_experiment(["toy-line"], ["dwa"], episodes=1, progress=False)
     with pytest.raises(UnsupportedScenario, match="ProportionalMethod drives only LineScenario"):
         run_episode("static", "toy-proportional", 0)
@@ -233,12 +239,14 @@ def test_factories_named_by_module_and_qualname_reach_pool_workers():
     register_scenario("toy-line-by-name", f"{__name__}:LineScenario")
     register_method("toy-proportional-by-name", f"{__name__}:ProportionalMethod")
     register_method("toy-dwa-by-name", "minimaxplan.analysis.robot_methods:DWAMethod")
-    by_name = run_experiment(["toy-line-by-name"], ["toy-proportional-by-name"], episodes=2, seed=1, workers=2,
-                             progress=False)
+    by_name = run_experiment(
+        ["toy-line-by-name"], ["toy-proportional-by-name"], episodes=2, seed=1, workers=2, progress=False
+    )
     direct = run_experiment(["toy-line"], ["toy-proportional"], episodes=2, seed=1, workers=1, progress=False)
     strip = ("scenario", "method", "wall_time_s")
     assert [{k: v for k, v in r.row().items() if k not in strip} for r in by_name.records] == [
-        {k: v for k, v in r.row().items() if k not in strip} for r in direct.records]
+        {k: v for k, v in r.row().items() if k not in strip} for r in direct.records
+    ]
     result = run_experiment(["static"], ["toy-dwa-by-name", "dwa"], episodes=1, seed=3, workers=2, progress=False)
     named, builtin = ({k: v for k, v in r.row().items() if k not in strip} for r in result.records)
     assert named == builtin
@@ -246,12 +254,28 @@ def test_factories_named_by_module_and_qualname_reach_pool_workers():
 
 def test_cli_accepts_registered_names_and_rejects_unknown_ones_in_one_line(tmp_path, capsys):
     out = tmp_path / "toy"
-    code = main(["experiment", "--scenario", "toy-line", "--methods", "toy-proportional,toy-quitter",
-                 "--episodes", "2", "--workers", "1", "--out", str(out), "--no-progress"])
+    code = main(
+        [
+            "experiment",
+            "--scenario",
+            "toy-line",
+            "--methods",
+            "toy-proportional,toy-quitter",
+            "--episodes",
+            "2",
+            "--workers",
+            "1",
+            "--out",
+            str(out),
+            "--no-progress",
+        ]
+    )
     assert code == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert [(s["scenario"], s["method"]) for s in summary] == [("toy-line", "toy-proportional"),
-                                                              ("toy-line", "toy-quitter")]
+    assert [(s["scenario"], s["method"]) for s in summary] == [
+        ("toy-line", "toy-proportional"),
+        ("toy-line", "toy-quitter"),
+    ]
     capsys.readouterr()
     for argv, message in [
         (["--methods", "robust,magic"], "method must be one of the registered methods ['robust', 'nominal', "),

@@ -21,17 +21,30 @@ def metzler_model(rng, p, d, kind):
     w = Box.from_center(rng.normal(size=p) * 0.1, rng.uniform(0, 0.3, size=p))
     if kind == "box":
         parameters = Box.from_center(rng.normal(size=d) * 0.2, rng.uniform(0.05, 0.5, size=d))
-        thetas = np.vstack([parameters.vertices()[rng.integers(2**d, size=20)], rng.uniform(parameters.low, parameters.high, size=(20, d))])
+        thetas = np.vstack(
+            [
+                parameters.vertices()[rng.integers(2**d, size=20)],
+                rng.uniform(parameters.low, parameters.high, size=(20, d)),
+            ]
+        )
     elif kind == "ellipsoid":
         factor = rng.normal(size=(d, d))
         parameters = Ellipsoid(rng.normal(size=d) * 0.2, factor @ factor.T + 0.5 * np.eye(d), 0.4)
         directions = rng.normal(size=(40, d))
         directions /= np.linalg.norm(directions, axis=1, keepdims=True)
         directions[20:] *= rng.uniform(0, 1, size=(20, 1))
-        thetas = parameters.center + np.linalg.solve(np.linalg.cholesky(parameters.gramian).T, directions.T).T * parameters.radius
+        thetas = (
+            parameters.center
+            + np.linalg.solve(np.linalg.cholesky(parameters.gramian).T, directions.T).T * parameters.radius
+        )
     else:
         parameters = rng.normal(size=(int(rng.integers(1, 5)), d)) * 0.3
-        thetas = np.vstack([parameters[rng.integers(len(parameters), size=20)], rng.dirichlet(np.ones(len(parameters)), size=20) @ parameters])
+        thetas = np.vstack(
+            [
+                parameters[rng.integers(len(parameters), size=20)],
+                rng.dirichlet(np.ones(len(parameters)), size=20) @ parameters,
+            ]
+        )
     # Shift A's off-diagonal entries so that A_N = A(mean vertex) is Metzler.
     nominal = A + np.tensordot(parameter_vertices(parameters).mean(axis=0), phi, axes=1)
     off_diagonal = ~np.eye(p, dtype=bool)
@@ -41,17 +54,23 @@ def metzler_model(rng, p, d, kind):
 
 
 def simulate_euler(A, phi, B, D, w, thetas, x0s, controls, disturbances, dt):
-    system = UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=w, theta=Box(thetas.min(axis=0), thetas.max(axis=0)), dt=dt)
+    system = UncertainLinearSystem.from_continuous(
+        A, phi, B, D=D, w=w, theta=Box(thetas.min(axis=0), thetas.max(axis=0)), dt=dt
+    )
     matrices = system.A(thetas)
     states = [x0s]
     for n in range(controls.shape[0]):
-        states.append(np.einsum("nij,nj->ni", matrices, states[-1]) + controls[n] @ system.B.T + disturbances[:, n] @ system.D.T)
+        states.append(
+            np.einsum("nij,nj->ni", matrices, states[-1]) + controls[n] @ system.B.T + disturbances[:, n] @ system.D.T
+        )
     return np.stack(states, axis=1)
 
 
 def extreme_disturbances(rng, w, n, horizon):
     signs = rng.integers(0, 2, size=(n // 2, horizon, w.dim))
-    return np.concatenate([np.where(signs == 1, w.high, w.low), rng.uniform(w.low, w.high, size=(n - n // 2, horizon, w.dim))])
+    return np.concatenate(
+        [np.where(signs == 1, w.high, w.low), rng.uniform(w.low, w.high, size=(n - n // 2, horizon, w.dim))]
+    )
 
 
 @given(
@@ -91,7 +110,9 @@ def test_euler_predictor_loses_trajectories_at_large_dt():
     rng = np.random.default_rng(0)
     thetas = rng.uniform(-1, 1, size=(200, 1))
     x0s = rng.uniform(x0.low, x0.high, size=(200, 2))
-    states = simulate_euler(A, phi, B, np.eye(2), w, thetas, x0s, controls, extreme_disturbances(rng, w, 200, HORIZON), dt)
+    states = simulate_euler(
+        A, phi, B, np.eye(2), w, thetas, x0s, controls, extreme_disturbances(rng, w, 200, HORIZON), dt
+    )
     assert not tube.contains(states)  # the counterexample: some trajectory leaves the tube
     # The discrete-time predictor on the same Euler plant contains every one of them.
     system = UncertainLinearSystem.from_continuous(A, phi, B, w=w, theta=parameters, dt=dt)
@@ -110,7 +131,9 @@ def test_without_parameter_uncertainty_it_equals_the_discrete_predictor(seed, p)
     x0 = Box.from_center(rng.normal(size=p), 0.2)
     controls = rng.normal(size=(HORIZON, 1))
     continuous = predict_tube_continuous(A, phi, B, D=D, w=w, x0=x0, controls=controls, dt=dt, parameters=theta)
-    discrete = predict_tube(UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=w, theta=theta, dt=dt), x0, controls)
+    discrete = predict_tube(
+        UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=w, theta=theta, dt=dt), x0, controls
+    )
     np.testing.assert_allclose(continuous.lower, discrete.lower, rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(continuous.upper, discrete.upper, rtol=1e-10, atol=1e-10)
 
@@ -119,7 +142,12 @@ def test_condition_and_errors():
     assert euler_keeps_inclusion(np.array([[-2.0, 1.0], [0.0, -1.0]]), 0.5)
     assert not euler_keeps_inclusion(np.array([[-2.0, 1.0], [0.0, -1.0]]), 0.6)
     assert not euler_keeps_inclusion(np.array([[-1.0, -0.1], [0.0, -1.0]]), 0.01)  # not Metzler
-    args = dict(w=Box.from_center(np.zeros(2), 0.1), x0=Box.from_center(np.zeros(2), 0.1), controls=np.zeros((3, 1)), parameters=Box(np.zeros(1), np.ones(1)))
+    args = dict(
+        w=Box.from_center(np.zeros(2), 0.1),
+        x0=Box.from_center(np.zeros(2), 0.1),
+        controls=np.zeros((3, 1)),
+        parameters=Box(np.zeros(1), np.ones(1)),
+    )
     A, phi, B = -np.eye(2), np.zeros((1, 2, 2)), np.ones((2, 1))
     with pytest.raises(InputError, match="dt must be > 0, got 0.0"):
         predict_tube_continuous(A, phi, B, dt=0.0, **args)

@@ -217,9 +217,14 @@ def test_bad_options_are_rejected(name, value, error, message):
 def test_bad_shapes_and_values_are_rejected():
     with pytest.raises(DimensionError, match=r"regressors must be 3-dimensional, got shape \(2, 3\)"):
         confidence_ellipsoid(np.ones((2, 3)), np.ones((2, 1)), **OPTIONS)
-    with pytest.raises(DimensionError, match=r"targets must have shape \(4, 2\) to match regressors of shape \(4, 2, 3\), got shape \(4, 3\)"):
+    with pytest.raises(
+        DimensionError,
+        match=r"targets must have shape \(4, 2\) to match regressors of shape \(4, 2, 3\), got shape \(4, 3\)",
+    ):
         confidence_ellipsoid(np.ones((4, 2, 3)), np.ones((4, 3)), **OPTIONS)
-    with pytest.raises(DimensionError, match=r"regressors must have shape \(N, p, d\) with p, d >= 1, got shape \(4, 2, 0\)"):
+    with pytest.raises(
+        DimensionError, match=r"regressors must have shape \(N, p, d\) with p, d >= 1, got shape \(4, 2, 0\)"
+    ):
         confidence_ellipsoid(np.ones((4, 2, 0)), np.ones((4, 2)), **OPTIONS)
     with pytest.raises(NonFiniteError, match=r"targets contains NaN or infinite entries"):
         confidence_ellipsoid(np.ones((1, 1, 1)), [[np.inf]], **OPTIONS)

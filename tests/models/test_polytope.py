@@ -120,7 +120,9 @@ def test_clipping_vertices_would_be_unsound_but_the_intersection_is_not():
 def test_array_with_prior_contains_the_intersection(seed, d):
     rng = np.random.default_rng(seed)
     vertices = rng.normal(size=(d + 3, d))
-    prior = Box(vertices.mean(axis=0) - rng.uniform(0.1, 2, size=d), vertices.mean(axis=0) + rng.uniform(0.1, 2, size=d))
+    prior = Box(
+        vertices.mean(axis=0) - rng.uniform(0.1, 2, size=d), vertices.mean(axis=0) + rng.uniform(0.1, 2, size=d)
+    )
     result = parameter_vertices(vertices, prior)
     weights = rng.dirichlet(np.ones(len(vertices)) * 0.3, size=3000)
     points = weights @ vertices

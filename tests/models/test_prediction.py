@@ -72,7 +72,9 @@ def simulate(system, x0, thetas, controls, disturbances):
     states = [x0]
     for step in range(controls.shape[0]):
         x = states[-1]
-        states.append(np.einsum("nij,nj->ni", matrices, x) + controls[step] @ system.B.T + disturbances[:, step] @ system.D.T)
+        states.append(
+            np.einsum("nij,nj->ni", matrices, x) + controls[step] @ system.B.T + disturbances[:, step] @ system.D.T
+        )
     return np.stack(states, axis=1)
 
 
@@ -124,7 +126,13 @@ def test_every_trajectory_stays_in_the_tube(seed, p, d, q, dt, metzler, kind, ba
     assert tube.contains(states)
 
 
-@given(seed=st.integers(0, 2**32 - 1), p=st.integers(1, 5), d=st.integers(1, 3), dt=st.floats(0.01, 1.0), auto=st.booleans())
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    p=st.integers(1, 5),
+    d=st.integers(1, 3),
+    dt=st.floats(0.01, 1.0),
+    auto=st.booleans(),
+)
 def test_inclusion_holds_even_when_theta_varies_in_time(seed, p, d, dt, auto):
     rng = np.random.default_rng(seed)
     system = random_system(rng, p, d, 1, p, dt, metzler=bool(rng.integers(2)))
@@ -137,12 +145,21 @@ def test_inclusion_holds_even_when_theta_varies_in_time(seed, p, d, dt, auto):
     states = [x]
     for step in range(HORIZON):
         thetas = system.theta.vertices()[rng.integers(2**d, size=n)]  # a new vertex at every step
-        x = np.einsum("nij,nj->ni", system.A(thetas), x) + controls[step] @ system.B.T + disturbances[:, step] @ system.D.T
+        x = (
+            np.einsum("nij,nj->ni", system.A(thetas), x)
+            + controls[step] @ system.B.T
+            + disturbances[:, step] @ system.D.T
+        )
         states.append(x)
     assert tube.contains(np.stack(states, axis=1))
 
 
-@given(seed=st.integers(0, 2**32 - 1), p=st.integers(2, 6), d=st.integers(1, 3), kind=st.sampled_from(["box", "ellipsoid", "vertices"]))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    p=st.integers(2, 6),
+    d=st.integers(1, 3),
+    kind=st.sampled_from(["box", "ellipsoid", "vertices"]),
+)
 def test_auto_basis_is_sound_where_it_changes_the_basis(seed, p, d, kind):
     # A_N = S diag(eigenvalues) S^-1 with real eigenvalues and a random S: far from
     # nonnegative, so "auto" often adopts a non-identity basis; inclusion must hold either way.
@@ -151,13 +168,17 @@ def test_auto_basis_is_sound_where_it_changes_the_basis(seed, p, d, kind):
     nominal = S @ np.diag(rng.uniform(-0.3, 1.0, size=p)) @ np.linalg.inv(S)
     phi = rng.normal(size=(d, p, p)) * 0.02
     w = Box.from_center(rng.normal(size=p) * 0.05, rng.uniform(0, 0.1, size=p))
-    system = UncertainLinearSystem(nominal, phi, rng.normal(size=(p, 1)), D=rng.normal(size=(p, p)), w=w, theta=Box.from_center(np.zeros(d), 1.0))
+    system = UncertainLinearSystem(
+        nominal, phi, rng.normal(size=(p, 1)), D=rng.normal(size=(p, p)), w=w, theta=Box.from_center(np.zeros(d), 1.0)
+    )
     parameters, thetas = sample_parameters(rng, kind, system, 40)
     x0 = Box.from_center(rng.normal(size=p), rng.uniform(0, 0.5, size=p))
     controls = rng.normal(size=(HORIZON, 1))
     tube = predict_tube(system, x0, controls, parameters, basis="auto")
     assert tube.note.startswith("basis auto: ")
-    states = simulate(system, sample_initial_states(rng, x0, 40), thetas, controls, sample_disturbances(rng, w, 40, HORIZON))
+    states = simulate(
+        system, sample_initial_states(rng, x0, 40), thetas, controls, sample_disturbances(rng, w, 40, HORIZON)
+    )
     assert tube.contains(states)
 
 
@@ -170,7 +191,9 @@ def test_outward_rounding_keeps_a_non_normal_tube_sound():
     assert (p, d) == (3, 3)
     system = random_system(rng, p, d, 2, 3, dt, metzler=False)
     theta, w = rng.normal(size=d), rng.normal(size=3)
-    point_system = UncertainLinearSystem(system.A0, system.phi, system.B, D=system.D, w=Box(w, w), theta=Box(theta, theta))
+    point_system = UncertainLinearSystem(
+        system.A0, system.phi, system.B, D=system.D, w=Box(w, w), theta=Box(theta, theta)
+    )
     x, controls, basis = rng.normal(size=p), rng.normal(size=(HORIZON, 2)), random_basis(rng, p)
     states = [x]
     for u in controls:
@@ -193,8 +216,14 @@ def test_outward_rounding_keeps_a_non_normal_tube_sound():
     assert tube.contains(states, tol=1e-13)
     assert np.all(tube.lower <= tube.upper)
     # The same non-normal matrix as the system itself, identity basis: the step's own margins.
-    internal = UncertainLinearSystem(matrix, np.zeros((1, p, p)), inverse @ point_system.B, D=inverse @ point_system.D,
-                                     w=Box(w, w), theta=Box(np.zeros(1), np.zeros(1)))
+    internal = UncertainLinearSystem(
+        matrix,
+        np.zeros((1, p, p)),
+        inverse @ point_system.B,
+        D=inverse @ point_system.D,
+        w=Box(w, w),
+        theta=Box(np.zeros(1), np.zeros(1)),
+    )
     z0 = inverse @ x
     internal_states = [z0]
     for u in controls:
@@ -212,7 +241,11 @@ def test_box_corners_are_exact():
 
 def test_overflow_is_reported():
     system = UncertainLinearSystem(
-        1e3 * np.eye(2), np.zeros((1, 2, 2)), np.ones((2, 1)), w=Box.from_center(np.zeros(2), 1.0), theta=Box(np.zeros(1), np.ones(1))
+        1e3 * np.eye(2),
+        np.zeros((1, 2, 2)),
+        np.ones((2, 1)),
+        w=Box.from_center(np.zeros(2), 1.0),
+        theta=Box(np.zeros(1), np.ones(1)),
     )
     with pytest.raises(NonFiniteError, match=r"the tube's bounds overflowed at step 10\d of 200"):
         predict_tube(system, Box.from_center(np.zeros(2), 1.0), np.zeros((200, 1)))
@@ -265,7 +298,13 @@ def test_at_least_as_tight_as_the_errata_predictor(seed, p, d, dt):
         assert np.all(tube.lower[n + 1] >= lower - slack) and np.all(tube.upper[n + 1] <= upper + slack)
 
 
-@given(seed=st.integers(0, 2**32 - 1), p=st.integers(1, 6), d=st.integers(1, 4), dt=st.floats(0.01, 1.0), basis=st.sampled_from([None, "random"]))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    p=st.integers(1, 6),
+    d=st.integers(1, 4),
+    dt=st.floats(0.01, 1.0),
+    basis=st.sampled_from([None, "random"]),
+)
 def test_tube_of_a_point_without_uncertainty_is_the_simulation(seed, p, d, dt, basis):
     rng = np.random.default_rng(seed)
     system = random_system(rng, p, d, 2, 3, dt, metzler=False)
@@ -296,7 +335,13 @@ def test_tube_of_a_point_without_uncertainty_is_the_simulation(seed, p, d, dt, b
         assert np.all(tube.widths[HORIZON] <= bound)
 
 
-@given(seed=st.integers(0, 2**32 - 1), p=st.integers(1, 5), d=st.integers(1, 3), dt=st.floats(0.01, 1.0), fixed_basis=st.booleans())
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    p=st.integers(1, 5),
+    d=st.integers(1, 3),
+    dt=st.floats(0.01, 1.0),
+    fixed_basis=st.booleans(),
+)
 def test_a_smaller_parameter_set_gives_a_nested_tube(seed, p, d, dt, fixed_basis):
     rng = np.random.default_rng(seed)
     system = random_system(rng, p, d, 1, p, dt, metzler=bool(rng.integers(2)))
@@ -304,9 +349,7 @@ def test_a_smaller_parameter_set_gives_a_nested_tube(seed, p, d, dt, fixed_basis
     controls = rng.normal(size=(HORIZON, 1))
     basis = random_basis(rng, p) if fixed_basis else None
     big = system.theta
-    small = Box(
-        rng.uniform(big.low, big.center), rng.uniform(big.center, big.high)
-    )
+    small = Box(rng.uniform(big.low, big.center), rng.uniform(big.center, big.high))
     ellipsoid = random_ellipsoid(rng, d)
     smaller_ellipsoid = Ellipsoid(ellipsoid.center, ellipsoid.gramian, ellipsoid.radius * rng.uniform(0.1, 1.0))
     vertices = rng.normal(size=(5, d))
@@ -324,7 +367,9 @@ def test_auto_basis_narrows_a_non_metzler_system_and_says_so():
     A = np.array([[0.9, 0.5], [-0.1, 0.2]])
     phi = np.zeros((1, 2, 2))
     phi[0, 0, 0] = 0.01
-    system = UncertainLinearSystem(A, phi, np.ones((2, 1)), w=Box.from_center(np.zeros(2), 0.01), theta=Box.from_center(np.zeros(1), 1.0))
+    system = UncertainLinearSystem(
+        A, phi, np.ones((2, 1)), w=Box.from_center(np.zeros(2), 0.01), theta=Box.from_center(np.zeros(1), 1.0)
+    )
     x0 = Box.from_center(np.ones(2), 0.1)
     controls = np.zeros((40, 1))
     plain = predict_tube(system, x0, controls)
@@ -338,8 +383,11 @@ def test_auto_basis_narrows_a_non_metzler_system_and_says_so():
 
 def test_auto_basis_keeps_the_identity_when_nothing_helps():
     system = UncertainLinearSystem(
-        np.array([[0.9, 0.1], [0.0, 0.8]]), np.zeros((1, 2, 2)), np.ones((2, 1)),
-        w=Box.from_center(np.zeros(2), 0.01), theta=Box.from_center(np.zeros(1), 1.0),
+        np.array([[0.9, 0.1], [0.0, 0.8]]),
+        np.zeros((1, 2, 2)),
+        np.ones((2, 1)),
+        w=Box.from_center(np.zeros(2), 0.01),
+        theta=Box.from_center(np.zeros(1), 1.0),
     )
     predictor = IntervalPredictor(system, basis="auto")
     assert "kept the identity" in predictor.basis_note
@@ -387,7 +435,12 @@ def test_tube_contains_and_to_dict():
     assert tube.contains(np.full((3, 2), 1.0 + 1e-10))
     assert not tube.contains(np.full((3, 2), 1.0 + 1e-10), tol=0.0)
     np.testing.assert_array_equal(tube.widths, np.ones((3, 2)))
-    assert tube.to_dict() == {"lower": np.zeros((3, 2)).tolist(), "upper": np.ones((3, 2)).tolist(), "guaranteed": True, "note": ""}
+    assert tube.to_dict() == {
+        "lower": np.zeros((3, 2)).tolist(),
+        "upper": np.ones((3, 2)).tolist(),
+        "guaranteed": True,
+        "note": "",
+    }
     with pytest.raises(DimensionError, match=r"states must have shape \(3, 2\) .*got shape \(2, 2\)"):
         tube.contains(np.zeros((2, 2)))
     with pytest.raises(DimensionError, match=r"lower and upper must have the same shape, got \(3, 2\) and \(2, 2\)"):
@@ -400,7 +453,11 @@ def test_tube_contains_and_to_dict():
 @pytest.fixture
 def small_system():
     return UncertainLinearSystem(
-        np.eye(2), np.ones((1, 2, 2)), np.ones((2, 1)), w=Box.from_center(np.zeros(2), 0.1), theta=Box.from_center(np.zeros(1), 0.1)
+        np.eye(2),
+        np.ones((1, 2, 2)),
+        np.ones((2, 1)),
+        w=Box.from_center(np.zeros(2), 0.1),
+        theta=Box.from_center(np.zeros(1), 0.1),
     )
 
 
@@ -418,11 +475,14 @@ def test_bad_arguments_are_rejected(small_system):
         predict_tube(small_system, np.zeros(2), np.zeros((3, 1)))
     with pytest.raises(InputError, match="system must be an UncertainLinearSystem, got dict"):
         predict_tube({}, x0, np.zeros((3, 1)))
-    with pytest.raises(DimensionError, match=r"parameters must have dimension 1 \(phi has shape \(1, 2, 2\)\), got vertices of shape \(4, 2\)"):
+    with pytest.raises(
+        DimensionError,
+        match=r"parameters must have dimension 1 \(phi has shape \(1, 2, 2\)\), got vertices of shape \(4, 2\)",
+    ):
         predict_tube(small_system, x0, np.zeros((3, 1)), Box.from_center(np.zeros(2), 0.1))
     with pytest.raises(NonFiniteError, match="parameters contains NaN"):
         predict_tube(small_system, x0, np.zeros((3, 1)), np.array([[np.nan]]))
-    with pytest.raises(InputError, match='basis must be None, "auto" or a \\(p, p\\) matrix, got \'eig\''):
+    with pytest.raises(InputError, match="basis must be None, \"auto\" or a \\(p, p\\) matrix, got 'eig'"):
         predict_tube(small_system, x0, np.zeros((3, 1)), basis="eig")
     with pytest.raises(DimensionError, match=r"basis must have shape \(2, 2\), got shape \(3, 3\)"):
         predict_tube(small_system, x0, np.zeros((3, 1)), basis=np.eye(3))

@@ -23,7 +23,11 @@ def _noise(rng, mode, bounds):
     if mode == "extreme":  # every row at +-bound: the strips touch theta*
         return bounds * rng.choice([-1.0, 1.0], size=bounds.shape)
     if mode == "mixed":
-        return np.where(rng.random(bounds.shape) < 0.5, rng.uniform(-bounds, bounds), bounds * np.sign(rng.normal(size=bounds.shape)))
+        return np.where(
+            rng.random(bounds.shape) < 0.5,
+            rng.uniform(-bounds, bounds),
+            bounds * np.sign(rng.normal(size=bounds.shape)),
+        )
     return np.zeros_like(bounds)
 
 
@@ -99,7 +103,9 @@ def test_documented_use_with_a_simulated_system(seed, log_dt):
     D = rng.normal(size=(p, 2))
     w_box = Box.from_center(np.zeros(2), rng.uniform(0.01, 0.2, size=2))
     prior = Box([-1.0, -1.0], [1.0, 1.0])
-    system = UncertainLinearSystem.from_continuous(A, phi, rng.normal(size=(p, 1)), D=D, w=w_box, theta=prior, dt=10.0**log_dt)
+    system = UncertainLinearSystem.from_continuous(
+        A, phi, rng.normal(size=(p, 1)), D=D, w=w_box, theta=prior, dt=10.0**log_dt
+    )
     theta = rng.uniform(prior.low, prior.high)
     noise_bound = np.abs(system.D) @ w_box.high  # per row, for a box centred at 0
     estimator = SetMembershipEstimator(d, noise_bound=noise_bound, prior=prior)

@@ -197,7 +197,9 @@ def test_bounding_box_encloses_the_boundary_and_is_tight(seed, d):
         assert ell.contains(extreme, tol=1e-9)
         # both routes (inverse here, solve there) lose ~cond(G) eps of the largest semi-axis, and
         # the box is rounded outward by at most the documented margin of its half-width
-        margin = (SUPPORT_MARGIN + SUPPORT_ROUNDING * d * np.finfo(float).eps * np.linalg.cond(ell.gramian)) * box.radius[i]
+        margin = (
+            SUPPORT_MARGIN + SUPPORT_ROUNDING * d * np.finfo(float).eps * np.linalg.cond(ell.gramian)
+        ) * box.radius[i]
         assert extreme[i] == pytest.approx(box.high[i], rel=1e-9, abs=1e-9 * largest_axis + 1e-12 * scale[i] + margin)
 
 
@@ -303,7 +305,9 @@ def _in_quadrilateral_exactly(corners, point):
 def test_bounding_box_contains_the_exact_extreme_points(seed, d):
     """The maximiser of ``t_i`` over the ellipsoid, moved to the last float exactly inside, is in the box."""
     rng = np.random.default_rng(seed)
-    ell = Ellipsoid(rng.normal(size=d) * 10.0 ** rng.uniform(-3, 3), _random_gramian(rng, d), 10.0 ** rng.uniform(-2, 2))
+    ell = Ellipsoid(
+        rng.normal(size=d) * 10.0 ** rng.uniform(-3, 3), _random_gramian(rng, d), 10.0 ** rng.uniform(-2, 2)
+    )
     box = ell.bounding_box()
     inverse = np.linalg.inv(ell.gramian)
     for i in range(d):
@@ -321,7 +325,9 @@ def test_2d_vertices_contain_the_exact_boundary_points(seed):
     point by one ulp fails.
     """
     rng = np.random.default_rng(seed)
-    ell = Ellipsoid(rng.normal(size=2) * 10.0 ** rng.uniform(-3, 3), _random_gramian(rng, 2), 10.0 ** rng.uniform(-2, 2))
+    ell = Ellipsoid(
+        rng.normal(size=2) * 10.0 ** rng.uniform(-3, 3), _random_gramian(rng, 2), 10.0 ** rng.uniform(-2, 2)
+    )
     vertices = ell.vertices()
     corners = vertices[[0, 1, 3, 2]]  # sign vectors (--, -+, ++, +-) of the axes: cyclic order
     lengths, axes = ell.semi_axes()

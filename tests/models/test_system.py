@@ -76,7 +76,9 @@ def test_from_continuous_is_forward_euler(seed, p, d, log_dt):
     np.testing.assert_allclose(system.A0, np.eye(p) + dt * A, rtol=1e-15, atol=0)
     assert system.w == w and system.theta == theta_box
     # D defaults to the identity, scaled by dt
-    default = UncertainLinearSystem.from_continuous(A, phi, B, w=Box.from_center(np.zeros(p), 1.0), theta=theta_box, dt=dt)
+    default = UncertainLinearSystem.from_continuous(
+        A, phi, B, w=Box.from_center(np.zeros(p), 1.0), theta=theta_box, dt=dt
+    )
     np.testing.assert_allclose(default.D, dt * np.eye(p), rtol=1e-15, atol=0)
 
 
@@ -112,7 +114,9 @@ def test_from_statespace_discrete_uses_its_own_matrices_and_dt():
     with pytest.raises(InputError, match=r"dt must be > 0, got -0.1"):
         UncertainLinearSystem.from_statespace(sys, phi, D=D, dt=-0.1, phi_time="discrete", **boxes)
     unspecified = control.ss(A, B, np.eye(2), np.zeros((2, 1)), dt=True)
-    np.testing.assert_array_equal(UncertainLinearSystem.from_statespace(unspecified, phi, D=D, phi_time="discrete", **boxes).A0, A)
+    np.testing.assert_array_equal(
+        UncertainLinearSystem.from_statespace(unspecified, phi, D=D, phi_time="discrete", **boxes).A0, A
+    )
     ambiguous = control.ss(A, B, np.eye(2), np.zeros((2, 1)), dt=None)
     with pytest.raises(InputError, match=r"sys has an unspecified timebase \(dt=None\)"):
         UncertainLinearSystem.from_statespace(ambiguous, phi, D=D, dt=0.1, phi_time="discrete", **boxes)
@@ -130,7 +134,10 @@ def test_from_statespace_never_adds_a_continuous_phi_to_a_discrete_sys():
     with pytest.raises(InputError, match=r"phi_time is required when sys is discrete-time \(dt=0.1\)"):
         UncertainLinearSystem.from_statespace(discrete, phi_c, **boxes)
     # a continuous phi with a discrete sys is refused: its discretisation depends on how sys.A was made
-    with pytest.raises(InputError, match=r"phi_time='continuous' with a discrete-time sys \(dt=0.1\).*continuous-time StateSpace with dt="):
+    with pytest.raises(
+        InputError,
+        match=r"phi_time='continuous' with a discrete-time sys \(dt=0.1\).*continuous-time StateSpace with dt=",
+    ):
         UncertainLinearSystem.from_statespace(discrete, phi_c, phi_time="continuous", **boxes)
     with pytest.raises(InputError, match=r"phi_time must be one of \('continuous', 'discrete', None\), got 'ct'"):
         UncertainLinearSystem.from_statespace(discrete, phi_c, phi_time="ct", **boxes)
@@ -165,7 +172,9 @@ def test_system_is_immutable_and_does_not_alias():
 
 
 def test_one_dimensional_input_matrix_is_a_column():
-    system = UncertainLinearSystem(np.eye(3), np.zeros((1, 3, 3)), np.ones(3), w=Box.from_center(np.zeros(3), 1.0), theta=Box([0.0], [1.0]))
+    system = UncertainLinearSystem(
+        np.eye(3), np.zeros((1, 3, 3)), np.ones(3), w=Box.from_center(np.zeros(3), 1.0), theta=Box([0.0], [1.0])
+    )
     assert system.B.shape == (3, 1) and system.ninputs == 1
 
 

@@ -108,8 +108,17 @@ def test_fcl_box_box_distance_is_not_used_because_it_fails_on_aligned_boxes():
     """Why box-box cross-checks go through fcl collisions: fcl's GJK distance, not the closed form, is wrong here."""
     from minimaxplan.scenarios.geometry import _fcl_box, _fcl_distance
 
-    assert _fcl_distance(_fcl_box([0.0, 0.0], [1.0, 1.0]), _fcl_box([0.0, 2.0], [1.0, 4.0])) == pytest.approx(np.sqrt(2.0))
-    assert np.sqrt(box_box_sq_distance(np.array([0.0, 0.0]), np.array([1.0, 1.0]), np.array([[0.0, 2.0]]), np.array([[1.0, 4.0]])))[0] == 1.0
+    assert _fcl_distance(_fcl_box([0.0, 0.0], [1.0, 1.0]), _fcl_box([0.0, 2.0], [1.0, 4.0])) == pytest.approx(
+        np.sqrt(2.0)
+    )
+    assert (
+        np.sqrt(
+            box_box_sq_distance(
+                np.array([0.0, 0.0]), np.array([1.0, 1.0]), np.array([[0.0, 2.0]]), np.array([[1.0, 4.0]])
+            )
+        )[0]
+        == 1.0
+    )
     assert fcl_box_meets_grown_box([0.0, 0.0], [1.0, 1.0], [0.0, 2.0], [1.0, 4.0], 1.0)
     assert not fcl_box_meets_grown_box([0.0, 0.0], [1.0, 1.0], [0.0, 2.0], [1.0, 4.0], 1.0 - 1e-9)
 
@@ -124,11 +133,13 @@ def test_flat_and_point_boxes_against_the_closed_form(box, other):
     for i in range(lo.shape[0]):
         # the distance between boxes is the smaller of point-box distances from the
         # boundary points of either box; sample both boundaries finely
-        ring = np.concatenate([
-            np.stack([lo[i][0] + t * (hi[i][0] - lo[i][0]), np.full_like(t, y)], axis=1) for y in (lo[i][1], hi[i][1])
-        ] + [
-            np.stack([np.full_like(t, x), lo[i][1] + t * (hi[i][1] - lo[i][1])], axis=1) for x in (lo[i][0], hi[i][0])
-        ])
+        ring = np.concatenate(
+            [np.stack([lo[i][0] + t * (hi[i][0] - lo[i][0]), np.full_like(t, y)], axis=1) for y in (lo[i][1], hi[i][1])]
+            + [
+                np.stack([np.full_like(t, x), lo[i][1] + t * (hi[i][1] - lo[i][1])], axis=1)
+                for x in (lo[i][0], hi[i][0])
+            ]
+        )
         to_other = np.sqrt(box_point_sq_distance(olo, ohi, ring)).min()
         other_ring = olo + np.stack(np.meshgrid(t, t), axis=-1).reshape(-1, 2) * (ohi - olo)
         to_box = np.sqrt(box_point_sq_distance(lo[i], hi[i], other_ring)).min()
@@ -230,7 +241,11 @@ def test_moving_boxes_contain_every_admissible_trajectory(dt, steps, speed_sprea
 def test_moving_boxes_meet_against_fcl():
     rng = np.random.default_rng(1)
     moving = MovingObstacles(
-        rng.uniform(-3, 3, (4, 2)), rng.uniform(-1, 1, (4, 2)), rng.uniform(0.2, 0.5, 4), velocity_uncertainty=0.3, dt=0.1
+        rng.uniform(-3, 3, (4, 2)),
+        rng.uniform(-1, 1, (4, 2)),
+        rng.uniform(0.2, 0.5, 4),
+        velocity_uncertainty=0.3,
+        dt=0.1,
     )
     lo = rng.uniform(-4, 4, (50, 2))
     hi = lo + rng.uniform(0, 1, (50, 2))

@@ -18,7 +18,9 @@ from minimaxplan.scenarios.gym_env import ENV_ID, OBSERVED_OBSTACLES, RobotNavig
 from minimaxplan.scenarios.worlds import make_world  # noqa: E402
 
 
-@pytest.mark.parametrize("kind, measurement", [("static", "uniform"), ("pedestrian", "uniform"), ("pedestrian", "gaussian")])
+@pytest.mark.parametrize(
+    "kind, measurement", [("static", "uniform"), ("pedestrian", "uniform"), ("pedestrian", "gaussian")]
+)
 def test_env_passes_the_gymnasium_checker(kind, measurement):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the checker's warnings count as failures too

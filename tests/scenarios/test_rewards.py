@@ -109,8 +109,15 @@ def test_speed_lane_reward_box_minimum_is_exact(seed, n_speed, with_lane, t):
 
 
 def test_speed_interval_of_a_box_containing_the_origin():
-    reward = SpeedLaneReward(target_speed=2.0, speed_range=4.0, speed_indices=(0, 1), lateral_index=None,
-                             speed_weight=1.0, lane_weight=0.0, position_indices=(2, 3))
+    reward = SpeedLaneReward(
+        target_speed=2.0,
+        speed_range=4.0,
+        speed_indices=(0, 1),
+        lateral_index=None,
+        speed_weight=1.0,
+        lane_weight=0.0,
+        position_indices=(2, 3),
+    )
     lo, hi = np.array([-1.0, -0.5, 0, 0]), np.array([1.0, 3.0, 0, 0])
     # speeds over the box span [0, sqrt(1 + 9)]: worst deviation max(2, sqrt(10) - 2) = 2
     assert reward.box_minimum(lo, hi)[0] == pytest.approx(0.5)
@@ -158,8 +165,9 @@ def test_vectorised_over_leading_dimensions_and_times():
 @given(seeds, st.integers(0, 20))
 def test_true_pedestrian_positions_inside_their_boxes_never_collide_unseen(seed, t):
     rng = np.random.default_rng(seed)
-    moving = MovingObstacles(rng.uniform(-2, 2, (3, 2)), rng.uniform(-1, 1, (3, 2)), np.full(3, 0.3),
-                             velocity_uncertainty=0.3, dt=0.1)
+    moving = MovingObstacles(
+        rng.uniform(-2, 2, (3, 2)), rng.uniform(-1, 1, (3, 2)), np.full(3, 0.3), velocity_uncertainty=0.3, dt=0.1
+    )
     reward = GoalReward([5.0, 5.0], moving_obstacles=moving, robot_radius=0.3)
     olo, ohi = moving.boxes(t)
     true_positions = rng.uniform(olo, ohi)

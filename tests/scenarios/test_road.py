@@ -26,8 +26,14 @@ def _close(a, b):
     return np.allclose(a, b, rtol=0.0, atol=1e-9 * (1.0 + np.max(np.abs(b))))
 
 
-@given(x0=coords, y0=coords, angle=st.floats(-np.pi, np.pi), length=st.floats(1.0, 500.0),
-       s=st.floats(-600, 600), offset=small)
+@given(
+    x0=coords,
+    y0=coords,
+    angle=st.floats(-np.pi, np.pi),
+    length=st.floats(1.0, 500.0),
+    s=st.floats(-600, 600),
+    offset=small,
+)
 def test_straight_lane_frenet_maps_invert_each_other(x0, y0, angle, length, s, offset):
     start = np.array([x0, y0])
     lane = StraightLane(start, start + length * np.array([np.cos(angle), np.sin(angle)]))
@@ -38,9 +44,16 @@ def test_straight_lane_frenet_maps_invert_each_other(x0, y0, angle, length, s, o
     assert _close(q, [x0 + offset, y0 + s])
 
 
-@given(cx=coords, cy=coords, radius=st.floats(3.0, 60.0), start=st.floats(-np.pi, np.pi),
-       sweep=st.floats(0.1, 2 * np.pi - 0.1), left=st.booleans(),
-       u=st.floats(-0.99, 0.99), v=st.floats(-0.95, 0.95))
+@given(
+    cx=coords,
+    cy=coords,
+    radius=st.floats(3.0, 60.0),
+    start=st.floats(-np.pi, np.pi),
+    sweep=st.floats(0.1, 2 * np.pi - 0.1),
+    left=st.booleans(),
+    u=st.floats(-0.99, 0.99),
+    v=st.floats(-0.95, 0.95),
+)
 def test_arc_lane_frenet_maps_invert_each_other(cx, cy, radius, start, sweep, left, u, v):
     lane = ArcLane(np.array([cx, cy]), radius, start, sweep if left else -sweep, width=min(4.0, radius))
     d = lane.direction_sign
@@ -53,8 +66,13 @@ def test_arc_lane_frenet_maps_invert_each_other(cx, cy, radius, start, sweep, le
     assert _close(q, [cx + radius * (1 + u), cy + radius * v])
 
 
-@given(radius=st.floats(3.0, 60.0), start=st.floats(-np.pi, np.pi), sweep=st.floats(0.2, 3.0),
-       left=st.booleans(), fraction=st.floats(0.05, 0.95))
+@given(
+    radius=st.floats(3.0, 60.0),
+    start=st.floats(-np.pi, np.pi),
+    sweep=st.floats(0.2, 3.0),
+    left=st.booleans(),
+    fraction=st.floats(0.05, 0.95),
+)
 def test_arc_heading_and_curvature_are_the_derivatives_of_the_centre_line(radius, start, sweep, left, fraction):
     lane = ArcLane(np.zeros(2), radius, start, sweep if left else -sweep)
     s, h = fraction * lane.length, 1e-6 * radius
@@ -158,8 +176,14 @@ def test_road_rejects_bad_input():
     with pytest.raises(DimensionError, match=r"points must have shape \(\.\.\., 2\)"):
         road.on_road(np.zeros((3, 3)))
     with pytest.raises(InputError, match="apart"):
-        Road(lanes=(StraightLane(np.zeros(2), np.array([1.0, 0.0])), StraightLane(np.array([2.0, 0.0]), np.array([3.0, 0.0]))),
-             names=("a", "b"), connections=((0, 1),))
+        Road(
+            lanes=(
+                StraightLane(np.zeros(2), np.array([1.0, 0.0])),
+                StraightLane(np.array([2.0, 0.0]), np.array([3.0, 0.0])),
+            ),
+            names=("a", "b"),
+            connections=((0, 1),),
+        )
     with pytest.raises(InputError, match="unique names"):
         Road(lanes=(StraightLane(np.zeros(2), np.ones(2)),), names=("a", "b"))
 
@@ -169,4 +193,6 @@ def test_road_rejects_bad_input():
 def test_wrap_to_pi(angle):
     wrapped = float(wrap_to_pi(angle))
     assert -np.pi <= wrapped < np.pi
-    assert np.isclose(np.cos(wrapped), np.cos(angle), atol=1e-9) and np.isclose(np.sin(wrapped), np.sin(angle), atol=1e-9)
+    assert np.isclose(np.cos(wrapped), np.cos(angle), atol=1e-9) and np.isclose(
+        np.sin(wrapped), np.sin(angle), atol=1e-9
+    )

@@ -17,9 +17,7 @@ def test_robot_system_is_forward_euler_of_the_friction_double_integrator():
     assert isinstance(sys, UncertainLinearSystem)
     assert (sys.nstates, sys.ninputs, sys.nparams, sys.ndisturbances) == (4, 2, 2, 2)
     xi = np.array([0.3, 0.7])
-    expected_A = np.array(
-        [[1, 0, dt, 0], [0, 1, 0, dt], [0, 0, 1 - dt * xi[0], 0], [0, 0, 0, 1 - dt * xi[1]]]
-    )
+    expected_A = np.array([[1, 0, dt, 0], [0, 1, 0, dt], [0, 0, 1 - dt * xi[0], 0], [0, 0, 0, 1 - dt * xi[1]]])
     np.testing.assert_allclose(sys.A(xi), expected_A, rtol=0, atol=1e-15)
     np.testing.assert_allclose(sys.B, dt * np.array([[0, 0], [0, 0], [1, 0], [0, 1]]))
     np.testing.assert_allclose(sys.D, dt * np.array([[0, 0], [0, 0], [1, 0], [0, 1]]))

@@ -30,18 +30,27 @@ NOMINAL_A = np.array([0.3, 0.3, 2.0])
 NOMINAL_B = np.array([5.0, 8.33])
 
 
-def _traffic(states, routes, *, controlled=None, theta_a=None, timer=None, interval=None, courteous=None,
-             target_speed=None):
+def _traffic(
+    states, routes, *, controlled=None, theta_a=None, timer=None, interval=None, courteous=None, target_speed=None
+):
     states = np.asarray(states, dtype=float)
     n = states.shape[0]
     routes = np.asarray(routes, dtype=int)
     return TrafficState(
-        states=states, controlled=np.zeros(n, bool) if controlled is None else np.asarray(controlled),
-        spawned=np.ones(n, bool), exited=np.zeros(n, bool), spawn_step=np.zeros(n, int), routes=routes,
-        route_index=np.zeros(n, int), theta_a=np.tile(NOMINAL_A, (n, 1)) if theta_a is None else theta_a,
-        theta_b=np.tile(NOMINAL_B, (n, 1)), target_speed=states[:, 2].copy() if target_speed is None else target_speed,
-        timer=np.full(n, np.inf) if timer is None else timer, interval=np.ones(n) if interval is None else interval,
-        courteous=np.zeros(n, bool) if courteous is None else courteous, committed=np.zeros(n, bool),
+        states=states,
+        controlled=np.zeros(n, bool) if controlled is None else np.asarray(controlled),
+        spawned=np.ones(n, bool),
+        exited=np.zeros(n, bool),
+        spawn_step=np.zeros(n, int),
+        routes=routes,
+        route_index=np.zeros(n, int),
+        theta_a=np.tile(NOMINAL_A, (n, 1)) if theta_a is None else theta_a,
+        theta_b=np.tile(NOMINAL_B, (n, 1)),
+        target_speed=states[:, 2].copy() if target_speed is None else target_speed,
+        timer=np.full(n, np.inf) if timer is None else timer,
+        interval=np.ones(n) if interval is None else interval,
+        courteous=np.zeros(n, bool) if courteous is None else courteous,
+        committed=np.zeros(n, bool),
         yield_time=np.zeros(n),
     )
 
@@ -64,8 +73,16 @@ def test_parameters_are_drawn_from_the_reference_priors():
 finite = st.floats(-50, 50)
 
 
-@given(v=st.floats(0, 40), vt=st.floats(0, 40), vf=st.floats(0, 40), gap=st.floats(-5, 200),
-       a1=st.floats(0.15, 0.45), a2=st.floats(0.15, 0.45), a3=st.floats(1.0, 3.0), w=st.floats(-0.1, 0.1))
+@given(
+    v=st.floats(0, 40),
+    vt=st.floats(0, 40),
+    vf=st.floats(0, 40),
+    gap=st.floats(-5, 200),
+    a1=st.floats(0.15, 0.45),
+    a2=st.floats(0.15, 0.45),
+    a3=st.floats(1.0, 3.0),
+    w=st.floats(-0.1, 0.1),
+)
 def test_acceleration_law_matches_its_formula(v, vt, vf, gap, a1, a2, a3, w):
     f = acceleration_features([v], [vt], [vf], [gap])
     d0, headway = BEHAVIOUR.standstill_distance, BEHAVIOUR.time_headway
@@ -95,8 +112,14 @@ def test_clip_and_disturbance_bounds_hold_at_their_extremes(sign):
     assert steer[0] == sign * VEHICLE.max_steering
 
 
-@given(h=st.floats(-10, 10), psi=st.floats(-10, 10), off=st.floats(-5, 5), v=st.floats(0, 40),
-       b1=st.floats(4.93, 5.07), b2=st.floats(6.83, 9.83))
+@given(
+    h=st.floats(-10, 10),
+    psi=st.floats(-10, 10),
+    off=st.floats(-5, 5),
+    v=st.floats(0, 40),
+    b1=st.floats(4.93, 5.07),
+    b2=st.floats(6.83, 9.83),
+)
 def test_steering_law_matches_its_formula(h, psi, off, v, b1, b2):
     g = steering_features([h], [psi], [off], [v], 5.0)
     vv = max(v, 0.01)
@@ -113,8 +136,10 @@ def test_bicycle_step():
     assert nxt[1, 2] == 0.0  # no reversing
     assert nxt[2, 2] == 40.0  # max speed
     beta = np.arctan(0.5 * np.tan(0.2))
-    assert np.allclose(nxt[3], [1.0 + 0.5 * np.cos(1.0 + beta), 2.0 + 0.5 * np.sin(1.0 + beta), 5.0,
-                                1.0 + 5.0 * np.sin(beta) / 2.5 * 0.1])
+    assert np.allclose(
+        nxt[3],
+        [1.0 + 0.5 * np.cos(1.0 + beta), 2.0 + 0.5 * np.sin(1.0 + beta), 5.0, 1.0 + 5.0 * np.sin(beta) / 2.5 * 0.1],
+    )
     with pytest.raises(DimensionError, match=r"states must have shape \(n, 4\)"):
         bicycle_step(np.zeros((2, 3)), np.zeros(2), np.zeros(2), 0.1)
 
@@ -165,8 +190,9 @@ def test_traffic_step_applies_the_law_it_records():
     f = record.features
     assert np.allclose(record.acceleration, np.clip(np.einsum("ij,ij->i", theta_a, f), -6, 6) + record.disturbance)
     assert np.all(np.abs(record.disturbance) <= 0.1)
-    assert np.allclose(record.steering, np.clip(np.einsum("ij,ij->i", before.theta_b, record.steering_features),
-                                                -np.pi / 3, np.pi / 3))
+    assert np.allclose(
+        record.steering, np.clip(np.einsum("ij,ij->i", before.theta_b, record.steering_features), -np.pi / 3, np.pi / 3)
+    )
     assert np.allclose(traffic.states, bicycle_step(before.states, record.acceleration, record.steering, 0.1))
     assert record.leader.tolist() == [1, -1, -1, -1] and np.isclose(record.gap[0], 20.0)
     assert record.intention.tolist() == [0, 0, 1, 2]
@@ -202,8 +228,12 @@ def _junction_traffic(main_x, main_speed, *, courteous=False):
     p = road.position_at(stem[0], road.lengths[stem[0]] - 3.5)
     s_main = main_x + 111.0
     q = road.position_at(main[0], s_main)
-    traffic = _traffic([[*p, 0.0, np.pi / 2], [*q, main_speed, 0.0]], [stem, main],
-                       target_speed=np.array([8.0, main_speed]), courteous=np.array([False, courteous]))
+    traffic = _traffic(
+        [[*p, 0.0, np.pi / 2], [*q, main_speed, 0.0]],
+        [stem, main],
+        target_speed=np.array([8.0, main_speed]),
+        courteous=np.array([False, courteous]),
+    )
     return road, traffic
 
 
@@ -272,8 +302,14 @@ def test_applied_accelerations_stay_within_the_clip_plus_the_disturbance(seed):
     lanes = rng.integers(3, size=n)
     states = np.stack([x, 4.0 * lanes, rng.uniform(15, 30, size=n), np.zeros(n)], axis=1)
     theta_a, _ = draw_parameters(rng, n)
-    traffic = _traffic(states, lanes[:, None], theta_a=theta_a, target_speed=rng.uniform(0, 40, size=n),
-                       timer=rng.uniform(0, 3, size=n), interval=np.full(n, 3.0))
+    traffic = _traffic(
+        states,
+        lanes[:, None],
+        theta_a=theta_a,
+        target_speed=rng.uniform(0, 40, size=n),
+        timer=rng.uniform(0, 3, size=n),
+        interval=np.full(n, 3.0),
+    )
     _, records = _run(traffic, road, 50, seed=seed)
     for r in records:
         assert np.all(np.abs(r.disturbance) <= 0.1)

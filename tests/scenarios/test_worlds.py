@@ -89,7 +89,9 @@ def test_layout_constraints(kind, seed):
         assert world.obstacles.clearance(point) >= p.robot_radius + START_GOAL_CLEARANCE
     assert p.goal_distance_low <= np.linalg.norm(world.goal - world.start) <= p.goal_distance_high
     assert np.all(world.obstacles.centers >= 0) and np.all(world.obstacles.centers <= p.arena_size)
-    assert layout_has_path(world.start, world.goal, world.obstacles, robot_radius=p.robot_radius, arena_size=p.arena_size)
+    assert layout_has_path(
+        world.start, world.goal, world.obstacles, robot_radius=p.robot_radius, arena_size=p.arena_size
+    )
     assert world.system.theta.contains(world.true_theta)
     assert np.array_equal(world.state, np.concatenate([world.start, np.zeros(2)]))
 
@@ -101,6 +103,7 @@ def test_layout_has_path_detects_a_blocking_wall():
     start, goal = np.array([3.0, 10.0]), np.array([17.0, 10.0])
     assert not layout_has_path(start, goal, wall, robot_radius=0.3, arena_size=20.0)
     assert layout_has_path(start, goal, CircularObstacles.empty(), robot_radius=0.3, arena_size=20.0)
+
     def wall_without(half_gap):
         keep = np.abs(ys - 10.0) > half_gap
         return CircularObstacles(wall.centers[keep], np.full(int(keep.sum()), 0.4))
@@ -165,7 +168,9 @@ def test_world_steps_exactly_with_its_discrete_model(kind, seed):
         w = world.last_disturbance
         assert np.all(np.abs(w) <= 0.1)
         assert np.array_equal(world.state, world.system.step(before, u, world.true_theta, w))
-        np.testing.assert_allclose(world.state, A @ before + world.system.B @ u + world.system.D @ w, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            world.state, A @ before + world.system.B @ u + world.system.D @ w, rtol=0, atol=1e-12
+        )
 
 
 def test_uniform_measurement_noise_is_bounded_and_gaussian_is_not():
@@ -244,7 +249,11 @@ def test_apply_rejects_bad_controls(call, error, message):
         (("maze", 0), {}, "kind must be one of"),
         (("static", -1), {}, "seed must be an integer >= 0, got -1"),
         (("static", 1.5), {}, "seed must be an integer >= 0, got 1.5"),
-        (("static", 0), {"measurement": "laplace"}, r"measurement must be one of \('uniform', 'gaussian'\), got 'laplace'"),
+        (
+            ("static", 0),
+            {"measurement": "laplace"},
+            r"measurement must be one of \('uniform', 'gaussian'\), got 'laplace'",
+        ),
         (("static", 0), {"params": {"dt": 0.1}}, "params must be a RobotParameters"),
     ],
 )
