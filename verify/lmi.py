@@ -24,6 +24,7 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
+from numpy.typing import ArrayLike
 from scipy.optimize import minimize_scalar
 
 from minimaxplan.models.errors import DimensionError, InputError, SolverFailure
@@ -79,8 +80,11 @@ class LMIStatus(str, Enum):
     INFEASIBLE = "infeasible"
     INCONCLUSIVE = "inconclusive"
 
-    __str__ = str.__str__
-    __format__ = str.__format__
+    def __str__(self) -> str:
+        return str(self.value)
+
+    def __format__(self, format_spec: str) -> str:
+        return format(str(self.value), format_spec)
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,21 +183,31 @@ class LMIResult:
         -----
         See `width_bound` for the derivation (Appendix B, eqs. (25)-(30), corrected).
         """
-        self._require_certificate()
-        eig_p = self.eigenvalues_P
-        lmin_q0 = float(np.linalg.eigvalsh(self.Q0)[0])
+        eig_p, Q0, rho = self._require_certificate()
+        lmin_q0 = float(np.linalg.eigvalsh(Q0)[0])
         c0 = float(np.sqrt(eig_p[-1] / eig_p[0]))
-        cw = float(np.sqrt(self.rho * eig_p[-1] / (eig_p[0] * lmin_q0)))
+        cw = float(np.sqrt(rho * eig_p[-1] / (eig_p[0] * lmin_q0)))
         return c0, cw
 
     def decay_factor(self) -> float:
         """``1 - mu`` with ``mu = lmin(Q0) / lmax(P)``: the per-step contraction of
-        ``V = e^T P e`` (discrete form), or ``exp(-mu)`` per unit time (continuous)."""
-        self._require_certificate()
-        mu = float(np.linalg.eigvalsh(self.Q0)[0] / self.eigenvalues_P[-1])
+        ``V = e^T P e`` (discrete form), or ``exp(-mu)`` per unit time (continuous).
+
+        Returns
+        -------
+        float
+            The factor, in (0, 1).
+
+        Raises
+        ------
+        InputError
+            If the result is not a certified feasible one.
+        """
+        eig_p, Q0, _ = self._require_certificate()
+        mu = float(np.linalg.eigvalsh(Q0)[0] / eig_p[-1])
         return float(1.0 - mu) if self.form == "discrete" else float(np.exp(-mu))
 
-    def width_bound(self, e0_norm, w_width_norm, steps=None):
+    def width_bound(self, e0_norm: float, w_width_norm: float, steps: ArrayLike | None = None) -> float | np.ndarray:
         """Bound on ``||e_n||_2`` for ``e+ = A e + D w`` (or ``e' = A e + D w``).
 
         Parameters
@@ -249,9 +263,11 @@ class LMIResult:
         out = c0 * np.sqrt(decay) * e0 + cw * np.sqrt(1.0 - decay) * ww
         return float(out) if out.ndim == 0 else out
 
-    def _require_certificate(self) -> None:
-        if not self.holds:
+    def _require_certificate(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(eigenvalues_P, Q0, rho)`` of a certified feasible result, else `InputError`."""
+        if not self.holds or self.eigenvalues_P is None or self.Q0 is None or self.rho is None:
             raise InputError(f"bound constants need a certified feasible LMIResult, got status {self.status.value!r}")
+        return self.eigenvalues_P, self.Q0, self.rho
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dictionary (arrays as nested lists, absent values as None)."""
@@ -561,10 +577,11 @@ def _primal_sdp(form, vertices, T, T_inv, coordinates, margin, solver, log: _Log
     finally:
         log.solve_time += time.perf_counter() - start
     log.statuses.append(status)
-    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or program.P.value is None:
+    slack_value = program.slack.value
+    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or program.P.value is None or slack_value is None:
         log.reasons.append(f"primal SDP ({coordinates} coordinates): solver status {status!r}")
         return None
-    slack = float(program.slack.value)
+    slack = float(slack_value)
     if log.slack is None:
         log.slack = slack
     if not slack > 0:
@@ -676,11 +693,12 @@ def _dual_certificate(form, vertices, T, T_inv, coordinates, margin, solver, log
     finally:
         log.solve_time += time.perf_counter() - start
     log.statuses.append(status)
-    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or Y.value is None:
+    s_value = s.value
+    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or Y.value is None or s_value is None:
         log.reasons.append(f"dual SDP ({coordinates} coordinates): solver status {status!r}")
         return None
-    if not float(s.value) > 0:
-        log.reasons.append(f"dual SDP ({coordinates} coordinates): no strict dual certificate (slack {float(s.value):.3g})")
+    if not float(s_value) > 0:
+        log.reasons.append(f"dual SDP ({coordinates} coordinates): no strict dual certificate (slack {float(s_value):.3g})")
         return None
     exact_t = _Exact.of(T)
     exact_y = _exact_gram(np.asarray(Y.value))
@@ -711,11 +729,14 @@ def _dual_certificate(form, vertices, T, T_inv, coordinates, margin, solver, log
 def _preconditioner(vertices: np.ndarray, form: str) -> tuple[np.ndarray, np.ndarray]:
     """A similarity ``T`` (and ``T^-1``) that makes the solver's problem well scaled.
 
-    ``T = Phat^(-1/2)`` where ``Phat`` is a Lyapunov (Stein) solution for the mean vertex
-    with its spectrum shifted halfway towards the stability boundary, so that in the new
-    coordinates a multiple of the identity nearly certifies the mean vertex. Changing
-    coordinates never changes feasibility (a congruence of the LMI); it only moves the
-    solver's problem away from the scale at which its tolerance matters.
+    ``T = S Phat^(-1/2)``: ``S`` the diagonal balancing similarity of the mean vertex
+    (powers of 2, so exact), ``Phat`` a Lyapunov (Stein) solution for the balanced mean
+    vertex with its spectrum shifted halfway towards (or past) the stability boundary, so
+    that in the new coordinates a multiple of the identity nearly certifies the mean
+    vertex. Changing coordinates never changes feasibility (a congruence of the LMI); it
+    moves the solvers' problems away from the scale at which their tolerances matter and
+    fixes the normalisation of the dual certificate. ``T = S`` when ``Phat`` is not
+    usable (see `_MAX_PRECONDITIONER_CONDITION`).
     """
     p = vertices.shape[1]
     # Balance first: a diagonal similarity by powers of 2 (exact in floating point).
@@ -751,7 +772,7 @@ def _preconditioner(vertices: np.ndarray, form: str) -> tuple[np.ndarray, np.nda
 # --------------------------------------------------------------------------- numpy helpers
 
 
-def lmi_matrix(A, P, Q0, rho: float, D, form: str) -> np.ndarray:
+def lmi_matrix(A: ArrayLike, P: ArrayLike, Q0: ArrayLike, rho: float, D: ArrayLike | None, form: str) -> np.ndarray:
     """The matrix that Assumption 4 requires to be negative definite, at a given certificate.
 
     Parameters
@@ -908,7 +929,15 @@ def _certify(form, vertices, D, q0, candidate: _Candidate):
 # --------------------------------------------------------------------------- entry point
 
 
-def check_assumption4(A, *, form, Q0=None, D=None, margin=1e-6, solver="CLARABEL") -> LMIResult:
+def check_assumption4(
+    A: ArrayLike,
+    *,
+    form: str,
+    Q0: ArrayLike | None = None,
+    D: ArrayLike | None = None,
+    margin: float = 1e-6,
+    solver: str = "CLARABEL",
+) -> LMIResult:
     """Decide the LMI of Assumption 4 for a matrix or a polytope of matrices.
 
     Parameters
@@ -985,13 +1014,18 @@ def check_assumption4(A, *, form, Q0=None, D=None, margin=1e-6, solver="CLARABEL
     one with the smallest ``c0 + cw`` is returned (`LMIResult.coordinates` says where it
     was found).
 
-    *Normalised coordinates.* ``x = T z`` with ``T = Phat^(-1/2)``, ``Phat`` the Lyapunov
-    (Stein) solution of the mean vertex with its spectrum shifted halfway towards (or
-    past) the stability boundary (shift floor relative to ``1 +`` the spectral radius).
-    ``Phat`` is covariant under a change of the caller's coordinates, so ``T`` is too,
-    up to an orthogonal factor that the normalised problem ignores: the normalised
-    margin below does not depend on the caller's basis. (When ``Phat`` is not positive
-    definite or its condition number exceeds `_MAX_PRECONDITIONER_CONDITION`, ``T = I``.)
+    *Normalised coordinates.* ``x = T z`` with ``T = S Phat^(-1/2)``: ``S`` the exact
+    (powers of 2) diagonal balancing of the mean vertex, ``Phat`` the Lyapunov (Stein)
+    solution of the balanced mean vertex with its spectrum shifted halfway towards (or
+    past) the stability boundary (shift floor relative to ``1 +`` the spectral radius,
+    an invariant). ``Phat`` is covariant under a change of the caller's coordinates, so
+    ``T`` is too, up to an orthogonal factor that the normalised problem ignores: the
+    normalised margin does not depend on the caller's basis. (When ``Phat`` is not
+    positive definite or its condition number exceeds `_MAX_PRECONDITIONER_CONDITION`,
+    ``T = S``.) The limit is floating point: a basis in which every certificate needs a
+    condition number near ``1 / eps`` has no float certificate that survives the exact
+    re-check, and there the verdict can be "infeasible" at the normalised margin (a true
+    statement) or "inconclusive".
 
     *Infeasible.* The normalised margin of ``P >= 0`` is the largest ``m`` with
     ``T^T L_k(P) T <= -m I`` for all k, once ``P`` is scaled to ``T^T P T <= I``. Every
