@@ -1,8 +1,8 @@
 """Assumption 4 LMI: first call (build + DPP compile) vs re-solve of the cached problem.
 
-`check_assumption4` builds one cvxpy problem per (form, p, r, number of vertices,
-Q0 given?) with the matrices as cvxpy Parameters, caches it, and re-solves it with new
-parameter values. The reference, measured in the same run, is the first call, i.e.
+`check_assumption4` builds one primal cvxpy problem per (form, p, number of vertices)
+with the matrices as cvxpy Parameters, caches it, and re-solves it with new parameter
+values (the dual SDP, solved only when no certificate came out, is built per call). The reference, measured in the same run, is the first call, i.e.
 what every call would cost without the cache (build the problem, canonicalise it,
 solve). Cases: one 4x4 matrix and a 4-vertex polytope of 4x4 matrices, both forms;
 every call decides a different random matrix (half of them stable).
@@ -87,8 +87,9 @@ def main() -> dict:
         f"Machine: {machine}; date: {date}; seed {SEED}; run time {total:.1f} s; solver CLARABEL.",
         f"Median wall time of `check_assumption4` per call: first call after clearing the cache "
         f"({FIRST_REPEATS} runs) and cached re-solves with new random matrices ({RESOLVE_REPEATS} runs). "
-        "A call that finds a certificate solves the SDP twice (preconditioned decision, then "
-        "the caller's coordinates), both on the same cached problem.",
+        "Every call solves the primal SDP twice (normalised and caller's coordinates) on the "
+        "same cached problem and re-checks its certificates exactly; a call without a "
+        "certificate also builds and solves the dual SDP (infeasible verdicts).",
         "",
         "| case | form | first call (build) | re-solve (cached) | ratio | of which cvxpy solve calls | outcomes |",
         "|---|---|---|---|---|---|---|",

@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import minimaxplan.verify.lmi as lmi
-from minimaxplan.models.errors import DimensionError, InputError, NonFiniteError, SolverFailure
+from minimaxplan.models.errors import DimensionError, InputError, NonFiniteError
 from minimaxplan.verify import LMIResult, LMIStatus, check_assumption4
 from minimaxplan.verify import lmi_matrix as library_lmi_matrix
 
@@ -64,6 +64,25 @@ def assert_certificate(result: LMIResult, vertices, D, form):
             assert np.linalg.eigvalsh(L)[-1] < 0
     assert result.max_eigenvalue < 0
     assert result.max_eigenvalue == pytest.approx(worst, rel=1e-6, abs=1e-12 * np.linalg.norm(P))
+
+
+def assert_dual(result: LMIResult, vertices, form, margin=1e-6):
+    """Independent numpy check of an infeasible verdict's dual certificate (see DualCertificate)."""
+    assert result.status == "infeasible" and result.P is None and not result.certified
+    dual = result.dual
+    assert dual is not None and result.margin == dual.margin and 0 <= dual.margin < margin
+    T, Y, Z = np.asarray(dual.T), np.asarray(dual.Y), np.asarray(dual.Z)
+    vertices = np.asarray(vertices).reshape(-1, T.shape[0], T.shape[0])
+    assert Z.shape == vertices.shape
+    for S in (Y, *Z):
+        assert np.linalg.eigvalsh(S)[0] >= -1e-12 * max(1.0, np.abs(S).max())
+    W = T @ Y @ T.T
+    for A, Zk in zip(vertices, Z):
+        X = T @ Zk @ T.T
+        W = W + (A @ X + X @ A.T if form == "continuous" else A @ X @ A.T - X)
+    assert np.linalg.eigvalsh((W + W.T) / 2)[0] > 0
+    assert np.trace(Y) <= dual.margin * np.trace(Z, axis1=1, axis2=2).sum() * (1 + 1e-12)
+    assert "no certificate with normalised margin above" in result.reason
 
 
 def random_basis(rng, p, condition):
@@ -127,13 +146,10 @@ def test_decision_matches_stability_near_the_boundary(form):
         result = check_assumption4(A, form=form, D=D)
         assert result.status != "inconclusive", result.reason
         assert result.status == ("feasible" if stable else "infeasible"), result.reason
-        # The decision is not a close call at the margin (1e-6): t* is far on either side.
         if stable:
             assert_certificate(result, A, D, form)
-            assert result.slack > 1e-4
         else:
-            assert result.P is None and not result.certified
-            assert abs(result.slack) < 0.5e-6  # solver tolerance 1e-7; margin 1e-6
+            assert_dual(result, A, form)
 
     check()
 
@@ -188,11 +204,11 @@ def polytopes_with_known_common_p(draw, form):
             S = -(H @ H.T + 0.05 * np.eye(p)) + (K - K.T)
             vertices.append(np.linalg.solve(P0, S))
         else:
-            # A = P0^-1/2 O P0^1/2 with ||O|| < 1: A^T P0 A - P0 = P0^1/2 (O^T O - I) P0^1/2 < 0.
-            O = rng.standard_normal((p, p))
-            O *= draw(st.floats(0.1, 0.95)) / np.linalg.norm(O, 2)
+            # A = P0^-1/2 C P0^1/2 with ||C|| < 1: A^T P0 A - P0 = P0^1/2 (C^T C - I) P0^1/2 < 0.
+            C = rng.standard_normal((p, p))
+            C *= draw(st.floats(0.1, 0.95)) / np.linalg.norm(C, 2)
             root = sla.sqrtm(P0).real
-            vertices.append(np.linalg.solve(root, O @ root))
+            vertices.append(np.linalg.solve(root, C @ root))
     return np.array(vertices)
 
 
@@ -218,7 +234,7 @@ def test_liberzon_pair_has_no_common_quadratic_lyapunov_function():
         assert np.linalg.eigvals(gamma * A1 + (1 - gamma) * A2).real.max() < 0
     product = np.linalg.eigvals(A1 @ A2)
     assert np.all(np.abs(product.imag) < 1e-12) and np.all(product.real < 0)
-    assert check_assumption4([A1, A2], form="continuous").status == "infeasible"
+    assert_dual(check_assumption4([A1, A2], form="continuous"), [A1, A2], "continuous")
     for A in (A1, A2):
         assert_certificate(check_assumption4(A, form="continuous"), A, np.eye(2), "continuous")
 
@@ -227,7 +243,7 @@ def test_unstable_midpoint_means_no_common_p():
     A1 = np.array([[-1.0, 4.0], [0.0, -1.0]])
     A2 = A1.T
     assert np.linalg.eigvals((A1 + A2) / 2).real.max() > 0
-    assert check_assumption4(np.stack([A1, A2]), form="continuous").status == "infeasible"
+    assert_dual(check_assumption4(np.stack([A1, A2]), form="continuous"), [A1, A2], "continuous")
 
 
 def test_discrete_switching_unstable_pair_has_no_common_p():
@@ -237,7 +253,7 @@ def test_discrete_switching_unstable_pair_has_no_common_p():
     A2 = A1.T
     assert max(np.abs(np.linalg.eigvals(A)).max() for A in (A1, A2)) < 1
     assert np.abs(np.linalg.eigvals(A1 @ A2)).max() > 1
-    assert check_assumption4([A1, A2], form="discrete").status == "infeasible"
+    assert_dual(check_assumption4([A1, A2], form="discrete"), [A1, A2], "discrete")
 
 
 @pytest.mark.parametrize("form", ["continuous", "discrete"])
@@ -252,7 +268,8 @@ def test_one_unstable_vertex_makes_the_polytope_infeasible(form):
     unstable = near_boundary_matrix(rng, 3, form, 0.02, False, 5.0)
     assert check_assumption4(np.stack(stable), form=form).status == "feasible"
     result = check_assumption4(np.stack(stable + [unstable]), form=form)
-    assert result.status == "infeasible" and result.nvertices == 4
+    assert result.nvertices == 4
+    assert_dual(result, np.stack(stable + [unstable]), form)
 
 
 # ----------------------------------------------------------------- results, bound constants
@@ -267,6 +284,7 @@ def test_result_to_dict_is_json_ready():
     assert data["bound_constants"] == list(result.bound_constants())
     infeasible = json.loads(json.dumps(check_assumption4(2 * A, form="discrete").to_dict()))
     assert infeasible["status"] == "infeasible" and infeasible["P"] is None and "bound_constants" not in infeasible
+    assert infeasible["margin"] < 1e-6 and np.array(infeasible["dual"]["Z"]).shape == (1, 2, 2)
 
 
 def test_result_arrays_are_read_only():
@@ -303,8 +321,8 @@ def test_statuses_are_a_str_enum_with_the_contracts_strings():
     assert feasible.holds and not infeasible.holds
 
 
-def test_holds_needs_the_numpy_recheck(monkeypatch):
-    monkeypatch.setattr(lmi, "EIGENVALUE_ROUNDING", 1e30)
+def test_holds_needs_the_exact_recheck(monkeypatch):
+    monkeypatch.setattr(lmi, "_exact_positive_definite", lambda M: False)
     result = check_assumption4(np.array([[0.5]]), form="discrete")
     assert result.status == "inconclusive" and not result.holds
     assert dataclasses_replace(result, status="feasible", certified=False).holds is False
@@ -367,7 +385,7 @@ def test_scs_is_selectable():
 def test_problem_is_dpp_built_once_and_reused():
     A = np.array([[0.5, 1.0], [0.0, 0.6]])
     check_assumption4(A, form="discrete")
-    key = ("discrete", 2, 1, False)
+    key = ("discrete", 2, 1)
     program = lmi._PROGRAMS[key]
     assert program.problem.is_dpp()
     check_assumption4(0.9 * A.T, form="discrete")
@@ -379,7 +397,7 @@ def test_program_cache_evicts_the_least_recently_used(monkeypatch):
     monkeypatch.setattr(lmi, "PROBLEM_CACHE_SIZE", 2)
     for p in (2, 3, 4):
         check_assumption4(-np.eye(p), form="continuous")
-    assert list(lmi._PROGRAMS) == [("continuous", 3, 1, False), ("continuous", 4, 1, False)]
+    assert list(lmi._PROGRAMS) == [("continuous", 3, 1), ("continuous", 4, 1)]
 
 
 # ----------------------------------------------------------------- solver statuses
@@ -390,37 +408,50 @@ def fake_status(monkeypatch, status):
     monkeypatch.setattr(cp.Problem, "status", property(lambda self: status))
 
 
+UNSTABLE = np.array([[1.2, 1.0], [0.0, 0.5]])  # no Lyapunov-equation certificate either
+
+
 @pytest.mark.parametrize("status", [cp.OPTIMAL_INACCURATE, cp.INFEASIBLE_INACCURATE])
-def test_inaccurate_statuses_are_inconclusive_and_flagged(monkeypatch, status):
+def test_inaccurate_statuses_without_a_proof_are_inconclusive_and_flagged(monkeypatch, status):
     fake_status(monkeypatch, status)
-    result = check_assumption4(np.array([[0.5, 0.0], [0.0, 0.5]]), form="discrete")
+    result = check_assumption4(UNSTABLE, form="discrete")
     assert result.status == "inconclusive" and result.inaccurate and not result.certified
-    assert result.solver_status == status and "inaccurate" in result.reason
+    assert result.solver_status == status and result.dual is None
+    assert "no proof either way" in result.reason and status in result.reason
 
 
 @pytest.mark.parametrize("status", [cp.INFEASIBLE, cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE, cp.SOLVER_ERROR, cp.USER_LIMIT])
-def test_other_statuses_raise_solver_failure(monkeypatch, status):
+def test_other_statuses_are_reported_not_raised(monkeypatch, status):
     fake_status(monkeypatch, status)
-    with pytest.raises(SolverFailure, match=f"status '{status}'"):
-        check_assumption4(np.array([[0.5, 0.0], [0.0, 0.5]]), form="discrete")
+    result = check_assumption4(UNSTABLE, form="discrete")
+    assert result.status == "inconclusive" and not result.inaccurate
+    assert result.reason.count(f"solver status {status!r}") == 4  # primal and dual, in both coordinates
+    # a stable matrix is still certified, by the Lyapunov equation, whatever the solver says
+    stable = check_assumption4(np.array([[0.5, 1.0], [0.0, 0.5]]), form="discrete")
+    assert_certificate(stable, np.array([[0.5, 1.0], [0.0, 0.5]]), np.eye(2), "discrete")
+    assert stable.solver_status == "not solved (Lyapunov equation)"
 
 
-def test_solver_error_raises_solver_failure(monkeypatch):
+def test_solver_error_is_reported_not_raised(monkeypatch):
     def broken(self, *args, **kwargs):
         raise cp.error.SolverError("numerical trouble")
 
     monkeypatch.setattr(cp.Problem, "solve", broken)
-    with pytest.raises(SolverFailure, match="CLARABEL failed.*numerical trouble"):
-        check_assumption4(np.array([[-1.0, 0.0], [0.0, -1.0]]), form="continuous")
+    result = check_assumption4(UNSTABLE, form="continuous")
+    assert result.status == "inconclusive" and "CLARABEL failed: numerical trouble" in result.reason
+    stable = check_assumption4(-UNSTABLE, form="continuous")
+    assert_certificate(stable, -UNSTABLE, np.eye(2), "continuous")
 
 
-def test_failed_numpy_recheck_is_inconclusive(monkeypatch):
-    # Demand an absurd rounding margin: the re-check must then refuse the certificate.
-    monkeypatch.setattr(lmi, "EIGENVALUE_ROUNDING", 1e30)
-    result = check_assumption4(np.array([[0.5, 0.0], [0.0, 0.5]]), form="discrete")
-    assert result.status == "inconclusive" and not result.certified and not result.inaccurate
-    assert "numpy re-check failed" in result.reason
-    assert result.P is not None and result.max_eigenvalue < 0
+def test_failed_exact_recheck_is_inconclusive(monkeypatch):
+    # A re-check that refuses everything: no certificate, no dual certificate.
+    monkeypatch.setattr(lmi, "_exact_positive_definite", lambda M: False)
+    for A in (np.array([[0.5, 0.0], [0.0, 0.5]]), UNSTABLE):
+        result = check_assumption4(A, form="discrete")
+        assert result.status == "inconclusive" and not result.certified and not result.inaccurate
+        assert result.P is None and result.dual is None
+    assert "P is not positive definite (exact re-check)" in check_assumption4(np.array([[0.5]]), form="discrete").reason
+    assert "the dual certificate failed the exact re-check" in result.reason
 
 
 # ----------------------------------------------------------------- bad input
@@ -498,9 +529,17 @@ def test_returned_certificate_is_the_one_with_smaller_constants():
         assert_certificate(result, A, np.eye(3), "discrete")
         assert result.coordinates in ("caller", "preconditioned")
         T, T_inv = lmi._preconditioner(A[None], "discrete")
-        decision = lmi._attempt("discrete", A[None], np.eye(3), None, 1e-6, "CLARABEL", T, T_inv, "preconditioned")
-        assert_certificate(decision, A, np.eye(3), "discrete")
-        assert sum(result.bound_constants()) <= sum(decision.bound_constants()) * (1 + 1e-9)
+        log = lmi._Log()
+        for candidate in (
+            lmi._lyapunov_candidate("discrete", A[None], T, T_inv, "preconditioned"),
+            lmi._primal_sdp("discrete", A[None], T, T_inv, "preconditioned", 1e-6, "CLARABEL", log),
+            lmi._primal_sdp("discrete", A[None], np.eye(3), np.eye(3), "caller", 1e-6, "CLARABEL", log),
+        ):
+            P, Q0, rho = lmi._certify("discrete", A[None], np.eye(3), None, candidate)
+            top = np.linalg.eigvalsh(lmi_matrix("discrete", A, np.eye(3), P, Q0, rho))[-1]
+            other = dataclasses_replace(result, P=P, Q0=Q0, rho=rho, eigenvalues_P=np.linalg.eigvalsh(P), max_eigenvalue=top)
+            assert_certificate(other, A, np.eye(3), "discrete")
+            assert sum(result.bound_constants()) <= sum(other.bound_constants()) * (1 + 1e-9)
 
 
 def test_concurrent_calls_share_the_cache_safely():
