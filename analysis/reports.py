@@ -135,18 +135,21 @@ class LMIReport:
 
     @property
     def holds(self) -> bool:
-        """True iff the LMI is feasible and its certificate passed the numpy re-check."""
+        """True iff the LMI is feasible on a certificate re-checked exactly (`LMIResult.holds`)."""
         return self.result.holds
 
     @property
     def verdict(self) -> str:
         status = self.result.status
         if self.result.holds:
-            return "Assumption 4 holds: feasible, certificate re-checked"
-        if status is LMIStatus.FEASIBLE:
-            return "not certified: the solver reports feasible but the certificate fails the numpy re-check"
+            return "Assumption 4 holds: feasible, certificate re-checked exactly"
         if status is LMIStatus.INFEASIBLE:
-            return "Assumption 4 fails: the LMI is infeasible"
+            margin = self.result.margin
+            bound = f" above {margin:.3g}" if margin is not None else ""
+            return (
+                f"Assumption 4 fails: no certificate with normalised margin{bound} exists "
+                "(dual certificate re-checked exactly)"
+            )
         reason = getattr(self.result, "reason", "")
         return f"inconclusive: {reason}" if reason else f"inconclusive (status {status.value!r})"
 

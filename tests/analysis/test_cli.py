@@ -272,7 +272,8 @@ def test_lmi_json_to_file_and_markdown_of_an_uncertified_result(tmp_path, capsys
     assert report["P_eigenvalues"] is None and report["matrices"][0]["lmi_max_eigenvalue"] is None
     code, out, _ = run(capsys, "lmi", HYPOTHESES, "--model", "isotropic friction", "--form", "discrete")
     assert code == 1
-    assert "**Assumption 4 fails: the LMI is infeasible**" in out and "| 0 | [0.85] | 1 | - |" in out
+    assert "**Assumption 4 fails: no certificate with normalised margin above" in out
+    assert "(dual certificate re-checked exactly)**" in out and "| 0 | [0.85] | 1 | - |" in out
 
 
 def test_lmi_matrix_rejects_an_unknown_form():
