@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..models.prediction import IntervalPredictor, summation_error_bound, interval_matvec
+from ..models.prediction import IntervalPredictor, interval_matvec, summation_error_bound
 from ..models.system import UncertainLinearSystem
 from .box_kernels import IntervalKernel
 from .controllers import ControllerBank, LinearFeedback

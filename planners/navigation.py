@@ -16,8 +16,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape
 from minimaxplan.models.errors import InputError
+from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape
 
 __all__ = ["NavigationFunction"]
 

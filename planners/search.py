@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from ..models.errors import DimensionError, InputError, NonFiniteError, RewardRangeError
+from ..models.errors import DimensionError, InputError, RewardRangeError
+from ..models.validation import as_choice, as_count, as_discount
 from . import tree_ops
 from .compiled_search import FULL, SOLVED, BoxArrays, allocate_boxes, grow_boxes, search_kernel
 from .decision import Decision
@@ -172,26 +173,6 @@ def _as_flag(value, index: int, action, a: int) -> bool:
     )
 
 
-def _check_gamma(gamma) -> float:
-    try:
-        value = float(gamma)
-    except (TypeError, ValueError):
-        raise InputError(f"gamma must be a real number in (0, 1), got {gamma!r}") from None
-    if not np.isfinite(value):
-        raise NonFiniteError(f"gamma must be finite and in (0, 1), got {value}")
-    if not 0.0 < value < 1.0:
-        raise InputError(f"gamma must be in the open interval (0, 1), got {value}")
-    return value
-
-
-def _check_count(name: str, value, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    if value < minimum:
-        raise InputError(f"{name} must be an integer >= {minimum}, got {value}")
-    return int(value)
-
-
 class RobustTreePlanner:
     """Optimistic tree search for ``sup_a min_m sum_n gamma^n r_n^m`` (eqs. (15)-(18)).
 
@@ -265,20 +246,19 @@ class RobustTreePlanner:
             raise InputError(f"actions must be a sequence, got {type(actions).__name__}") from None
         if not actions:
             raise InputError("actions must be a non-empty sequence")
-        self._gamma = _check_gamma(gamma)
-        self._budget = _check_count("budget", budget, 1)
+        self._gamma = as_discount("gamma", gamma)
+        self._budget = as_count("budget", budget)
         if 1 + self._budget * len(actions) > MAX_TREE_NODES:
             raise InputError(
                 f"budget must be at most {(MAX_TREE_NODES - 1) // len(actions)} with {len(actions)} actions "
                 f"(the tree holds 1 + budget * len(actions) nodes, at most {MAX_TREE_NODES}), got {budget}"
             )
-        self._seed = _check_count("seed", seed, 0)
+        self._seed = as_count("seed", seed, minimum=0)
         self._models = tuple(models)
         self._actions = actions
         self._transitions = [_Transitions(m, model, actions) for m, model in enumerate(models)]
         self._group = _linked_group(self._models)
-        if engine not in ENGINES:
-            raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
+        engine = as_choice("engine", engine, ENGINES)
         self._engine = engine
         group = self._group
         self._compiled = (

@@ -125,6 +125,8 @@ def test_fallback_escapes_when_nothing_is_admissible():
          r"pedestrian_velocities must have shape \(1, 2\), got shape \(2, 2\)"),
         (lambda: NavigationScene([np.nan, 0]), NonFiniteError, "goal contains NaN"),
         (lambda: DWAParameters(samples_per_axis=1), InputError, "samples_per_axis must be an integer >= 2"),
+        (lambda: DWAParameters(samples_per_axis=3.0), InputError, r"samples_per_axis must be an integer >= 2, got 3\.0"),
+        (lambda: DynamicWindowPlanner(robot_system(), substeps=2.5), InputError, r"substeps must be a positive integer, got 2\.5"),
         (lambda: DWAParameters(horizon=0.0), InputError, "horizon must be > 0"),
         (lambda: DynamicWindowPlanner("system"), InputError, "system must be an UncertainLinearSystem"),
         (lambda: DynamicWindowPlanner(robot_system(isotropic=True), theta=[0.5, 0.5]), DimensionError, r"theta must have shape \(1,\)"),
