@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..models.errors import DimensionError, InputError
 from ..models.system import UncertainLinearSystem
@@ -27,7 +28,7 @@ from ..models.validation import as_finite_array, check_instance, check_shape, fr
 __all__ = ["OpenLoop", "LinearFeedback", "ControllerBank"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class OpenLoop:
     """The constant control ``u``, whatever the state (an open-loop low-level controller).
 
@@ -55,8 +56,8 @@ class OpenLoop:
 
     u: np.ndarray
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "u", frozen_copy(as_finite_array("u", self.u, ndim=1)))
+    def __init__(self, u: ArrayLike) -> None:
+        object.__setattr__(self, "u", frozen_copy(as_finite_array("u", u, ndim=1)))
 
     @property
     def ninputs(self) -> int:
@@ -90,7 +91,7 @@ class OpenLoop:
         return {"kind": "open_loop", "u": self.u.tolist()}
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class LinearFeedback:
     """State feedback ``u = clip(K (x_ref - x) + u_ff, u_low, u_high)``.
 
@@ -125,18 +126,24 @@ class LinearFeedback:
 
     K: np.ndarray
     x_ref: np.ndarray
-    u_ff: np.ndarray | None = None
-    u_low: np.ndarray | float | None = None
-    u_high: np.ndarray | float | None = None
+    u_ff: np.ndarray
+    u_low: np.ndarray
+    u_high: np.ndarray
 
-    def __post_init__(self) -> None:
-        K = as_finite_array("K", self.K, ndim=2)
-        q, p = K.shape
-        x_ref = as_finite_array("x_ref", self.x_ref, (p,))
-        u_ff = np.zeros(q) if self.u_ff is None else as_finite_array("u_ff", self.u_ff, (q,))
-        limits = {}
-        for name, default in (("u_low", -np.inf), ("u_high", np.inf)):
-            value = getattr(self, name)
+    def __init__(
+        self,
+        K: ArrayLike,
+        x_ref: ArrayLike,
+        u_ff: ArrayLike | None = None,
+        u_low: ArrayLike | float | None = None,
+        u_high: ArrayLike | float | None = None,
+    ) -> None:
+        gain = as_finite_array("K", K, ndim=2)
+        q, p = gain.shape
+        reference = as_finite_array("x_ref", x_ref, (p,))
+        feedforward = np.zeros(q) if u_ff is None else as_finite_array("u_ff", u_ff, (q,))
+        limits: dict[str, np.ndarray] = {}
+        for name, default, value in (("u_low", -np.inf, u_low), ("u_high", np.inf, u_high)):
             if value is None:
                 limits[name] = np.full(q, default)
                 continue
@@ -147,8 +154,8 @@ class LinearFeedback:
             limits[name] = arr
         if np.any(limits["u_low"] > limits["u_high"]):
             raise InputError(f"u_low must be <= u_high, got {limits['u_low'].tolist()} and {limits['u_high'].tolist()}")
-        for name, value in (("K", K), ("x_ref", x_ref), ("u_ff", u_ff), *limits.items()):
-            object.__setattr__(self, name, frozen_copy(value))
+        for name, array in (("K", gain), ("x_ref", reference), ("u_ff", feedforward), *limits.items()):
+            object.__setattr__(self, name, frozen_copy(array))
 
     @property
     def ninputs(self) -> int:

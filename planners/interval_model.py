@@ -76,15 +76,16 @@ class BoxState:
 
     __slots__ = ("_lower", "_upper", "time", "_z", "_source")
 
-    def __init__(self, lower, upper, time: int, z=None) -> None:
-        self._lower = lower
-        self._upper = upper
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, time: int, z: np.ndarray | None = None) -> None:
+        self._lower: np.ndarray | None = lower
+        self._upper: np.ndarray | None = upper
         self.time = time
-        self._z = z
-        self._source = None
+        self._z: np.ndarray | None = z
+        # (lower, upper, z, key) of a batched transition: the arrays this state's views are taken from
+        self._source: tuple[np.ndarray, np.ndarray, np.ndarray, Any] | None = None
 
     @classmethod
-    def _from_batch(cls, lower, upper, z, key, time: int) -> BoxState:
+    def _from_batch(cls, lower: np.ndarray, upper: np.ndarray, z: np.ndarray, key: Any, time: int) -> BoxState:
         """The state ``lower[key], upper[key]`` of a batched transition, its views taken on first use.
 
         Most children of the search tree are never expanded nor inspected, so the
@@ -99,27 +100,34 @@ class BoxState:
     @property
     def lower(self) -> np.ndarray:
         """The lower corner(s) of the box, shape (p,) or (M, p) (read-only)."""
-        if self._lower is None and self._source is not None:
-            self._lower = self._source[0][self._source[3]]
+        if self._lower is None:
+            self._lower = self._batch_view(0)
         return self._lower
 
     @property
     def upper(self) -> np.ndarray:
         """The upper corner(s) of the box, shape (p,) or (M, p) (read-only)."""
-        if self._upper is None and self._source is not None:
-            self._upper = self._source[1][self._source[3]]
+        if self._upper is None:
+            self._upper = self._batch_view(1)
         return self._upper
 
     @property
     def z(self) -> np.ndarray:
         """The box as ``[-lower | upper]``, shape (2p,) or (M, 2p) (read-only), as the arithmetic stores it."""
         if self._z is None and self._source is not None:
-            self._z = self._source[2][self._source[3]]
+            self._z = self._batch_view(2)
         if self._z is None:
             z = np.concatenate([-np.asarray(self.lower, dtype=float), np.asarray(self.upper, dtype=float)], axis=-1)
             z.setflags(write=False)
             self._z = z
         return self._z
+
+    def _batch_view(self, which: int) -> np.ndarray:
+        """This state's view of array ``which`` (0: lower, 1: upper, 2: z) of the batch it was created from."""
+        source = self._source
+        if source is None:  # only `_from_batch` leaves a corner unset
+            raise InputError("a BoxState needs lower and upper (see IntervalModel.initial_state)")
+        return source[which][source[3]]
 
     def __iter__(self):
         return iter((self.lower, self.upper, self.time))
@@ -253,9 +261,10 @@ class IntervalGroup:
         self.predictors = tuple(IntervalPredictor(system, parameters) for system, parameters in resolved)
         self.kernel = build_interval_kernel(self.systems, self.predictors, self.bank)
         self.actions = _ActionIndex(len(self.bank))
-        self._key_state = None
-        self._key_actions = None
-        self._result = None
+        # the one-entry cache of `expand_all`, keyed by the identity of its arguments
+        self._key_state: BoxState | None = None
+        self._key_actions: Any = None
+        self._result: tuple[list[BoxState], np.ndarray, np.ndarray] | None = None
 
     @property
     def size(self) -> int:
@@ -293,14 +302,14 @@ class IntervalGroup:
         return stack, np.minimum.reduce(reward, axis=0), np.logical_or.reduce(collided, axis=0)
 
     # ------------------------------------------------- BatchedTransitions
-    def expand_all(self, state: BoxState, actions) -> tuple[list, np.ndarray, np.ndarray]:
+    def expand_all(self, state: BoxState, actions) -> tuple[list[BoxState], np.ndarray, np.ndarray]:
         """Every hypothesis under every action from ``state``, in one compiled call.
 
         Returns ``(next_states, rewards, terminals)``: a list of `BoxState` holding
         one box per hypothesis (one box when M = 1), the pessimistic rewards and the
         collision flags, each of shape (M, len(actions)).
         """
-        if state is self._key_state and actions is self._key_actions:
+        if self._result is not None and state is self._key_state and actions is self._key_actions:
             return self._result
         p = self.p
         root = self.state_z(state)
@@ -352,32 +361,61 @@ class IntervalGroup:
         return [None] + [batch(lower, upper, z, (i,), time + depth[i] * S) for i in range(1, z.shape[0])]
 
 
-@dataclass(frozen=True, eq=False)
+def _check_member(group: IntervalGroup, m, system, parameters, reward, controllers, substeps) -> None:
+    """Check that the arguments of an `IntervalModel` are those of member ``m`` of ``group``."""
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not 0 <= m < group.size:
+        raise InputError(f"member must be an integer in [0, {group.size}), got {m!r}")
+    if system is not group.systems[m] or reward is not group.reward or substeps != group.substeps:
+        raise InputError(f"system, reward and substeps must be those of the group's member {m}")
+    if parameters is not None and parameters is not group.parameters[m]:
+        raise InputError(f"parameters must be None or the group's member {m} parameters")
+    try:
+        given = tuple(controllers)
+    except TypeError:
+        raise InputError(f"controllers must be a sequence, got {type(controllers).__name__}") from None
+    if len(given) != len(group.bank) or any(c is not d for c, d in zip(given, group.bank.controllers)):
+        raise InputError("controllers must be the group's controllers")
+
+
+@dataclass(frozen=True, eq=False, init=False)
 class IntervalModel:
     """A planner model whose state is a box containing the true state (Theorem 1).
 
     Parameters
     ----------
-    system
-        The `UncertainLinearSystem` ``x+ = A(theta) x + B u + D w`` (one sub-step).
-    parameters
-        The parameter set: `Box`, `Ellipsoid` or vertex array (k, d), as for
+    system : UncertainLinearSystem
+        The plant ``x+ = A(theta) x + B u + D w`` (one sub-step).
+    parameters : Box, Ellipsoid, array_like of shape (k, d), or None
+        The parameter set (a vertex array holds k parameter vectors), as for
         `IntervalPredictor`; None means ``system.theta``.
-    reward
+    reward : BoxReward
         A reward family with ``box_minimum(lower, upper, t) -> (reward, collided)``
         returning the EXACT minimum over each box, vectorised over leading dimensions
         (e.g. `minimaxplan.scenarios.GoalReward`), rewards in [0, 1]. It reads full
         states (each family holds its own coordinate indices).
-    controllers
-        One `OpenLoop` or `LinearFeedback` per action; the planner's actions are the
-        indices ``0 .. len(controllers) - 1``.
-    substeps
-        Sub-steps of ``system`` per decision (>= 1); the action's controller acts at
-        every sub-step.
-    group, member
-        The `IntervalGroup` this model is computed with and its index there, as
-        `linked` passes them; by default (None) a group of this hypothesis alone.
-        The other arguments must then be the group's.
+    controllers : sequence of OpenLoop or LinearFeedback
+        One controller per action; the planner's actions are the indices
+        ``0 .. len(controllers) - 1``.
+    substeps : int, optional
+        Sub-steps of ``system`` per decision (>= 1, default 1); the action's
+        controller acts at every sub-step.
+    group : IntervalGroup, optional
+        The group this model is computed with, as `linked` passes it; by default
+        (None) a group of this hypothesis alone. The other arguments must then be
+        the group's.
+    member : int, optional
+        The model's index in ``group`` (default 0).
+
+    Raises
+    ------
+    InputError
+        If ``system`` is not an `UncertainLinearSystem`, ``reward`` has no callable
+        ``box_minimum`` (or an unregistered ``kernel_params``), ``controllers`` is
+        empty or holds another type, ``substeps`` is not a positive integer, or
+        ``group``/``member`` do not match the other arguments.
+    DimensionError
+        If ``parameters``, the reward's state indices or a controller do not fit
+        the system.
 
     Attributes
     ----------
@@ -434,38 +472,32 @@ class IntervalModel:
     system: UncertainLinearSystem
     parameters: Any
     reward: Any
-    controllers: Sequence
-    substeps: int = field(default=1, kw_only=True)
-    group: IntervalGroup | None = field(default=None, kw_only=True, repr=False)
-    member: int = field(default=0, kw_only=True)
+    controllers: tuple
+    substeps: int
+    group: IntervalGroup = field(repr=False)
+    member: int
 
-    def __post_init__(self) -> None:
-        group = self.group
+    def __init__(
+        self,
+        system: UncertainLinearSystem,
+        parameters: Any,
+        reward: Any,
+        controllers: Sequence,
+        *,
+        substeps: int = 1,
+        group: IntervalGroup | None = None,
+        member: int = 0,
+    ) -> None:
         if group is None:
-            group = IntervalGroup([(self.system, self.parameters)], self.reward, self.controllers, substeps=self.substeps)
-            object.__setattr__(self, "group", group)
+            group = IntervalGroup([(system, parameters)], reward, controllers, substeps=substeps)
         else:
             check_instance("group", group, IntervalGroup, "an IntervalGroup (see IntervalModel.linked)")
-            self._check_member(group)
-        m = self.member
-        object.__setattr__(self, "parameters", group.parameters[m])
-        object.__setattr__(self, "controllers", group.bank.controllers)
-        object.__setattr__(self, "substeps", group.substeps)
-
-    def _check_member(self, group: IntervalGroup) -> None:
-        m = self.member
-        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not 0 <= m < group.size:
-            raise InputError(f"member must be an integer in [0, {group.size}), got {m!r}")
-        if self.system is not group.systems[m] or self.reward is not group.reward or self.substeps != group.substeps:
-            raise InputError(f"system, reward and substeps must be those of the group's member {m}")
-        if self.parameters is not None and self.parameters is not group.parameters[m]:
-            raise InputError(f"parameters must be None or the group's member {m} parameters")
-        try:
-            controllers = tuple(self.controllers)
-        except TypeError:
-            raise InputError(f"controllers must be a sequence, got {type(self.controllers).__name__}") from None
-        if len(controllers) != len(group.bank) or any(c is not d for c, d in zip(controllers, group.bank.controllers)):
-            raise InputError("controllers must be the group's controllers")
+            _check_member(group, member, system, parameters, reward, controllers, substeps)
+        for name, value in (
+            ("system", system), ("parameters", group.parameters[member]), ("reward", reward),
+            ("controllers", group.bank.controllers), ("substeps", group.substeps), ("group", group), ("member", member),
+        ):
+            object.__setattr__(self, name, value)
 
     @classmethod
     def linked(cls, systems_with_parameters, reward, controllers, *, substeps: int = 1) -> list[IntervalModel]:
