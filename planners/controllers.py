@@ -288,8 +288,8 @@ class ControllerBank:
                 self.offsets[a] = controller.feedforward
                 self.low[a] = controller.u_low
                 self.high[a] = controller.u_high
-            else:
-                raise InputError(f"controllers[{a}] must be OpenLoop or LinearFeedback, got {type(controller).__name__}")
+            else:  # neither kind: raises InputError naming the type given
+                check_instance(f"controllers[{a}]", controller, (OpenLoop, LinearFeedback), "OpenLoop or LinearFeedback")
         self.saturating = bool(np.any(np.isfinite(self.low)) or np.any(np.isfinite(self.high)))
         self.has_feedback = bool(np.any(self.gains != 0))
         for arr in (self.gains, self.offsets, self.low, self.high):

@@ -273,8 +273,8 @@ class IntervalGroup:
 
     def state_z(self, state: BoxState) -> np.ndarray:
         """The boxes of a state as z of shape (M or 1, 2p): a writable contiguous copy (one compiled signature)."""
-        if type(state) is not BoxState:
-            raise InputError(f"state must be a BoxState (see IntervalModel.initial_state), got {type(state).__name__}")
+        if type(state) is not BoxState:  # the hot path tests the exact type; the validator words the error
+            check_instance("state", state, BoxState, "a BoxState (see IntervalModel.initial_state)")
         z = state.z
         if z.ndim == 1:
             return np.array(z[None, :], dtype=float)

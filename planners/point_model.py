@@ -13,7 +13,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..models.errors import InputError
 from ..models.system import UncertainLinearSystem
 from ..models.validation import as_count, as_finite_array, check_instance
 from .controllers import ControllerBank
@@ -135,8 +134,8 @@ class PointModel:
         InputError
             If ``state`` is not a `PointState` or an action is not a controller index.
         """
-        if type(state) is not PointState:
-            raise InputError(f"state must be a PointState (see PointModel.initial_state), got {type(state).__name__}")
+        if type(state) is not PointState:  # the hot path tests the exact type; the validator words the error
+            check_instance("state", state, PointState, "a PointState (see PointModel.initial_state)")
         index = self._actions(actions)
         n = self.n_actions if index is None else len(index)
         x, rewards, terminals = self._propagate(state.x, state.time, index, n)
