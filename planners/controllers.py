@@ -19,67 +19,131 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from ..models.validation import as_finite_array, check_shape, frozen_copy
 from ..models.errors import DimensionError, InputError
 from ..models.system import UncertainLinearSystem
+from ..models.validation import as_finite_array, check_instance, check_shape, frozen_copy
 
 __all__ = ["OpenLoop", "LinearFeedback", "ControllerBank"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class OpenLoop:
-    """The constant control ``u`` (shape (q,)), whatever the state."""
+    """The constant control ``u``, whatever the state (an open-loop low-level controller).
+
+    Parameters
+    ----------
+    u : array_like, shape (q,)
+        The control input held between two decisions, in the plant's input units
+        (e.g. an acceleration in m/s^2 for the robot scenario). Copied and stored
+        read-only.
+
+    Raises
+    ------
+    DimensionError
+        If ``u`` is not one-dimensional.
+    NonFiniteError
+        If ``u`` has NaN or infinite entries.
+
+    Notes
+    -----
+    One high-level action of the paper's discretised control space (Section III-B):
+    the action selects this controller, which applies ``u`` at every sub-step of
+    ``x+ = A(theta) x + B u + D w`` (eq. (1), discretised). As a `ControllerBank` row
+    it has ``K_a = 0``, ``c_a = u`` and no saturation.
+    """
 
     u: np.ndarray
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "u", frozen_copy(as_finite_array("u", self.u, ndim=1)))
+    def __init__(self, u: ArrayLike) -> None:
+        object.__setattr__(self, "u", frozen_copy(as_finite_array("u", u, ndim=1)))
 
     @property
     def ninputs(self) -> int:
+        """The number of plant inputs q (the length of ``u``)."""
         return self.u.shape[0]
 
     def control(self, x) -> np.ndarray:
-        """The control at state(s) x (..., p): ``u`` broadcast to (..., q)."""
+        """The control at one or several states: ``u`` broadcast over the leading dimensions of ``x``.
+
+        Parameters
+        ----------
+        x : array_like, shape (..., p)
+            Plant state(s); only the leading dimensions are used.
+
+        Returns
+        -------
+        ndarray, shape (..., q)
+            A writable copy of ``u`` per state.
+        """
         x = np.asarray(x, dtype=float)
         return np.broadcast_to(self.u, x.shape[:-1] + self.u.shape).copy()
 
     def to_dict(self) -> dict:
+        """A JSON-serialisable description: ``{"kind": "open_loop", "u": [...]}``.
+
+        Returns
+        -------
+        dict
+            The controller kind and ``u`` as a list of floats.
+        """
         return {"kind": "open_loop", "u": self.u.tolist()}
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class LinearFeedback:
     """State feedback ``u = clip(K (x_ref - x) + u_ff, u_low, u_high)``.
 
     Parameters
     ----------
-    K
-        Gain, shape (q, p).
-    x_ref
-        Reference state, shape (p,).
-    u_ff
-        Feedforward control, shape (q,); default 0.
-    u_low, u_high
-        Saturation limits, shape (q,) (scalars broadcast); None means no limit on
-        that side. ``u_low <= u_high``.
+    K : array_like, shape (q, p)
+        Feedback gain, in input units per state unit.
+    x_ref : array_like, shape (p,)
+        Reference state the controller regulates to, in the plant's state units.
+    u_ff : array_like, shape (q,), optional
+        Feedforward control, in input units; default 0.
+    u_low, u_high : array_like, shape (q,), or float, optional
+        Saturation limits, in input units (scalars broadcast to every input); None
+        means no limit on that side. ``u_low <= u_high``.
+
+    Raises
+    ------
+    DimensionError
+        If ``K`` is not two-dimensional or another array's shape does not match it.
+    NonFiniteError
+        If an array has NaN or infinite entries (use None for "no limit").
+    InputError
+        If ``u_low > u_high`` for some input.
+
+    Notes
+    -----
+    A low-level controller of the paper's discretised control space (Section III-B).
+    Unsaturated, it turns eq. (1) into the closed loop
+    ``x+ = (A(theta) - B K) x + B (K x_ref + u_ff) + D w`` (`closed_loop`), with the
+    same parameter structure (2); saturation is bounded by `IntervalModel`.
     """
 
     K: np.ndarray
     x_ref: np.ndarray
-    u_ff: np.ndarray | None = None
-    u_low: np.ndarray | float | None = None
-    u_high: np.ndarray | float | None = None
+    u_ff: np.ndarray
+    u_low: np.ndarray
+    u_high: np.ndarray
 
-    def __post_init__(self) -> None:
-        K = as_finite_array("K", self.K, ndim=2)
-        q, p = K.shape
-        x_ref = as_finite_array("x_ref", self.x_ref, (p,))
-        u_ff = np.zeros(q) if self.u_ff is None else as_finite_array("u_ff", self.u_ff, (q,))
-        limits = {}
-        for name, default in (("u_low", -np.inf), ("u_high", np.inf)):
-            value = getattr(self, name)
+    def __init__(
+        self,
+        K: ArrayLike,
+        x_ref: ArrayLike,
+        u_ff: ArrayLike | None = None,
+        u_low: ArrayLike | float | None = None,
+        u_high: ArrayLike | float | None = None,
+    ) -> None:
+        gain = as_finite_array("K", K, ndim=2)
+        q, p = gain.shape
+        reference = as_finite_array("x_ref", x_ref, (p,))
+        feedforward = np.zeros(q) if u_ff is None else as_finite_array("u_ff", u_ff, (q,))
+        limits: dict[str, np.ndarray] = {}
+        for name, default, value in (("u_low", -np.inf, u_low), ("u_high", np.inf, u_high)):
             if value is None:
                 limits[name] = np.full(q, default)
                 continue
@@ -90,15 +154,17 @@ class LinearFeedback:
             limits[name] = arr
         if np.any(limits["u_low"] > limits["u_high"]):
             raise InputError(f"u_low must be <= u_high, got {limits['u_low'].tolist()} and {limits['u_high'].tolist()}")
-        for name, value in (("K", K), ("x_ref", x_ref), ("u_ff", u_ff), *limits.items()):
-            object.__setattr__(self, name, frozen_copy(value))
+        for name, array in (("K", gain), ("x_ref", reference), ("u_ff", feedforward), *limits.items()):
+            object.__setattr__(self, name, frozen_copy(array))
 
     @property
     def ninputs(self) -> int:
+        """The number of plant inputs q (rows of ``K``)."""
         return self.K.shape[0]
 
     @property
     def nstates(self) -> int:
+        """The number of plant states p (columns of ``K``)."""
         return self.K.shape[1]
 
     @property
@@ -112,7 +178,18 @@ class LinearFeedback:
         return self.K @ self.x_ref + self.u_ff
 
     def control(self, x) -> np.ndarray:
-        """The saturated control at state(s) x (..., p) -> (..., q)."""
+        """The saturated control ``clip(K (x_ref - x) + u_ff, u_low, u_high)`` at one or several states.
+
+        Parameters
+        ----------
+        x : array_like, shape (..., p)
+            Plant state(s), in the plant's state units.
+
+        Returns
+        -------
+        ndarray, shape (..., q)
+            The control input(s), in input units.
+        """
         x = np.asarray(x, dtype=float)
         return np.clip((self.x_ref - x) @ self.K.T + self.u_ff, self.u_low, self.u_high)
 
@@ -120,9 +197,27 @@ class LinearFeedback:
         """The unsaturated closed loop ``x+ = (A(theta) - B K) x + B v + D w`` with ``v = feedforward``.
 
         Exact for every state at which saturation is inactive.
+
+        Parameters
+        ----------
+        system : UncertainLinearSystem
+            The plant, with ``nstates == self.nstates`` and ``ninputs == self.ninputs``.
+
+        Returns
+        -------
+        UncertainLinearSystem
+            The closed loop: ``A0 - B K`` and the plant's ``phi`` (so the parameter
+            structure of eq. (2) is unchanged), ``B``, ``D``, ``w`` and ``theta``; drive
+            it with the constant input `feedforward`.
+
+        Raises
+        ------
+        InputError
+            If ``system`` is not an `UncertainLinearSystem`.
+        DimensionError
+            If ``K`` does not have shape (system.ninputs, system.nstates).
         """
-        if not isinstance(system, UncertainLinearSystem):
-            raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+        check_instance("system", system, UncertainLinearSystem)
         if self.K.shape != (system.ninputs, system.nstates):
             raise DimensionError(
                 f"K must have shape ({system.ninputs}, {system.nstates}) for this system, got shape {self.K.shape}"
@@ -132,6 +227,14 @@ class LinearFeedback:
         )
 
     def to_dict(self) -> dict:
+        """A JSON-serialisable description of the controller.
+
+        Returns
+        -------
+        dict
+            ``kind`` (``"linear_feedback"``), ``K``, ``x_ref``, ``u_ff`` as nested lists
+            and ``u_low``, ``u_high`` per input, None where unlimited.
+        """
         return {
             "kind": "linear_feedback",
             "K": self.K.tolist(),
@@ -185,8 +288,8 @@ class ControllerBank:
                 self.offsets[a] = controller.feedforward
                 self.low[a] = controller.u_low
                 self.high[a] = controller.u_high
-            else:
-                raise InputError(f"controllers[{a}] must be OpenLoop or LinearFeedback, got {type(controller).__name__}")
+            else:  # neither kind: raises InputError naming the type given
+                check_instance(f"controllers[{a}]", controller, (OpenLoop, LinearFeedback), "OpenLoop or LinearFeedback")
         self.saturating = bool(np.any(np.isfinite(self.low)) or np.any(np.isfinite(self.high)))
         self.has_feedback = bool(np.any(self.gains != 0))
         for arr in (self.gains, self.offsets, self.low, self.high):

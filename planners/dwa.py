@@ -20,9 +20,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from minimaxplan.models.errors import InputError
+from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.models.system import UncertainLinearSystem
-from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape
+from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, check_instance, check_shape
 
 from .navigation import NavigationFunction
 
@@ -89,13 +89,11 @@ def planar_robot_model(system: UncertainLinearSystem, theta, substeps) -> tuple[
     positions integrating velocities with weight dt; ``theta`` defaults to the centre of
     the prior box; ``substeps`` (a control is held that long) must be a positive integer.
     """
-    if not isinstance(system, UncertainLinearSystem):
-        raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+    check_instance("system", system, UncertainLinearSystem)
     if system.nstates != 4 or system.ninputs != 2:
-        raise InputError(f"system must have 4 states and 2 inputs (a planar point mass), "
-                         f"got {system.nstates} states and {system.ninputs} inputs")
-    if int(substeps) != substeps or substeps < 1:
-        raise InputError(f"substeps must be a positive integer, got {substeps!r}")
+        raise DimensionError(f"system must have 4 states and 2 inputs (a planar point mass, B of shape (4, 2)), "
+                             f"got {system.nstates} states and {system.ninputs} inputs (B of shape {system.B.shape})")
+    as_count("substeps", substeps)
     theta = system.theta.center if theta is None else as_finite_array("theta", theta, (system.nparams,))
     A = system.A(theta)
     dt = float(A[0, 2])
@@ -180,8 +178,7 @@ class DWAParameters:
     grid_resolution: float = 0.2
 
     def __post_init__(self) -> None:
-        if int(self.samples_per_axis) != self.samples_per_axis or self.samples_per_axis < 2:
-            raise InputError(f"samples_per_axis must be an integer >= 2, got {self.samples_per_axis!r}")
+        as_count("samples_per_axis", self.samples_per_axis, minimum=2)
         for name in ("horizon", "brake_time", "max_speed", "clearance_cap", "grid_resolution"):
             as_positive_scalar(name, getattr(self, name))
         for name in ("safety_margin", "pedestrian_margin", "progress_weight", "heading_weight",
@@ -249,8 +246,7 @@ class DynamicWindowPlanner:
 
     def __init__(self, system: UncertainLinearSystem, *, theta=None, substeps: int = 5, robot_radius: float = 0.3,
                  params: DWAParameters = DWAParameters(), control_bound: float = 1.0):
-        if not isinstance(params, DWAParameters):
-            raise InputError(f"params must be a DWAParameters, got {type(params).__name__}")
+        check_instance("params", params, DWAParameters)
         self._A, self._dt = planar_robot_model(system, theta, substeps)
         self._B = system.B
         self.system = system
@@ -300,8 +296,7 @@ class DynamicWindowPlanner:
         DWAEvaluation
             Every sample's score, admissibility and clearance, and the chosen control.
         """
-        if not isinstance(scene, NavigationScene):
-            raise InputError(f"scene must be a NavigationScene, got {type(scene).__name__}")
+        check_instance("scene", scene, NavigationScene)
         x = _validated_state(state, 4)
         p = self.params
         k = self.controls.shape[0]

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..models.prediction import IntervalPredictor, summation_error_bound, interval_matvec
+from ..models.prediction import IntervalPredictor, interval_matvec, summation_error_bound
 from ..models.system import UncertainLinearSystem
 from .box_kernels import IntervalKernel
 from .controllers import ControllerBank, LinearFeedback
@@ -39,7 +39,9 @@ def _columns(matrices: np.ndarray) -> np.ndarray:
     return np.array(_z_matrix(matrices), dtype=float)
 
 
-def _rounding_errors(systems, predictors, vertices, B, bank: ControllerBank, closed_abs, drift_z, w_z) -> tuple:
+def _rounding_errors(
+    systems, predictors, vertices, B, bank: ControllerBank, closed_abs, drift_z, w_z
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """The rigorous rounding-error bounds `box_kernels.substep` adds (see `IntervalModel`, Notes).
 
     Returns ``(closed_error, drift_error, opened_error, w_error, gain_error,
@@ -92,6 +94,14 @@ def _rounding_errors(systems, predictors, vertices, B, bank: ControllerBank, clo
     )
 
 
+def _disturbance_matrix(system: UncertainLinearSystem) -> np.ndarray:
+    """``system.D``, which `UncertainLinearSystem` always sets (to the identity when given None)."""
+    D = system.D
+    if D is None:  # unreachable for a constructed system; narrows the field's declared Optional type
+        raise TypeError("UncertainLinearSystem.D is unset")
+    return D
+
+
 def build_interval_kernel(
     systems: Sequence[UncertainLinearSystem], predictors: Sequence[IntervalPredictor], bank: ControllerBank
 ) -> IntervalKernel:
@@ -137,15 +147,15 @@ def build_interval_kernel(
     else:
         closed = np.ascontiguousarray(opened[:, None])  # (M, 1, k, 2p, 2p)
         closed_abs = None
-    w = [interval_matvec(system.D, system.w.low, system.w.high) for system in systems]
+    w = [interval_matvec(_disturbance_matrix(system), system.w.low, system.w.high) for system in systems]
     w_lo = np.stack([lo for lo, _ in w])
     w_hi = np.stack([hi for _, hi in w])
     w_z = np.concatenate([-w_lo, w_hi], axis=-1)  # (M, 2p)
     drift = np.einsum("mpq,aq->map", B, bank.offsets)  # (M, A, p): B_m c_a
     drift_z = np.concatenate([-drift, drift], axis=-1) + w_z[:, None]  # (M, A, 2p)
-    plain = [np.array(a, dtype=float) for a in (bank.offsets, bank.low, bank.high)]
+    offsets, low, high = (np.array(a, dtype=float) for a in (bank.offsets, bank.low, bank.high))
     errors = _rounding_errors(systems, predictors, vertices, B, bank, closed_abs, drift_z, w_z)
     return IntervalKernel(
-        closed, opened, drift_z, w_z, _columns(bank.gains), _columns(B), *plain, bool(per_action), bool(bank.saturating),
-        *errors,
+        closed, opened, drift_z, w_z, _columns(bank.gains), _columns(B), offsets, low, high, bool(per_action),
+        bool(bank.saturating), *errors,
     )

@@ -30,12 +30,12 @@ from typing import Any
 
 import numpy as np
 
-from ..models.validation import as_finite_array
+from ..kernels import has_compiled_minimum
 from ..models.errors import DimensionError, EmptySetError, InputError
 from ..models.prediction import IntervalPredictor
 from ..models.sets import Box
 from ..models.system import UncertainLinearSystem
-from ..kernels import has_compiled_minimum
+from ..models.validation import as_count, as_finite_array, check_instance
 from .box_kernels import propagate, stack_rewards_kernel
 from .controllers import ControllerBank
 from .interval_kernel import build_interval_kernel
@@ -47,23 +47,45 @@ __all__ = ["BoxState", "IntervalGroup", "IntervalModel"]
 class BoxState:
     """A planner state of `IntervalModel`: the box ``[lower, upper]`` at sub-step ``time``.
 
-    Immutable by convention (its arrays are read-only views). ``lower`` and ``upper``
-    have shape (p,), or (M, p) for the states of linked models (one box per
-    hypothesis). ``z`` is the same box as ``[-lower | upper]``, the form the
-    arithmetic works on (computed on demand when not given).
+    Immutable by convention (its arrays are read-only views). Build root states with
+    `IntervalModel.initial_state`; the planner creates the others.
+
+    Parameters
+    ----------
+    lower, upper : ndarray, shape (p,) or (M, p)
+        The box's corners, in the plant's state units: one box, or one per hypothesis
+        for the states of linked models (`IntervalModel.linked`). Stored as given
+        (pass read-only arrays).
+    time : int
+        The absolute sub-step index t of the box (the reward's time argument).
+    z : ndarray, shape (2p,) or (M, 2p), optional
+        The same box as ``[-lower | upper]``, the form the compiled arithmetic works
+        on; computed on first use when None.
+
+    Attributes
+    ----------
+    time : int
+        As given.
+
+    Notes
+    -----
+    The box ``[lower, upper]`` is the interval prediction of eq. (9): it contains
+    every state the plant can reach under the model's parameter set and
+    disturbances (inclusion property (7)).
     """
 
     __slots__ = ("_lower", "_upper", "time", "_z", "_source")
 
-    def __init__(self, lower, upper, time: int, z=None) -> None:
-        self._lower = lower
-        self._upper = upper
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, time: int, z: np.ndarray | None = None) -> None:
+        self._lower: np.ndarray | None = lower
+        self._upper: np.ndarray | None = upper
         self.time = time
-        self._z = z
-        self._source = None
+        self._z: np.ndarray | None = z
+        # (lower, upper, z, key) of a batched transition: the arrays this state's views are taken from
+        self._source: tuple[np.ndarray, np.ndarray, np.ndarray, Any] | None = None
 
     @classmethod
-    def _from_batch(cls, lower, upper, z, key, time: int) -> BoxState:
+    def _from_batch(cls, lower: np.ndarray, upper: np.ndarray, z: np.ndarray, key: Any, time: int) -> BoxState:
         """The state ``lower[key], upper[key]`` of a batched transition, its views taken on first use.
 
         Most children of the search tree are never expanded nor inspected, so the
@@ -77,37 +99,41 @@ class BoxState:
 
     @property
     def lower(self) -> np.ndarray:
-        if self._lower is None and self._source is not None:
-            self._lower = self._source[0][self._source[3]]
+        """The lower corner(s) of the box, shape (p,) or (M, p) (read-only)."""
+        if self._lower is None:
+            self._lower = self._batch_view(0)
         return self._lower
 
     @property
     def upper(self) -> np.ndarray:
-        if self._upper is None and self._source is not None:
-            self._upper = self._source[1][self._source[3]]
+        """The upper corner(s) of the box, shape (p,) or (M, p) (read-only)."""
+        if self._upper is None:
+            self._upper = self._batch_view(1)
         return self._upper
 
     @property
     def z(self) -> np.ndarray:
+        """The box as ``[-lower | upper]``, shape (2p,) or (M, 2p) (read-only), as the arithmetic stores it."""
         if self._z is None and self._source is not None:
-            self._z = self._source[2][self._source[3]]
+            self._z = self._batch_view(2)
         if self._z is None:
             z = np.concatenate([-np.asarray(self.lower, dtype=float), np.asarray(self.upper, dtype=float)], axis=-1)
             z.setflags(write=False)
             self._z = z
         return self._z
 
+    def _batch_view(self, which: int) -> np.ndarray:
+        """This state's view of array ``which`` (0: lower, 1: upper, 2: z) of the batch it was created from."""
+        source = self._source
+        if source is None:  # only `_from_batch` leaves a corner unset
+            raise InputError("a BoxState needs lower and upper (see IntervalModel.initial_state)")
+        return source[which][source[3]]
+
     def __iter__(self):
         return iter((self.lower, self.upper, self.time))
 
     def __repr__(self) -> str:
         return f"BoxState(lower={np.asarray(self.lower).tolist()}, upper={np.asarray(self.upper).tolist()}, time={self.time})"
-
-
-def _check_substeps(substeps) -> int:
-    if isinstance(substeps, bool) or int(substeps) != substeps or substeps < 1:
-        raise InputError(f"substeps must be an integer >= 1, got {substeps!r}")
-    return int(substeps)
 
 
 def _check_reward(reward, nstates: int):
@@ -121,12 +147,6 @@ def _check_reward(reward, nstates: int):
         raise DimensionError(f"reward reads state coordinates up to index {needed - 1}, but the system has {nstates} states")
     raw = getattr(reward, "box_minimum_raw", None)
     return raw if callable(raw) else minimum
-
-
-def _check_time(time) -> int:
-    if isinstance(time, bool) or int(time) != time or time < 0:
-        raise InputError(f"time must be a nonnegative integer sub-step index, got {time!r}")
-    return int(time)
 
 
 class _ActionIndex:
@@ -212,18 +232,19 @@ class IntervalGroup:
             raise InputError("each item of systems_with_parameters must be a (system, parameters) pair")
         resolved = []
         for i, (system, parameters) in enumerate(pairs):
-            if not isinstance(system, UncertainLinearSystem):
-                raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+            check_instance("system", system, UncertainLinearSystem)
             first = pairs[0][0]
             if (system.nstates, system.ninputs) != (first.nstates, first.ninputs):
-                raise InputError(
-                    f"systems_with_parameters[{i}] has {system.nstates} states and {system.ninputs} inputs, "
-                    f"but the first system has {first.nstates} and {first.ninputs}"
+                raise DimensionError(
+                    f"systems_with_parameters[{i}] has {system.nstates} states and {system.ninputs} inputs "
+                    f"(B of shape {system.B.shape}), but systems_with_parameters[0] has {first.nstates} and "
+                    f"{first.ninputs} (B of shape {first.B.shape}); the hypotheses must share the state and "
+                    "input dimensions"
                 )
             resolved.append((system, system.theta if parameters is None else parameters))
         p, q = pairs[0][0].nstates, pairs[0][0].ninputs
         self.reward_minimum = _check_reward(reward, p)
-        self.substeps = _check_substeps(substeps)
+        self.substeps = as_count("substeps", substeps)
         self.bank = ControllerBank(controllers, p, q)
         self.kernel_params = getattr(reward, "kernel_params", None)
         if self.kernel_params is not None and not has_compiled_minimum(self.kernel_params):
@@ -240,9 +261,10 @@ class IntervalGroup:
         self.predictors = tuple(IntervalPredictor(system, parameters) for system, parameters in resolved)
         self.kernel = build_interval_kernel(self.systems, self.predictors, self.bank)
         self.actions = _ActionIndex(len(self.bank))
-        self._key_state = None
-        self._key_actions = None
-        self._result = None
+        # the one-entry cache of `expand_all`, keyed by the identity of its arguments
+        self._key_state: BoxState | None = None
+        self._key_actions: Any = None
+        self._result: tuple[list[BoxState], np.ndarray, np.ndarray] | None = None
 
     @property
     def size(self) -> int:
@@ -251,8 +273,8 @@ class IntervalGroup:
 
     def state_z(self, state: BoxState) -> np.ndarray:
         """The boxes of a state as z of shape (M or 1, 2p): a writable contiguous copy (one compiled signature)."""
-        if type(state) is not BoxState:
-            raise InputError(f"state must be a BoxState (see IntervalModel.initial_state), got {type(state).__name__}")
+        if type(state) is not BoxState:  # the hot path tests the exact type; the validator words the error
+            check_instance("state", state, BoxState, "a BoxState (see IntervalModel.initial_state)")
         z = state.z
         if z.ndim == 1:
             return np.array(z[None, :], dtype=float)
@@ -280,14 +302,14 @@ class IntervalGroup:
         return stack, np.minimum.reduce(reward, axis=0), np.logical_or.reduce(collided, axis=0)
 
     # ------------------------------------------------- BatchedTransitions
-    def expand_all(self, state: BoxState, actions) -> tuple[list, np.ndarray, np.ndarray]:
+    def expand_all(self, state: BoxState, actions) -> tuple[list[BoxState], np.ndarray, np.ndarray]:
         """Every hypothesis under every action from ``state``, in one compiled call.
 
         Returns ``(next_states, rewards, terminals)``: a list of `BoxState` holding
         one box per hypothesis (one box when M = 1), the pessimistic rewards and the
         collision flags, each of shape (M, len(actions)).
         """
-        if state is self._key_state and actions is self._key_actions:
+        if self._result is not None and state is self._key_state and actions is self._key_actions:
             return self._result
         p = self.p
         root = self.state_z(state)
@@ -339,32 +361,61 @@ class IntervalGroup:
         return [None] + [batch(lower, upper, z, (i,), time + depth[i] * S) for i in range(1, z.shape[0])]
 
 
-@dataclass(frozen=True, eq=False)
+def _check_member(group: IntervalGroup, m, system, parameters, reward, controllers, substeps) -> None:
+    """Check that the arguments of an `IntervalModel` are those of member ``m`` of ``group``."""
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not 0 <= m < group.size:
+        raise InputError(f"member must be an integer in [0, {group.size}), got {m!r}")
+    if system is not group.systems[m] or reward is not group.reward or substeps != group.substeps:
+        raise InputError(f"system, reward and substeps must be those of the group's member {m}")
+    if parameters is not None and parameters is not group.parameters[m]:
+        raise InputError(f"parameters must be None or the group's member {m} parameters")
+    try:
+        given = tuple(controllers)
+    except TypeError:
+        raise InputError(f"controllers must be a sequence, got {type(controllers).__name__}") from None
+    if len(given) != len(group.bank) or any(c is not d for c, d in zip(given, group.bank.controllers)):
+        raise InputError("controllers must be the group's controllers")
+
+
+@dataclass(frozen=True, eq=False, init=False)
 class IntervalModel:
     """A planner model whose state is a box containing the true state (Theorem 1).
 
     Parameters
     ----------
-    system
-        The `UncertainLinearSystem` ``x+ = A(theta) x + B u + D w`` (one sub-step).
-    parameters
-        The parameter set: `Box`, `Ellipsoid` or vertex array (k, d), as for
+    system : UncertainLinearSystem
+        The plant ``x+ = A(theta) x + B u + D w`` (one sub-step).
+    parameters : Box, Ellipsoid, array_like of shape (k, d), or None
+        The parameter set (a vertex array holds k parameter vectors), as for
         `IntervalPredictor`; None means ``system.theta``.
-    reward
+    reward : BoxReward
         A reward family with ``box_minimum(lower, upper, t) -> (reward, collided)``
         returning the EXACT minimum over each box, vectorised over leading dimensions
         (e.g. `minimaxplan.scenarios.GoalReward`), rewards in [0, 1]. It reads full
         states (each family holds its own coordinate indices).
-    controllers
-        One `OpenLoop` or `LinearFeedback` per action; the planner's actions are the
-        indices ``0 .. len(controllers) - 1``.
-    substeps
-        Sub-steps of ``system`` per decision (>= 1); the action's controller acts at
-        every sub-step.
-    group, member
-        The `IntervalGroup` this model is computed with and its index there, as
-        `linked` passes them; by default (None) a group of this hypothesis alone.
-        The other arguments must then be the group's.
+    controllers : sequence of OpenLoop or LinearFeedback
+        One controller per action; the planner's actions are the indices
+        ``0 .. len(controllers) - 1``.
+    substeps : int, optional
+        Sub-steps of ``system`` per decision (>= 1, default 1); the action's
+        controller acts at every sub-step.
+    group : IntervalGroup, optional
+        The group this model is computed with, as `linked` passes it; by default
+        (None) a group of this hypothesis alone. The other arguments must then be
+        the group's.
+    member : int, optional
+        The model's index in ``group`` (default 0).
+
+    Raises
+    ------
+    InputError
+        If ``system`` is not an `UncertainLinearSystem`, ``reward`` has no callable
+        ``box_minimum`` (or an unregistered ``kernel_params``), ``controllers`` is
+        empty or holds another type, ``substeps`` is not a positive integer, or
+        ``group``/``member`` do not match the other arguments.
+    DimensionError
+        If ``parameters``, the reward's state indices or a controller do not fit
+        the system.
 
     Attributes
     ----------
@@ -421,48 +472,72 @@ class IntervalModel:
     system: UncertainLinearSystem
     parameters: Any
     reward: Any
-    controllers: Sequence
-    substeps: int = field(default=1, kw_only=True)
-    group: IntervalGroup | None = field(default=None, kw_only=True, repr=False)
-    member: int = field(default=0, kw_only=True)
+    controllers: tuple
+    substeps: int
+    group: IntervalGroup = field(repr=False)
+    member: int
 
-    def __post_init__(self) -> None:
-        group = self.group
+    def __init__(
+        self,
+        system: UncertainLinearSystem,
+        parameters: Any,
+        reward: Any,
+        controllers: Sequence,
+        *,
+        substeps: int = 1,
+        group: IntervalGroup | None = None,
+        member: int = 0,
+    ) -> None:
         if group is None:
-            group = IntervalGroup([(self.system, self.parameters)], self.reward, self.controllers, substeps=self.substeps)
-            object.__setattr__(self, "group", group)
-        elif not isinstance(group, IntervalGroup):
-            raise InputError(f"group must be an IntervalGroup (see IntervalModel.linked), got {type(group).__name__}")
+            group = IntervalGroup([(system, parameters)], reward, controllers, substeps=substeps)
         else:
-            self._check_member(group)
-        m = self.member
-        object.__setattr__(self, "parameters", group.parameters[m])
-        object.__setattr__(self, "controllers", group.bank.controllers)
-        object.__setattr__(self, "substeps", group.substeps)
-
-    def _check_member(self, group: IntervalGroup) -> None:
-        m = self.member
-        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not 0 <= m < group.size:
-            raise InputError(f"member must be an integer in [0, {group.size}), got {m!r}")
-        if self.system is not group.systems[m] or self.reward is not group.reward or self.substeps != group.substeps:
-            raise InputError(f"system, reward and substeps must be those of the group's member {m}")
-        if self.parameters is not None and self.parameters is not group.parameters[m]:
-            raise InputError(f"parameters must be None or the group's member {m} parameters")
-        try:
-            controllers = tuple(self.controllers)
-        except TypeError:
-            raise InputError(f"controllers must be a sequence, got {type(self.controllers).__name__}") from None
-        if len(controllers) != len(group.bank) or any(c is not d for c, d in zip(controllers, group.bank.controllers)):
-            raise InputError("controllers must be the group's controllers")
+            check_instance("group", group, IntervalGroup, "an IntervalGroup (see IntervalModel.linked)")
+            _check_member(group, member, system, parameters, reward, controllers, substeps)
+        for name, value in (
+            ("system", system), ("parameters", group.parameters[member]), ("reward", reward),
+            ("controllers", group.bank.controllers), ("substeps", group.substeps), ("group", group), ("member", member),
+        ):
+            object.__setattr__(self, name, value)
 
     @classmethod
     def linked(cls, systems_with_parameters, reward, controllers, *, substeps: int = 1) -> list[IntervalModel]:
         """One `IntervalModel` per ``(system, parameters)`` hypothesis, computing their transitions together.
 
-        The systems must have the same numbers of states and inputs. Use the list as
-        the ``models`` of a `RobustTreePlanner` (in this order): the planner then
-        steps all of them in one `IntervalGroup.expand_all` call per expansion, or
-        runs its compiled engine.
+        Use the list as the ``models`` of a `RobustTreePlanner` (in this order): the
+        planner then steps all of them in one `IntervalGroup.expand_all` call per
+        expansion, or runs its compiled engine.
+
+        Parameters
+        ----------
+        systems_with_parameters : sequence of (UncertainLinearSystem, parameter set or None)
+            The M >= 1 structural hypotheses; ``parameters`` as for `IntervalModel`
+            (None means ``system.theta``). The systems must have the same numbers of
+            states and inputs.
+        reward : BoxReward
+            The reward family, shared by every hypothesis (as for `IntervalModel`).
+        controllers : sequence of OpenLoop or LinearFeedback
+            One controller per action, shared by every hypothesis.
+        substeps : int, optional
+            Sub-steps of the systems per decision (>= 1, default 1).
+
+        Returns
+        -------
+        list of IntervalModel
+            M models of one `IntervalGroup`, member ``m`` for hypothesis ``m``.
+
+        Raises
+        ------
+        InputError
+            If ``systems_with_parameters`` is empty or not a sequence of pairs, or an
+            argument is invalid as for `IntervalModel`.
+        DimensionError
+            If a system's numbers of states and inputs differ from the first one's.
+
+        Notes
+        -----
+        The multi-model objective (15): the planner maximises the minimum over these
+        M models of the discounted pessimistic returns, with the robust bounds
+        (16)-(18).
         """
         group = IntervalGroup(systems_with_parameters, reward, controllers, substeps=substeps)
         return [
@@ -482,6 +557,7 @@ class IntervalModel:
 
     @property
     def n_actions(self) -> int:
+        """The number of actions |A| (one per controller)."""
         return len(self.bank)
 
     @property
@@ -498,22 +574,99 @@ class IntervalModel:
     def expand(self, state: BoxState, actions) -> tuple[list, np.ndarray, np.ndarray]:
         """Step every action from ``state`` in one batched call (the planner's vectorised protocol).
 
-        Returns ``(next_states, rewards, terminals)``: a list of `BoxState`, the
-        pessimistic rewards (len(actions),) and the collision flags (len(actions),).
+        Parameters
+        ----------
+        state : BoxState
+            The current box (from `initial_state` or an earlier transition).
+        actions : sequence of int
+            Controller indices in ``[0, n_actions)``.
+
+        Returns
+        -------
+        next_states : list of BoxState
+            The box after the decision, per action (one box per hypothesis for
+            linked models).
+        rewards : ndarray, shape (len(actions),)
+            The pessimistic rewards: the exact minimum of the reward over every
+            sub-step box of the decision, in [0, 1].
+        terminals : ndarray of bool, shape (len(actions),)
+            Whether a collision is possible in one of those boxes.
+
+        Raises
+        ------
+        InputError
+            If ``state`` is not a `BoxState` or an action is not a controller index.
+        DimensionError
+            If ``state`` holds a number of boxes other than 1 or the group size.
+
+        Notes
+        -----
+        The rewards are the pessimistic costs J_n of the surrogate objective (11):
+        by the inclusion property (7) they bound the true rewards from below
+        (Theorem 1).
         """
         next_states, rewards, terminals = self.group.expand_all(state, actions)
         m = self.member
         return next_states, rewards[m], terminals[m]
 
     def step(self, state: BoxState, action) -> tuple[BoxState, float, bool]:
-        """One transition: ``(next_state, pessimistic reward, terminal)``."""
+        """One transition: ``(next_state, pessimistic reward, terminal)``.
+
+        Parameters
+        ----------
+        state : BoxState
+            The current box.
+        action : int
+            A controller index in ``[0, n_actions)``.
+
+        Returns
+        -------
+        next_state : BoxState
+            The box after the decision.
+        reward : float
+            The pessimistic reward (Theorem 1), in [0, 1].
+        terminal : bool
+            Whether a collision is possible during the decision.
+
+        Raises
+        ------
+        InputError
+            As for `expand`.
+        """
         next_states, rewards, terminals = self.expand(state, (action,))
         return next_states[0], float(rewards[0]), bool(terminals[0])
 
     def initial_state(self, lower, upper=None, *, time: int = 0) -> BoxState:
-        """The planner's root state: a `Box` (or arrays ``lower``, ``upper`` of shape (p,)) at sub-step ``time``.
+        """The planner's root state: a box of plant states at sub-step ``time``.
 
         The same root state serves every linked hypothesis.
+
+        Parameters
+        ----------
+        lower : Box or array_like, shape (p,)
+            A `Box` of plant states, or its lower corner, in the plant's state units.
+        upper : array_like, shape (p,), optional
+            The upper corner (only with an array ``lower``); None means the
+            degenerate box ``[lower, lower]`` (an exactly known state).
+        time : int, optional
+            The absolute sub-step index of the box (>= 0, default 0), the reward's
+            time argument.
+
+        Returns
+        -------
+        BoxState
+            The box, with read-only copies of the corners.
+
+        Raises
+        ------
+        InputError
+            If both a `Box` and ``upper`` are given, or ``time`` is not an integer >= 0.
+        DimensionError
+            If the corners do not have shape (p,).
+        NonFiniteError
+            If a corner has NaN or infinite entries.
+        EmptySetError
+            If ``lower > upper`` in some coordinate.
         """
         p = self.system.nstates
         if isinstance(lower, Box):
@@ -530,10 +683,21 @@ class IntervalModel:
         lo, hi = lo.copy(), hi.copy()
         lo.setflags(write=False)
         hi.setflags(write=False)
-        return BoxState(lo, hi, _check_time(time))
+        return BoxState(lo, hi, as_count("time", time, minimum=0))
 
     def box(self, state: BoxState) -> tuple[np.ndarray, np.ndarray]:
-        """This hypothesis's box in ``state`` (states of linked models hold one box per hypothesis)."""
+        """This hypothesis's box in ``state`` (states of linked models hold one box per hypothesis).
+
+        Parameters
+        ----------
+        state : BoxState
+            A state of this model (or of its linked group).
+
+        Returns
+        -------
+        lower, upper : ndarray, shape (p,)
+            The corners of this hypothesis's box (read-only views).
+        """
         if state.lower.ndim == 2:
             return state.lower[self.member], state.upper[self.member]
         return state.lower, state.upper
@@ -541,13 +705,29 @@ class IntervalModel:
     def rollout(self, state: BoxState, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """This hypothesis's boxes at every sub-step along an action sequence.
 
-        Returns ``lower, upper`` of shape (len(actions) * substeps + 1, p) (row 0 is
-        the initial box) and the per-decision pessimistic rewards and terminal flags,
-        each of shape (len(actions),). Rewards after a terminal transition are
-        reported as computed (the planner ignores them).
+        Parameters
+        ----------
+        state : BoxState
+            The initial box (e.g. the planner's root state).
+        actions : sequence of int
+            Controller indices, one per decision (e.g. ``Decision.sequence``).
+
+        Returns
+        -------
+        lower, upper : ndarray, shape (len(actions) * substeps + 1, p)
+            The box corners after every sub-step; row 0 is the initial box.
+        rewards : ndarray, shape (len(actions),)
+            The per-decision pessimistic rewards (Theorem 1). Rewards after a
+            terminal transition are reported as computed (the planner ignores them).
+        terminals : ndarray of bool, shape (len(actions),)
+            The per-decision collision flags.
+
+        Raises
+        ------
+        InputError
+            If ``state`` is not a `BoxState` or an action is not a controller index.
         """
-        if type(state) is not BoxState:
-            raise InputError(f"state must be a BoxState, got {type(state).__name__}")
+        check_instance("state", state, BoxState)
         seq = list(actions)
         group, m = self.group, self.member
         group.actions(seq)

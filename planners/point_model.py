@@ -13,11 +13,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..models.validation import as_finite_array
-from ..models.errors import DimensionError, InputError
 from ..models.system import UncertainLinearSystem
+from ..models.validation import as_count, as_finite_array, check_instance
 from .controllers import ControllerBank
-from .interval_model import _ActionIndex, _check_reward, _check_substeps, _check_time, _SubstepTimes
+from .interval_model import _ActionIndex, _check_reward, _SubstepTimes
 
 __all__ = ["PointState", "PointModel"]
 
@@ -34,18 +33,27 @@ class PointModel:
 
     Parameters
     ----------
-    system
-        The `UncertainLinearSystem` (one sub-step).
-    theta
-        The parameter vector used, shape (d,): an estimate (nominal planner) or the
-        truth (oracle planner).
-    reward
+    system : UncertainLinearSystem
+        The plant ``x+ = A(theta) x + B u + D w`` (one sub-step).
+    theta : array_like, shape (d,)
+        The parameter vector used: an estimate (nominal planner) or the truth
+        (oracle planner).
+    reward : BoxReward
         A reward family with ``box_minimum(lower, upper, t)`` (evaluated on the
-        degenerate box ``[x, x]``, i.e. at the point).
-    controllers
-        One `OpenLoop` or `LinearFeedback` per action (saturation applied exactly).
-    substeps
-        Sub-steps per decision.
+        degenerate box ``[x, x]``, i.e. at the point), rewards in [0, 1].
+    controllers : sequence of OpenLoop or LinearFeedback
+        One controller per action (saturation applied exactly).
+    substeps : int, optional
+        Sub-steps per decision (>= 1, default 1).
+
+    Raises
+    ------
+    InputError
+        If ``system`` is not an `UncertainLinearSystem`, ``reward`` has no callable
+        ``box_minimum``, ``controllers`` is empty or holds another type, or
+        ``substeps`` is not a positive integer.
+    DimensionError
+        If ``theta`` does not have shape (d,) or a controller does not fit the plant.
 
     Notes
     -----
@@ -54,14 +62,13 @@ class PointModel:
     """
 
     def __init__(self, system: UncertainLinearSystem, theta, reward, controllers, *, substeps: int = 1) -> None:
-        if not isinstance(system, UncertainLinearSystem):
-            raise InputError(f"system must be an UncertainLinearSystem, got {type(system).__name__}")
+        check_instance("system", system, UncertainLinearSystem)
         self.system = system
         self.theta = as_finite_array("theta", theta, (system.nparams,))
         self.theta.setflags(write=False)
         self.reward = reward
         self._reward_min = _check_reward(reward, system.nstates)
-        self.substeps = _check_substeps(substeps)
+        self.substeps = as_count("substeps", substeps)
         self.bank = ControllerBank(controllers, system.nstates, system.ninputs)
         self.controllers = self.bank.controllers
         self._A_T = np.ascontiguousarray(system.A(self.theta).T)
@@ -75,10 +82,12 @@ class PointModel:
 
     @property
     def n_actions(self) -> int:
+        """The number of actions |A| (one per controller)."""
         return len(self.bank)
 
     @property
     def actions(self) -> tuple[int, ...]:
+        """The planner's actions: the controller indices ``0 .. n_actions - 1``."""
         return tuple(range(self.n_actions))
 
     def _propagate(self, x, time, index, n):
@@ -102,9 +111,31 @@ class PointModel:
         return states[-1], reward.min(axis=0), collided.any(axis=0)
 
     def expand(self, state: PointState, actions) -> tuple[list, np.ndarray, np.ndarray]:
-        """Step every action from ``state`` in one batched call."""
-        if type(state) is not PointState:
-            raise InputError(f"state must be a PointState (see PointModel.initial_state), got {type(state).__name__}")
+        """Step every action from ``state`` in one batched call.
+
+        Parameters
+        ----------
+        state : PointState
+            The current state (from `initial_state` or an earlier transition).
+        actions : sequence of int
+            Controller indices in ``[0, n_actions)``.
+
+        Returns
+        -------
+        next_states : list of PointState
+            The state after the decision, per action.
+        rewards : ndarray, shape (len(actions),)
+            The minimum of the reward over the decision's sub-step states, in [0, 1].
+        terminals : ndarray of bool, shape (len(actions),)
+            Whether one of those states collides.
+
+        Raises
+        ------
+        InputError
+            If ``state`` is not a `PointState` or an action is not a controller index.
+        """
+        if type(state) is not PointState:  # the hot path tests the exact type; the validator words the error
+            check_instance("state", state, PointState, "a PointState (see PointModel.initial_state)")
         index = self._actions(actions)
         n = self.n_actions if index is None else len(index)
         x, rewards, terminals = self._propagate(state.x, state.time, index, n)
@@ -112,14 +143,57 @@ class PointModel:
         return [PointState(x[i], time) for i in range(n)], rewards, terminals
 
     def step(self, state: PointState, action) -> tuple[PointState, float, bool]:
+        """One transition: ``(next_state, reward, terminal)``.
+
+        Parameters
+        ----------
+        state : PointState
+            The current state.
+        action : int
+            A controller index in ``[0, n_actions)``.
+
+        Returns
+        -------
+        next_state : PointState
+            The state after the decision.
+        reward : float
+            The minimum reward over the decision's sub-steps, in [0, 1].
+        terminal : bool
+            Whether a sub-step state collides.
+
+        Raises
+        ------
+        InputError
+            As for `expand`.
+        """
         next_states, rewards, terminals = self.expand(state, (action,))
         return next_states[0], float(rewards[0]), bool(terminals[0])
 
     def initial_state(self, x, *, time: int = 0) -> PointState:
-        """The planner's root state from a measured state x (p,) at sub-step ``time``."""
-        x = as_finite_array("x", x)
-        if x.shape != (self._p,):
-            raise DimensionError(f"x must have shape ({self._p},), got shape {x.shape}")
+        """The planner's root state from a measured state at sub-step ``time``.
+
+        Parameters
+        ----------
+        x : array_like, shape (p,)
+            The plant state, in the plant's state units (copied, read-only).
+        time : int, optional
+            The absolute sub-step index (>= 0, default 0), the reward's time argument.
+
+        Returns
+        -------
+        PointState
+            The root state.
+
+        Raises
+        ------
+        DimensionError
+            If ``x`` does not have shape (p,).
+        NonFiniteError
+            If ``x`` has NaN or infinite entries.
+        InputError
+            If ``time`` is not an integer >= 0.
+        """
+        x = as_finite_array("x", x, (self._p,))
         x = x.copy()
         x.setflags(write=False)
-        return PointState(x, _check_time(time))
+        return PointState(x, as_count("time", time, minimum=0))

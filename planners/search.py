@@ -24,12 +24,13 @@ from __future__ import annotations
 
 import functools
 import numbers
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
-from ..models.errors import DimensionError, InputError, NonFiniteError, RewardRangeError
+from ..models.errors import DimensionError, InputError, RewardRangeError
+from ..models.validation import as_choice, as_count, as_discount
 from . import tree_ops
 from .compiled_search import FULL, SOLVED, BoxArrays, allocate_boxes, grow_boxes, search_kernel
 from .decision import Decision
@@ -60,15 +61,18 @@ class _Transitions:
         self.actions = actions
         self.n_actions = len(actions)
         self._step = model.step
-        self._expand = model.expand if isinstance(model, VectorisedModel) and callable(model.expand) else None
+        self._expand: Callable[[Any, tuple], Any] | None = (
+            model.expand if isinstance(model, VectorisedModel) and callable(model.expand) else None
+        )
 
-    def __call__(self, state) -> tuple[list, np.ndarray, np.ndarray]:
-        if self._expand is not None:
-            return self._batched(state)
+    def __call__(self, state) -> tuple[Sequence, np.ndarray, np.ndarray]:
+        expand = self._expand
+        if expand is not None:
+            return self._batched(expand, state)
         return self._one_by_one(state)
 
-    def _batched(self, state) -> tuple[list, np.ndarray, np.ndarray]:
-        out = self._expand(state, self.actions)
+    def _batched(self, expand: Callable[[Any, tuple], Any], state) -> tuple[Sequence, np.ndarray, np.ndarray]:
+        out = expand(state, self.actions)
         if not isinstance(out, tuple) or len(out) != 3:
             raise InputError(
                 f"models[{self.index}].expand(state, actions) must return a tuple "
@@ -112,7 +116,7 @@ class _Transitions:
                 f"models[{self.index}].expand returned non-numeric rewards {rewards!r}"
             ) from None
 
-    def _one_by_one(self, state) -> tuple[list, np.ndarray, np.ndarray]:
+    def _one_by_one(self, state) -> tuple[Sequence, np.ndarray, np.ndarray]:
         n = self.n_actions
         next_states = [None] * n
         rewards = np.empty(n)
@@ -170,26 +174,6 @@ def _as_flag(value, index: int, action, a: int) -> bool:
         f"models[{index}].step returned terminal={value!r} for action {action!r} (index {a}); "
         "expected a bool"
     )
-
-
-def _check_gamma(gamma) -> float:
-    try:
-        value = float(gamma)
-    except (TypeError, ValueError):
-        raise InputError(f"gamma must be a real number in (0, 1), got {gamma!r}") from None
-    if not np.isfinite(value):
-        raise NonFiniteError(f"gamma must be finite and in (0, 1), got {value}")
-    if not 0.0 < value < 1.0:
-        raise InputError(f"gamma must be in the open interval (0, 1), got {value}")
-    return value
-
-
-def _check_count(name: str, value, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    if value < minimum:
-        raise InputError(f"{name} must be an integer >= {minimum}, got {value}")
-    return int(value)
 
 
 class RobustTreePlanner:
@@ -265,20 +249,19 @@ class RobustTreePlanner:
             raise InputError(f"actions must be a sequence, got {type(actions).__name__}") from None
         if not actions:
             raise InputError("actions must be a non-empty sequence")
-        self._gamma = _check_gamma(gamma)
-        self._budget = _check_count("budget", budget, 1)
+        self._gamma = as_discount("gamma", gamma)
+        self._budget = as_count("budget", budget)
         if 1 + self._budget * len(actions) > MAX_TREE_NODES:
             raise InputError(
                 f"budget must be at most {(MAX_TREE_NODES - 1) // len(actions)} with {len(actions)} actions "
                 f"(the tree holds 1 + budget * len(actions) nodes, at most {MAX_TREE_NODES}), got {budget}"
             )
-        self._seed = _check_count("seed", seed, 0)
+        self._seed = as_count("seed", seed, minimum=0)
         self._models = tuple(models)
         self._actions = actions
         self._transitions = [_Transitions(m, model, actions) for m, model in enumerate(models)]
         self._group = _linked_group(self._models)
-        if engine not in ENGINES:
-            raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
+        engine = as_choice("engine", engine, ENGINES)
         self._engine = engine
         group = self._group
         self._compiled = (
@@ -380,9 +363,10 @@ class RobustTreePlanner:
             self._arrays = self._boxes = None
             self._tree_shared = False
         self._tree = None
-        if self._compiled is not None and all(s is states[0] for s in states):
+        compiled = self._compiled
+        if compiled is not None and all(s is states[0] for s in states):
             self.engine_used = "compiled"
-            tree, solved, node_states = self._search_compiled(states[0])
+            tree, solved, node_states = self._search_compiled(compiled, states[0])
         elif self.engine == "compiled":
             raise InputError("engine='compiled' needs one initial state shared by every model")
         else:
@@ -438,7 +422,8 @@ class RobustTreePlanner:
 
     def _transitions_of(self, tree: TreeArrays, leaf: int, state_lists: list) -> None:
         """Write ``leaf``'s transitions into ``tree.rewards``/``new_terminal``; append the children's states."""
-        if self._group is not None and not tree.any_terminated[leaf] and self._transitions_jointly(tree, leaf, state_lists):
+        group = self._group
+        if group is not None and not tree.any_terminated[leaf] and self._transitions_jointly(group, tree, leaf, state_lists):
             return
         n_actions = len(self.actions)
         rewards, new_terminal = tree.rewards, tree.new_terminal
@@ -454,7 +439,7 @@ class RobustTreePlanner:
             new_terminal[m] = model_terminals
             state_lists[m].extend(next_states)
 
-    def _transitions_jointly(self, tree: TreeArrays, leaf: int, state_lists: list) -> bool:
+    def _transitions_jointly(self, group: BatchedTransitions, tree: TreeArrays, leaf: int, state_lists: list) -> bool:
         """`_transitions_of` from one ``expand_all`` of the group, if the leaf's models share one state.
 
         False to take the per-model path: the models' states differ, or the group's
@@ -465,7 +450,7 @@ class RobustTreePlanner:
         for states in state_lists:
             if states[leaf] is not state:
                 return False
-        next_states, rewards, terminals = self._group.expand_all(state, self.actions)
+        next_states, rewards, terminals = group.expand_all(state, self.actions)
         shape = tree.rewards.shape
         if (
             type(rewards) is not np.ndarray or rewards.dtype != np.float64 or rewards.shape != shape
@@ -487,16 +472,17 @@ class RobustTreePlanner:
         )
 
     # ---------------------------------------------------------- compiled engine
-    def _search_compiled(self, state) -> tuple[TreeArrays, bool, Any]:
-        """`_search_python` with the transitions computed by the compiled box kernel (`compiled_search`)."""
-        problem = self._compiled.compiled_problem(state, self.actions)
+    def _search_compiled(self, group: CompiledTransitions, state) -> tuple[TreeArrays, bool, Any]:
+        """`_search_python` with the transitions computed by ``group`` in the compiled box kernel (`compiled_search`)."""
+        problem = group.compiled_problem(state, self.actions)
         tree = self._tree_arrays()
         boxes = self._boxes
         if boxes is None or boxes.z.shape[0] != tree.parent.shape[0] or boxes.stack.shape[0] != problem.substeps:
             boxes = allocate_boxes(tree.parent.shape[0], self.n_models, len(self.actions), problem.root.shape[1],
                                    problem.substeps)
         boxes = self._boxes = boxes._replace(root=problem.root, actions=problem.actions, time=int(problem.time))
-        kernel = search_kernel(type(problem.params))
+        params_type: type = type(problem.params)
+        kernel = search_kernel(params_type)
         status, bad = kernel(self.budget, tree, boxes, problem.kernel, problem.params, False)
         while status == FULL:  # only for budgets beyond the first rows: grow, then resume where it stopped
             capacity = self._grown_capacity(tree, tree.parent.shape[0] + len(self.actions))
@@ -506,13 +492,13 @@ class RobustTreePlanner:
         if bad >= 0:
             self._raise_reward_error(tree, bad)
         solved = status == SOLVED
-        return tree, bool(solved), functools.partial(self._node_states, tree, boxes, state)
+        return tree, bool(solved), functools.partial(self._node_states, group, tree, boxes, state)
 
-    def _node_states(self, tree: TreeArrays, boxes: BoxArrays, root_state) -> list:
+    def _node_states(self, group: CompiledTransitions, tree: TreeArrays, boxes: BoxArrays, root_state) -> list:
         """``states[m][i]`` of a compiled search: the objects the Python engine would hold."""
         size = int(tree.counts[tree_ops.SIZE])
         depth = tree.depth[:size].tolist()
-        joint = self._compiled.node_states(boxes.z[:size].copy(), depth, boxes.time)
+        joint = group.node_states(boxes.z[:size].copy(), depth, boxes.time)
         parent, terminal = tree.parent[:size].tolist(), tree.terminal
         states = []
         for m in range(self.n_models):

@@ -37,7 +37,7 @@ from scipy.optimize import minimize
 
 from minimaxplan.models.errors import InputError, SolverFailure
 from minimaxplan.models.system import UncertainLinearSystem
-from minimaxplan.models.validation import as_finite_array, as_positive_scalar
+from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, check_instance
 
 from .dwa import NavigationScene, planar_robot_model
 from .navigation import NavigationFunction
@@ -114,9 +114,7 @@ class TEBParameters:
                      "goal_jump"):
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
         for name in ("min_poses", "max_poses", "max_iterations"):
-            value = getattr(self, name)
-            if int(value) != value or value < 1:
-                raise InputError(f"{name} must be a positive integer, got {value!r}")
+            as_count(name, getattr(self, name))
         if self.min_poses > self.max_poses:
             raise InputError(f"min_poses must be <= max_poses, got {self.min_poses} > {self.max_poses}")
         if not self.dt_min < self.dt_ref < self.dt_max:
@@ -247,8 +245,7 @@ class TimedElasticBand:
 
     def __init__(self, system: UncertainLinearSystem, *, theta=None, substeps: int = 5, robot_radius: float = 0.3,
                  params: TEBParameters = TEBParameters(), control_bound: float = 1.0):
-        if not isinstance(params, TEBParameters):
-            raise InputError(f"params must be a TEBParameters, got {type(params).__name__}")
+        check_instance("params", params, TEBParameters)
         A, self._dt = planar_robot_model(system, theta, substeps)
         self._decay = np.diag(A)[2:].copy()  # per-axis velocity factor a = 1 - dt * xi
         self._gain = np.diag(system.B[2:]).copy()
@@ -401,8 +398,7 @@ class TimedElasticBand:
         TEBPlan
             The optimised band, its cost and clearance violation, and the control.
         """
-        if not isinstance(scene, NavigationScene):
-            raise InputError(f"scene must be a NavigationScene, got {type(scene).__name__}")
+        check_instance("scene", scene, NavigationScene)
         x = as_finite_array("state", state, (4,))
         start, velocity = x[:2], x[2:]
         discs = self._discs(scene)

@@ -15,10 +15,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from minimaxplan.kernels import box_primitives, minimum_sources, sources_digest
 from minimaxplan.models import Box, UncertainLinearSystem
 from minimaxplan.models.errors import InputError, RewardRangeError
 from minimaxplan.planners import OpenLoop, PointModel, RobustTreePlanner
-from minimaxplan.kernels import box_primitives, minimum_sources, sources_digest
 from minimaxplan.planners.box_kernels import stack_rewards_kernel
 from minimaxplan.planners.interval_model import IntervalModel
 from minimaxplan.scenarios.geometry import CircularObstacles, MovingObstacles

@@ -9,6 +9,7 @@ from minimaxplan.models import DimensionError, InputError, NonFiniteError
 from minimaxplan.planners.dwa import DWAParameters, DynamicWindowPlanner, NavigationScene
 from minimaxplan.scenarios.robot import robot_system
 
+from ._systems import random_system
 from ._systems import run_baseline_episode as run_episode
 
 finite = dict(allow_nan=False, allow_infinity=False)
@@ -125,6 +126,10 @@ def test_fallback_escapes_when_nothing_is_admissible():
          r"pedestrian_velocities must have shape \(1, 2\), got shape \(2, 2\)"),
         (lambda: NavigationScene([np.nan, 0]), NonFiniteError, "goal contains NaN"),
         (lambda: DWAParameters(samples_per_axis=1), InputError, "samples_per_axis must be an integer >= 2"),
+        (lambda: DWAParameters(samples_per_axis=3.0), InputError, r"samples_per_axis must be an integer >= 2, got 3\.0"),
+        (lambda: DynamicWindowPlanner(robot_system(), substeps=2.5), InputError, r"substeps must be a positive integer, got 2\.5"),
+        (lambda: DynamicWindowPlanner(random_system(np.random.default_rng(0), p=3, q=2, d=1)), DimensionError,
+         r"system must have 4 states and 2 inputs .*got 3 states and 2 inputs \(B of shape \(3, 2\)\)"),
         (lambda: DWAParameters(horizon=0.0), InputError, "horizon must be > 0"),
         (lambda: DynamicWindowPlanner("system"), InputError, "system must be an UncertainLinearSystem"),
         (lambda: DynamicWindowPlanner(robot_system(isotropic=True), theta=[0.5, 0.5]), DimensionError, r"theta must have shape \(1,\)"),

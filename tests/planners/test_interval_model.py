@@ -243,7 +243,7 @@ def test_interval_model_validation():
         IntervalModel(system, None, object(), ROBOT_ACTIONS)
     with pytest.raises(DimensionError, match="reward reads state coordinates up to index 5, but the system has 4 states"):
         IntervalModel(system, None, GoalReward([1.0, 1.0], position_indices=(5, 0)), ROBOT_ACTIONS)
-    with pytest.raises(InputError, match="substeps must be an integer >= 1, got 0"):
+    with pytest.raises(InputError, match="substeps must be a positive integer, got 0"):
         IntervalModel(system, None, reward, ROBOT_ACTIONS, substeps=0)
     with pytest.raises(InputError, match="controllers must be a non-empty sequence"):
         IntervalModel(system, None, reward, [])
@@ -260,8 +260,12 @@ def test_interval_model_validation():
         model.initial_state([0.0, 0.0, 0.0], [1.0, 1.0, 1.0])
     with pytest.raises(EmptySetError, match=r"lower > upper at indices \[1\]"):
         model.initial_state([0.0, 2.0, 0.0, 0.0], [1.0, 1.0, 1.0, 1.0])
-    with pytest.raises(InputError, match="time must be a nonnegative integer"):
+    with pytest.raises(InputError, match="time must be an integer >= 0, got -1"):
         model.initial_state([0.0] * 4, time=-1)
+    with pytest.raises(InputError, match="time must be an integer >= 0, got 2.0"):
+        model.initial_state([0.0] * 4, time=2.0)
+    with pytest.raises(InputError, match="substeps must be a positive integer, got 2.0"):
+        IntervalModel(system, None, reward, ROBOT_ACTIONS, substeps=2.0)
     state = model.initial_state(Box([0.0] * 4, [1.0] * 4))
     with pytest.raises(InputError, match="state must be a BoxState"):
         model.expand((state.lower, state.upper), model.actions)
@@ -300,8 +304,16 @@ def test_point_model_validation():
     with pytest.raises(InputError, match="systems_with_parameters must hold at least one"):
         multi_model_robust_planner([], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
     small = systems.random_system(np.random.default_rng(0), p=3, q=2, d=2)
-    with pytest.raises(InputError, match=r"systems_with_parameters\[1\] has 3 states and 2 inputs"):
+    with pytest.raises(
+        DimensionError,
+        match=r"systems_with_parameters\[1\] has 3 states and 2 inputs \(B of shape \(3, 2\)\), "
+        r"but systems_with_parameters\[0\] has 4 and 2 \(B of shape \(4, 2\)\)",
+    ):
         multi_model_robust_planner([(system, None), (small, None)], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
+    with pytest.raises(DimensionError, match=r"systems_with_parameters\[1\] has 3 states"):
+        IntervalModel.linked([(system, None), (small, None)], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
+    with pytest.raises(InputError, match="time must be an integer >= 0, got 1.5"):
+        model.initial_state(np.zeros(4), time=1.5)
 
 
 # --------------------------------------------------------------- linked models

@@ -110,6 +110,7 @@ def test_pedestrian_moving_into_the_route_bends_the_band():
         (lambda: TEBParameters(dt_ref=5.0), InputError, "need dt_min < dt_ref < dt_max"),
         (lambda: TEBParameters(min_poses=10, max_poses=5), InputError, "min_poses must be <= max_poses"),
         (lambda: TEBParameters(max_iterations=0), InputError, "max_iterations must be a positive integer"),
+        (lambda: TEBParameters(min_poses=2.5), InputError, r"min_poses must be a positive integer, got 2\.5"),
         (lambda: TEBParameters(obstacle_weight=-1.0), InputError, "obstacle_weight must be > 0"),
         (lambda: TimedElasticBand(None), InputError, "system must be an UncertainLinearSystem"),
         (lambda: TimedElasticBand(robot_system(), theta=[0.5]), DimensionError, r"theta must have shape \(2,\), got shape \(1,\)"),

@@ -310,7 +310,7 @@ def test_gamma_not_finite_or_not_a_number():
 
 @pytest.mark.parametrize("budget", [0, -3, 2.5, True, "10"])
 def test_budget_must_be_a_positive_integer(budget):
-    with pytest.raises(InputError, match=rf"budget must be an integer >= 1, got {budget!r}"):
+    with pytest.raises(InputError, match=rf"budget must be a positive integer, got {budget!r}"):
         RobustTreePlanner([good], [0, 1], gamma=0.9, budget=budget)
 
 
