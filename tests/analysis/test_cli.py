@@ -83,7 +83,7 @@ def test_lmi_markdown_report_to_file(tmp_path, capsys):
     assert (code, out, err) == (0, "", "")
     text = out_file.read_text()
     assert text.startswith("# Assumption 4 (LMI) report")
-    assert "**Assumption 4 holds: feasible, certificate re-checked**" in text
+    assert "**Assumption 4 holds: feasible, certificate re-checked exactly**" in text
     assert "spectral radius of A" in text and "eigenvalues of P" in text
     assert "discrete: `[[A^T P A - P + Q0" in text
 
