@@ -24,12 +24,10 @@ __all__ = [
     "EPS",
 ]
 
-EPS = np.finfo(float).eps
-# Radii below this count as 0 (their reciprocal would overflow), and beta spans at most
-# six orders of magnitude, so that HiGHS (which drops coefficients below 1e-9) keeps
-# every coefficient of the margin column.
+#: The unit roundoff of float64.
+EPS = float(np.finfo(float).eps)
+#: Radii below this count as 0 (their reciprocal would overflow).
 NEGLIGIBLE_RADIUS = 1e-150
-BETA_SPREAD = 1e-6
 
 
 def check_hypotheses(hypotheses) -> list[UncertainLinearSystem]:
@@ -130,9 +128,23 @@ def disturbance_set_is_box(D: np.ndarray, radius: np.ndarray) -> bool:
 class Structure:
     """Everything about one hypothesis that does not depend on the data (computed once).
 
-    The inflation unit ``beta`` (per state coordinate) is the radius of the interval
-    hull of ``D W + [-ebar, ebar]``, or 1 where that radius is 0, raised to at least
-    `BETA_SPREAD` times its largest entry.
+    Parameters
+    ----------
+    hyp : UncertainLinearSystem
+        The hypothesis.
+    noise_bound : numpy.ndarray
+        Shape (p,): the bound on the measurement-noise term of each row (see
+        `measurement_noise_bound`), in state units.
+    allowance : float
+        Relative rounding allowance per row (dimensionless).
+
+    Notes
+    -----
+    The inflation unit of state coordinate i is the radius ``unit_i`` of the interval
+    hull of ``D W + [-ebar, ebar]`` (state units). Where that radius is 0 (no
+    disturbance nor noise reaches the coordinate) the unit is taken per row, as the
+    row's natural magnitude (see `HypothesisData`): both scale like the coordinate, so
+    the margin does not depend on the units of the states and inputs.
     """
 
     def __init__(self, hyp: UncertainLinearSystem, noise_bound: np.ndarray, allowance: float) -> None:
@@ -145,15 +157,16 @@ class Structure:
         self.A0_T, self.B_T, self.phi = hyp.A0.T, hyp.B.T, hyp.phi
         theta_max = np.maximum(np.abs(self.theta_low), np.abs(self.theta_high))
         w_max = np.maximum(np.abs(hyp.w.low), np.abs(hyp.w.high))
+        self.theta_scale = np.where(theta_max > 0, theta_max, 1.0)
+        self.w_scale = np.where(w_max > 0, w_max, 1.0)
         self.abs_A0_T = np.abs(hyp.A0).T
         self.abs_B_T = np.abs(hyp.B).T
         self.abs_regression_T = np.tensordot(theta_max, np.abs(hyp.phi), 1).T
         self.constant_magnitude = np.abs(hyp.D) @ w_max + noise_bound
         self.hull_center = self.D @ self.w_center
         self.hull_radius = np.abs(self.D) @ self.w_radius
-        unit = self.hull_radius + noise_bound
-        beta = np.where(unit > NEGLIGIBLE_RADIUS, unit, 1.0)
-        self.beta = np.maximum(beta, BETA_SPREAD * np.max(beta))
+        self.unit = self.hull_radius + noise_bound
+        self.has_unit = self.unit > NEGLIGIBLE_RADIUS
         self.is_box = disturbance_set_is_box(self.D, self.w_radius)
         self.d_pinv = None if self.is_box else np.linalg.pinv(self.D)
 
@@ -161,8 +174,24 @@ class Structure:
 class HypothesisData:
     """The regression ``z_n = E_n theta + D w_n + e_n`` of one hypothesis on transitions.
 
+    Parameters
+    ----------
+    structure : Structure
+        The hypothesis' data-independent part.
+    X, U, Xn : numpy.ndarray
+        States (N, p), controls (N, q) and next states (N, p) of N transitions.
+
+    Notes
+    -----
     ``z_n = x_{n+1} - A0 x_n - B u_n``, ``E_n = regressor(x_n)``, ``|e_n| <= ebar + a_n``
     (measurement noise, rounding allowance), ``w_n`` in the box ``W = c_w +- r_w``.
+    ``magnitude`` (N, p) is the natural magnitude of each row, the sum of the moduli of
+    its terms ``|x_{n+1}| + |A0| |x_n| + |B| |u_n| + |E_n| theta_max + |D| w_max + ebar``:
+    the rounding allowance is relative to it, the LPs divide each row by it (``scale``),
+    and ``beta`` (N, p), the inflation unit of each row, is the structure's ``unit``
+    where it is positive and the magnitude elsewhere (1 for an identically zero row).
+    All three scale like the state coordinate of the row, so the margins, the
+    verdicts and the LPs solved do not depend on the units of x and u.
     """
 
     def __init__(self, structure: Structure, X, U, Xn) -> None:
@@ -170,7 +199,8 @@ class HypothesisData:
         self.hyp = st.hyp
         self.theta_low, self.theta_high = st.theta_low, st.theta_high
         self.D, self.w_center, self.w_radius = st.D, st.w_center, st.w_radius
-        self.hull_center, self.hull_radius, self.beta = st.hull_center, st.hull_radius, st.beta
+        self.hull_center, self.hull_radius = st.hull_center, st.hull_radius
+        self.theta_scale, self.w_scale = st.theta_scale, st.w_scale
         self.is_box, self.d_pinv = st.is_box, st.d_pinv
         self.z = Xn - X @ st.A0_T - U @ st.B_T
         self.E = np.einsum("ipq,nq->npi", st.phi, X)
@@ -180,37 +210,70 @@ class HypothesisData:
             + st.constant_magnitude
         )
         self.e = st.noise_bound + st.allowance * magnitude
+        self.magnitude = magnitude
+        self.beta = np.where(st.has_unit, st.unit, np.where(magnitude > 0, magnitude, 1.0))
+        self.scale = np.where(magnitude > 0, np.maximum(magnitude, self.beta), self.beta)
 
     @property
     def ntransitions(self) -> int:
+        """The number N of transitions."""
         return self.z.shape[0]
 
     @property
     def nparams(self) -> int:
+        """The number d of parameters."""
         return self.E.shape[2]
 
     @property
     def nstates(self) -> int:
+        """The state dimension p."""
         return self.z.shape[1]
 
-    def needed_margin(self, theta: np.ndarray, idx=slice(None)) -> np.ndarray:
+    def needed_margin(self, theta: np.ndarray, idx: slice | np.ndarray = slice(None)) -> np.ndarray:
         """Per transition, a margin s that suffices to explain it with this theta.
 
-        Exact (the least such s) when ``D W`` is a box; otherwise an upper bound, from
-        the disturbance ``clip(pinv(D) residual, W)``.
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            Shape (d,), a parameter.
+        idx : slice or numpy.ndarray
+            The transitions to evaluate (all by default).
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (k,), dimensionless (excess over ``e`` in units of ``beta``; <= 0
+            means explained without inflation). Exact (the least such s) when ``D W``
+            is a box; otherwise an upper bound, from the disturbance
+            ``clip(pinv(D) residual, W)``.
         """
         n, p, d = self.E.shape
         fitted = (self.E.reshape(n * p, d) @ theta).reshape(n, p)
         residual = self.z[idx] - fitted[idx]
-        if self.is_box:
+        if self.d_pinv is None:
             excess = np.abs(residual - self.hull_center) - self.hull_radius - self.e[idx]
         else:
             w = np.clip(residual @ self.d_pinv.T, self.w_center - self.w_radius, self.w_center + self.w_radius)
             excess = np.abs(residual - w @ self.D.T) - self.e[idx]
-        return np.max(excess / self.beta, axis=1)
+        return np.max(excess / self.beta[idx], axis=1)
 
-    def needed_margin_with(self, theta: np.ndarray, w: np.ndarray, idx) -> np.ndarray:
-        """Per transition, the least s that explains it with this theta and disturbances w (k, r)."""
+    def needed_margin_with(self, theta: np.ndarray, w: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """Per transition, the least s that explains it with this theta and disturbances.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            Shape (d,), a parameter.
+        w : numpy.ndarray
+            Shape (k, r), disturbances of the transitions ``idx`` (clipped to W).
+        idx : numpy.ndarray
+            Shape (k,), transition indices.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (k,), dimensionless margins.
+        """
         w = np.clip(w, self.w_center - self.w_radius, self.w_center + self.w_radius)
         excess = np.abs(self.z[idx] - self.E[idx] @ theta - w @ self.D.T) - self.e[idx]
-        return np.max(excess / self.beta, axis=1)
+        return np.max(excess / self.beta[idx], axis=1)

@@ -103,6 +103,7 @@ def _decide(
     start = initial_rows(data) if initial is None else initial
     gen = generate(data, np.zeros(d), None, start, max_rounds=max_rounds)
     sol = gen.solution
+    margin = min(max(sol.s, gen.lower, 0.0), gen.upper)
     certificate = None
     if gen.lower > tolerance:
         # Keep only the transitions with a multiplier: still a valid bound (fewer terms),
@@ -113,7 +114,7 @@ def _decide(
         if lower > tolerance:
             certificate = EliminationCertificate(
                 hypothesis=index,
-                margin=sol.s,
+                margin=margin,
                 lower_bound=lower,
                 transitions=transitions,
                 multipliers_upper=sol.y_upper[keep],
@@ -122,7 +123,7 @@ def _decide(
                 rounding_allowance=allowance,
                 measurement_noise=noise,
             )
-    return _Verdict(sol.s, gen.upper, gen.lower, sol.theta, gen.active, gen.rounds, certificate)
+    return _Verdict(margin, gen.upper, gen.lower, sol.theta, gen.active, gen.rounds, certificate)
 
 
 def _check_options(tolerance, rounding_allowance, max_rounds) -> tuple[float, float, int]:
@@ -191,8 +192,17 @@ def eliminate_models(
     ``-(e_n + s beta) <= z_n - E_n theta - D w_n <= e_n + s beta``  for all n,
 
     with ``beta`` the radius of the interval hull of ``D W + [-v, v]`` (``|D| r_w`` plus
-    the noise bound), or 1 where that is 0, and at least 1e-6 times its largest entry
-    (to keep the LP well scaled). For D = I without noise this is the
+    the noise bound) where it is positive, and elsewhere the row's natural magnitude
+    (the sum of the moduli of its terms, see `HypothesisData`): both scale like their
+    state coordinate, so the margin is dimensionless and does not depend on the units
+    of x and u. The LPs are equilibrated before HiGHS solves them (rows by their
+    magnitude, theta and w by their prior's, see `solve_lp`), so that a change of units
+    ``x -> S x``, ``u -> R u`` applied to the data and to the hypothesis alike
+    (``A0 -> S A0 S^-1``, ``phi_i -> S phi_i S^-1``, ``B -> S B R^-1``, ``D -> S D`` with
+    W unchanged, ``v_bar -> S v_bar``; theta unchanged) leaves the LPs HiGHS solves the
+    same up to rounding. The reported margin is HiGHS's optimum clipped to the certified
+    interval ``[lower, upper]`` (upper: the margin the LP's theta achieves on every row,
+    recomputed with numpy). For D = I without noise this is the
     inflation of W to ``[w_lo - s r_w, w_hi + s r_w]``. When ``D W`` is a box (every
     column of D with a nonzero disturbance radius has one nonzero entry, e.g. D = I or
     ``dt I``), w is eliminated exactly and the LP has d + 1 variables and 2 p N rows;
