@@ -7,6 +7,9 @@ the LPs of `minimaxplan.verify.selection` are built from.
 
 from __future__ import annotations
 
+from itertools import combinations
+from math import comb
+
 import numpy as np
 
 from minimaxplan.models import UncertainLinearSystem
@@ -28,6 +31,11 @@ __all__ = [
 EPS = float(np.finfo(float).eps)
 #: Radii below this count as 0 (their reciprocal would overflow).
 NEGLIGIBLE_RADIUS = 1e-150
+#: When ``D W`` is not a box, the per-transition margin is computed exactly from the
+#: facet normals of the zonotope ``D W + box`` if there are at most this many
+#: candidate normals (``C(g, p - 1)`` for g generators); otherwise it is bounded above
+#: with the disturbance ``clip(pinv(D) r, W)``.
+MAX_FACET_NORMALS = 4096
 
 
 def check_hypotheses(hypotheses) -> list[UncertainLinearSystem]:
@@ -119,6 +127,50 @@ def measurement_noise_bound(hypothesis: UncertainLinearSystem, measurement_noise
     return (v + a_abs @ v) * (1 + 4 * (v.size + 2) * EPS)
 
 
+def zonotope_normals(D: np.ndarray, radius: np.ndarray) -> np.ndarray | None:
+    """Unit normals of every facet the zonotope ``D W + box`` can have, or None if too many.
+
+    Parameters
+    ----------
+    D : numpy.ndarray
+        Shape (p, r), the disturbance matrix.
+    radius : numpy.ndarray
+        Shape (r,), the radii of W (columns with radius 0 are no generators).
+
+    Returns
+    -------
+    numpy.ndarray or None
+        Shape (m, p): one normal per (p - 1)-subset of the generators (the columns of D
+        with a positive radius and the p coordinate axes) that spans a hyperplane; None
+        if there are more than `MAX_FACET_NORMALS` subsets.
+
+    Notes
+    -----
+    A zonotope ``c + sum_j [-1, 1] g_j`` whose generators span R^p is the set of the
+    points y with ``|nu . (y - c)| <= sum_j |nu . g_j|`` for the normals nu of the
+    hyperplanes spanned by p - 1 generators, whatever the (positive) lengths of the
+    generators; with the p axes among the generators the zonotope is full-dimensional.
+    """
+    p = D.shape[0]
+    columns = D[:, radius > NEGLIGIBLE_RADIUS]
+    columns = columns[:, np.any(columns != 0, axis=0)]
+    generators = np.hstack([columns / np.linalg.norm(columns, axis=0), np.eye(p)])
+    if p == 1:
+        return np.ones((1, 1))
+    if comb(generators.shape[1], p - 1) > MAX_FACET_NORMALS:
+        return None
+    normals = []
+    for subset in combinations(range(generators.shape[1]), p - 1):
+        u, sv, _ = np.linalg.svd(generators[:, subset], full_matrices=True)
+        if sv[-1] > 1e-9 * sv[0]:
+            normals.append(u[:, -1])
+    nu = np.array(normals)
+    first = np.argmax(np.abs(nu) > 1e-12, axis=1)
+    nu *= np.where(nu[np.arange(len(nu)), first] < 0, -1.0, 1.0)[:, None]  # one sign per hyperplane
+    _, keep = np.unique(np.round(nu, 12), axis=0, return_index=True)
+    return nu[np.sort(keep)]
+
+
 def disturbance_set_is_box(D: np.ndarray, radius: np.ndarray) -> bool:
     """True iff ``D W`` is itself a box: every column with a nonzero radius has <= 1 nonzero."""
     return bool(np.all(np.count_nonzero(D[:, radius > 0], axis=0) <= 1))
@@ -169,6 +221,16 @@ class Structure:
         self.has_unit = self.unit > NEGLIGIBLE_RADIUS
         self.is_box = disturbance_set_is_box(self.D, self.w_radius)
         self.d_pinv = None if self.is_box else np.linalg.pinv(self.D)
+        # The zonotope test runs in coordinates divided by ``unit`` (1 where that is 0),
+        # which scale like the states: no cancellation between coordinates of very
+        # different units. The normals are then applied to ``(r - D c_w) / unit``.
+        self.coordinate_scale = np.where(self.has_unit, self.unit, 1.0)
+        scaled_D = self.D / self.coordinate_scale[:, None]
+        self.normals = None if self.is_box else zonotope_normals(scaled_D, self.w_radius)
+        if self.normals is not None:
+            self.normals_T = (self.normals / self.coordinate_scale).T  # acts on unscaled vectors
+            self.abs_normals_T = np.abs(self.normals_T)
+            self.normal_support = np.abs(self.normals @ scaled_D) @ self.w_radius
 
 
 class HypothesisData:
@@ -202,6 +264,9 @@ class HypothesisData:
         self.hull_center, self.hull_radius = st.hull_center, st.hull_radius
         self.theta_scale, self.w_scale = st.theta_scale, st.w_scale
         self.is_box, self.d_pinv = st.is_box, st.d_pinv
+        self._structure = st
+        self._facet_slack: np.ndarray | None = None
+        self._facet_unit: np.ndarray | None = None
         self.z = Xn - X @ st.A0_T - U @ st.B_T
         self.E = np.einsum("ipq,nq->npi", st.phi, X)
         abs_x = np.abs(X)
@@ -225,6 +290,11 @@ class HypothesisData:
         return self.E.shape[2]
 
     @property
+    def exact_margins(self) -> bool:
+        """True iff `needed_margin` is exact (``D W`` a box, or few zonotope facets)."""
+        return self.d_pinv is None or self._structure.normals is not None
+
+    @property
     def nstates(self) -> int:
         """The state dimension p."""
         return self.z.shape[1]
@@ -244,14 +314,24 @@ class HypothesisData:
         numpy.ndarray
             Shape (k,), dimensionless (excess over ``e`` in units of ``beta``; <= 0
             means explained without inflation). Exact (the least such s) when ``D W``
-            is a box; otherwise an upper bound, from the disturbance
-            ``clip(pinv(D) residual, W)``.
+            is a box, or when the zonotope ``D W + box(e + s beta)`` has at most
+            `MAX_FACET_NORMALS` candidate facets (see `zonotope_normals`: the least s is
+            the largest over the facet normals nu of ``(|nu . (r - D c_w)| - |nu D| r_w
+            - |nu| . e) / (|nu| . beta)``); otherwise an upper bound, from the
+            disturbance ``clip(pinv(D) residual, W)``.
         """
         n, p, d = self.E.shape
         fitted = (self.E.reshape(n * p, d) @ theta).reshape(n, p)
         residual = self.z[idx] - fitted[idx]
+        st = self._structure
         if self.d_pinv is None:
             excess = np.abs(residual - self.hull_center) - self.hull_radius - self.e[idx]
+        elif st.normals is not None:
+            if self._facet_slack is None:  # per row and facet: |nu| . e and |nu| . beta, once
+                self._facet_slack = np.einsum("np,pm->nm", self.e, st.abs_normals_T) + st.normal_support
+                self._facet_unit = np.einsum("np,pm->nm", self.beta, st.abs_normals_T)
+            along = np.abs(np.einsum("np,pm->nm", residual - self.hull_center, st.normals_T))
+            return np.max((along - self._facet_slack[idx]) / self._facet_unit[idx], axis=1)
         else:
             w = np.clip(residual @ self.d_pinv.T, self.w_center - self.w_radius, self.w_center + self.w_radius)
             excess = np.abs(residual - w @ self.D.T) - self.e[idx]
