@@ -116,7 +116,7 @@ def generate(
         worst = candidates[np.argsort(-needed[candidates], kind="stable")[:batch]]
         active = np.union1d(active, worst)
         batch *= 2
-    if data.exact_margins:
+    if data.exact_margins or sol.w is None:
         upper = float(np.max(needed_all, initial=0.0))
     else:
         on_active = data.needed_margin_with(sol.theta, sol.w, active)

@@ -204,7 +204,8 @@ class Structure:
         self.noise_bound = noise_bound
         self.allowance = allowance
         self.theta_low, self.theta_high = hyp.theta.low, hyp.theta.high
-        self.D = hyp.D
+        # (the constructor of UncertainLinearSystem replaces D = None by the identity)
+        self.D: np.ndarray = hyp.D if hyp.D is not None else np.eye(hyp.nstates)
         self.w_center, self.w_radius = hyp.w.center, hyp.w.radius
         self.A0_T, self.B_T, self.phi = hyp.A0.T, hyp.B.T, hyp.phi
         theta_max = np.maximum(np.abs(self.theta_low), np.abs(self.theta_high))
@@ -214,7 +215,7 @@ class Structure:
         self.abs_A0_T = np.abs(hyp.A0).T
         self.abs_B_T = np.abs(hyp.B).T
         self.abs_regression_T = np.tensordot(theta_max, np.abs(hyp.phi), 1).T
-        self.constant_magnitude = np.abs(hyp.D) @ w_max + noise_bound
+        self.constant_magnitude = np.abs(self.D) @ w_max + noise_bound
         self.hull_center = self.D @ self.w_center
         self.hull_radius = np.abs(self.D) @ self.w_radius
         self.unit = self.hull_radius + noise_bound
@@ -265,8 +266,7 @@ class HypothesisData:
         self.theta_scale, self.w_scale = st.theta_scale, st.w_scale
         self.is_box, self.d_pinv = st.is_box, st.d_pinv
         self._structure = st
-        self._facet_slack: np.ndarray | None = None
-        self._facet_unit: np.ndarray | None = None
+        self._facets: tuple[np.ndarray, np.ndarray] | None = None
         self.z = Xn - X @ st.A0_T - U @ st.B_T
         self.E = np.einsum("ipq,nq->npi", st.phi, X)
         abs_x = np.abs(X)
@@ -327,11 +327,12 @@ class HypothesisData:
         if self.d_pinv is None:
             excess = np.abs(residual - self.hull_center) - self.hull_radius - self.e[idx]
         elif st.normals is not None:
-            if self._facet_slack is None:  # per row and facet: |nu| . e and |nu| . beta, once
-                self._facet_slack = np.einsum("np,pm->nm", self.e, st.abs_normals_T) + st.normal_support
-                self._facet_unit = np.einsum("np,pm->nm", self.beta, st.abs_normals_T)
+            if self._facets is None:  # per row and facet: |nu| . e and |nu| . beta, once
+                slack = np.einsum("np,pm->nm", self.e, st.abs_normals_T) + st.normal_support
+                self._facets = (slack, np.einsum("np,pm->nm", self.beta, st.abs_normals_T))
+            facet_slack, facet_unit = self._facets
             along = np.abs(np.einsum("np,pm->nm", residual - self.hull_center, st.normals_T))
-            return np.max((along - self._facet_slack[idx]) / self._facet_unit[idx], axis=1)
+            return np.max((along - facet_slack[idx]) / facet_unit[idx], axis=1)
         else:
             w = np.clip(residual @ self.d_pinv.T, self.w_center - self.w_radius, self.w_center + self.w_radius)
             excess = np.abs(residual - w @ self.D.T) - self.e[idx]

@@ -32,6 +32,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from minimaxplan.models import Box, UncertainLinearSystem
 from minimaxplan.models.errors import NoConsistentModel, SolverFailure
@@ -126,7 +127,7 @@ def _decide(
     return _Verdict(margin, gen.upper, gen.lower, sol.theta, gen.active, gen.rounds, certificate)
 
 
-def _check_options(tolerance, rounding_allowance, max_rounds) -> tuple[float, float, int]:
+def _check_options(tolerance: float, rounding_allowance: float, max_rounds: int) -> tuple[float, float, int]:
     tol = as_positive_scalar("tolerance", tolerance)
     allowance = as_positive_scalar("rounding_allowance", rounding_allowance, allow_zero=True)
     return tol, allowance, as_count("max_rounds", max_rounds, minimum=0)
@@ -135,10 +136,10 @@ def _check_options(tolerance, rounding_allowance, max_rounds) -> tuple[float, fl
 # --------------------------------------------------------------------------- API
 def eliminate_models(
     hypotheses: Sequence[UncertainLinearSystem],
-    states,
-    controls,
+    states: ArrayLike,
+    controls: ArrayLike,
     *,
-    measurement_noise=None,
+    measurement_noise: ArrayLike | None = None,
     tolerance: float = ELIMINATION_MARGIN,
     rounding_allowance: float = ROUNDING_ALLOWANCE,
     max_rounds: int = MAX_GENERATION_ROUNDS,
@@ -206,9 +207,12 @@ def eliminate_models(
     inflation of W to ``[w_lo - s r_w, w_hi + s r_w]``. When ``D W`` is a box (every
     column of D with a nonzero disturbance radius has one nonzero entry, e.g. D = I or
     ``dt I``), w is eliminated exactly and the LP has d + 1 variables and 2 p N rows;
-    otherwise the ``w_n`` are LP variables (rows of transitions outside the generated
-    subset are checked with the disturbance ``clip(pinv(D) residual, W)``, which only
-    over-estimates their violation, so an undecided transition is simply added).
+    otherwise the ``w_n`` are LP variables, and the rows of transitions outside the
+    generated subset are checked exactly against the facets of the zonotope
+    ``D W + box(e_n + s beta)`` (see ``_regression.zonotope_normals``; when it has more
+    than ``MAX_FACET_NORMALS`` candidate facets, with the disturbance
+    ``clip(pinv(D) residual, W)``, which only over-estimates their violation, so an
+    undecided transition is simply added).
 
     The decision uses a weak-duality bound recomputed with numpy (see
     `EliminationCertificate`), so neither HiGHS's tolerances nor an early stop of
@@ -234,10 +238,10 @@ def eliminate_models(
 
 def feasible_parameter_box(
     hypothesis: UncertainLinearSystem,
-    states,
-    controls,
+    states: ArrayLike,
+    controls: ArrayLike,
     *,
-    measurement_noise=None,
+    measurement_noise: ArrayLike | None = None,
     tolerance: float = ELIMINATION_MARGIN,
     rounding_allowance: float = ROUNDING_ALLOWANCE,
     max_rounds: int = MAX_GENERATION_ROUNDS,
@@ -277,7 +281,9 @@ def feasible_parameter_box(
     tolerances. If the data is consistent only
     up to the margin tolerance (margin ``s`` in (0, tolerance]), the set of
     ``theta`` consistent with the disturbance set inflated by ``s`` is bounded instead:
-    a superset, hence still sound.
+    a superset, hence still sound. The LPs are equilibrated as in `eliminate_models`,
+    so the box does not depend on the units of x and u. Cost: the margin LP and the 2d
+    bound LPs, each by constraint generation from the margin LP's active rows.
     """
     check_instance("hypothesis", hypothesis, UncertainLinearSystem)
     X, U, Xn = check_trajectory(states, controls, hypothesis.nstates, hypothesis.ninputs)
@@ -348,7 +354,7 @@ class ModelSelector:
         self,
         hypotheses: Sequence[UncertainLinearSystem],
         *,
-        measurement_noise=None,
+        measurement_noise: ArrayLike | None = None,
         tolerance: float = ELIMINATION_MARGIN,
         rounding_allowance: float = ROUNDING_ALLOWANCE,
         max_rounds: int = MAX_GENERATION_ROUNDS,
@@ -374,6 +380,7 @@ class ModelSelector:
 
     @property
     def hypotheses(self) -> tuple[UncertainLinearSystem, ...]:
+        """The hypotheses, in the order given (indices of `survivors` refer to it)."""
         return self._hypotheses
 
     @property
@@ -393,6 +400,7 @@ class ModelSelector:
 
     @property
     def ntransitions(self) -> int:
+        """The number of transitions added so far."""
         return self._count
 
     @property
@@ -405,8 +413,30 @@ class ModelSelector:
         n = self._count
         return self._X[:n].copy(), self._U[:n].copy(), self._Xn[:n].copy()
 
-    def add(self, state, control, next_state) -> list[int]:
-        """Record the transition (state, control) -> next_state; return the survivors."""
+    def add(self, state: ArrayLike, control: ArrayLike, next_state: ArrayLike) -> list[int]:
+        """Record the transition (state, control) -> next_state; return the survivors.
+
+        Parameters
+        ----------
+        state : array_like
+            Shape (p,), the observed state x_n (state units).
+        control : array_like
+            Shape (q,), the control u_n applied (input units).
+        next_state : array_like
+            Shape (p,), the observed next state x_{n+1}.
+
+        Returns
+        -------
+        list of int
+            Indices of the hypotheses not eliminated so far, increasing.
+
+        Raises
+        ------
+        DimensionError, NonFiniteError
+            Wrong shapes or NaN/inf (nothing is recorded then).
+        SolverFailure
+            HiGHS failed on a re-solve.
+        """
         x = as_finite_array("state", state, (self._p,))
         u = as_finite_array("control", control, (self._q,))
         xn = as_finite_array("next_state", next_state, (self._p,))
