@@ -284,8 +284,8 @@ def main() -> dict:
         "",
         "Both sides solve the same margin LP (least inflation s >= 0 of the disturbance set,",
         "in units of its radius, or of the row's magnitude where that is 0); verdicts are asserted",
-        "equal and margins equal to 1e-6",
-        "relative. Ours adds a 1e-9 relative rounding allowance per row and decides with a",
+        "equal and margins equal to 1e-6 relative. Ours adds a 1e-9 relative rounding allowance",
+        "per row and decides with a",
         "weak-duality bound recomputed in numpy; the reference is the bare LP optimum.",
     ]
     text = "\n".join(lines) + "\n"
