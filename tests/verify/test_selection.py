@@ -18,7 +18,7 @@ from minimaxplan.models.errors import (
     NonFiniteError,
     SolverFailure,
 )
-from minimaxplan.verify import ModelSelector, _highs, eliminate_models, feasible_parameter_box
+from minimaxplan.verify import ModelSelector, _highs, _regression, eliminate_models, feasible_parameter_box
 from minimaxplan.verify.selection import ELIMINATION_MARGIN, PARAMETER_BOX_ALLOWANCE, measurement_noise_bound
 
 D_KINDS = ("identity", "scaled", "square", "tall", "wide")
@@ -559,3 +559,43 @@ def test_states_of_order_1e17_are_a_normal_problem():
     result = eliminate_models([unstable], states, controls)  # was a HiGHS "model error"
     assert result.survivors == [0] and result.margins == [0.0]
     assert feasible_parameter_box(unstable, states, controls).contains([0.5])
+
+
+# ------------------------------------------- general D: exact per-transition margins
+def transition_margin_lp(data, n, theta):
+    """min s >= 0 over w in W with |z_n - E_n theta - D w| <= e_n + s beta_n (an LP per transition)."""
+    p, r = data.D.shape
+    residual = data.z[n] - data.E[n] @ theta
+    # variables (w, s): +-(D w) - s beta <= +-residual + e
+    A = np.vstack([np.hstack([data.D, -data.beta[n][:, None]]), np.hstack([-data.D, -data.beta[n][:, None]])])
+    b = np.concatenate([residual + data.e[n], data.e[n] - residual])
+    bounds = list(zip(data.w_center - data.w_radius, data.w_center + data.w_radius)) + [(0, None)]
+    res = linprog(np.r_[np.zeros(r), 1.0], A_ub=A, b_ub=b, bounds=bounds, method="highs")
+    assert res.status == 0, res.message
+    return res.fun
+
+
+@given(st.integers(1, 4), st.sampled_from(["square", "tall", "wide"]), st.integers(0, 2**32 - 1))
+def test_general_disturbance_margins_per_transition_are_exact(p, d_kind, seed):
+    rng = np.random.default_rng(seed)
+    system = random_system(rng, p, 2, 1, d_kind, False)
+    states, controls = simulate(system, true_parameter(system, rng, False), 6, rng, w_mode="uniform")
+    states = states + 0.3 * rng.normal(size=states.shape)  # some transitions need a margin
+    structure = _regression.Structure(system, np.zeros(p), 1e-9)
+    data = _regression.HypothesisData(structure, states[:-1], controls, states[1:])
+    theta = true_parameter(system, rng, False)
+    assert data.exact_margins
+    needed = np.maximum(data.needed_margin(theta), 0.0)  # <= 0: explained without inflation
+    for n in range(data.ntransitions):
+        reference = transition_margin_lp(data, n, theta)
+        assert abs(needed[n] - reference) <= 1e-7 * (1 + abs(reference)), (n, needed[n], reference)
+
+
+def test_constraint_generation_stays_small_with_a_wide_disturbance_matrix():
+    """The pinv-based check over-estimated violations: generation grew to every transition."""
+    rng = np.random.default_rng(3)
+    system = random_system(rng, 3, 3, 1, "wide", False)
+    states, controls = simulate(system, true_parameter(system, rng, False), 3000, rng, w_mode="uniform")
+    result = eliminate_models([system], states, controls)
+    assert result.survivors == [0]
+    assert result.rounds[0] <= 4, result.rounds  # was 9: every round added violated-looking rows, up to all 3000
