@@ -43,14 +43,15 @@ def lagrangian_bound(
     """
     mu = y_upper - y_lower
     nu = y_upper + y_lower
+    beta = data.beta[idx]
     if s_fixed is None:
-        total = float(np.sum(nu @ data.beta))
+        total = float(np.sum(nu * beta))
         if total > 1.0 - 1e-12:  # keep the s coefficient 1 - total > 0 despite rounding in total
             scale = (1.0 - 1e-12) / total
             mu, nu = mu * scale, nu * scale
         slack = data.e[idx]
     else:
-        slack = data.e[idx] + s_fixed * data.beta
+        slack = data.e[idx] + s_fixed * beta
     dmu = mu @ data.D  # (k, r): D^T mu_n
     g = objective + np.einsum("npi,np->i", data.E[idx], mu)
     theta_term = np.minimum(g * data.theta_low, g * data.theta_high)
@@ -115,7 +116,7 @@ def generate(
         worst = candidates[np.argsort(-needed[candidates], kind="stable")[:batch]]
         active = np.union1d(active, worst)
         batch *= 2
-    if data.is_box:
+    if data.exact_margins or sol.w is None:
         upper = float(np.max(needed_all, initial=0.0))
     else:
         on_active = data.needed_margin_with(sol.theta, sol.w, active)

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from minimaxplan.models import UncertainLinearSystem
 from minimaxplan.models.errors import DimensionError
@@ -67,11 +68,41 @@ class EliminationCertificate:
         t.setflags(write=False)
         object.__setattr__(self, "transitions", t)
 
-    def recheck_transitions(self, hypothesis: UncertainLinearSystem, states, controls, next_states) -> float:
-        """Recompute the lower bound from transition triples (N, p), (N, q), (N, p).
+    def recheck_transitions(
+        self, hypothesis: UncertainLinearSystem, states: ArrayLike, controls: ArrayLike, next_states: ArrayLike
+    ) -> float:
+        """Recompute the lower bound from transition triples, in their own units.
 
-        Only the rows of ``self.transitions`` are read. Returns the bound; the
-        certificate holds iff it exceeds ``self.tolerance``.
+        Parameters
+        ----------
+        hypothesis : UncertainLinearSystem
+            The eliminated hypothesis.
+        states : array_like
+            Shape (N, p), the states x_n of the transitions.
+        controls : array_like
+            Shape (N, q), the controls u_n.
+        next_states : array_like
+            Shape (N, p), the next states x_{n+1}.
+
+        Returns
+        -------
+        float
+            The weak-duality lower bound on the margin (dimensionless), recomputed
+            with numpy from the stored multipliers; the certificate holds iff it
+            exceeds ``self.tolerance``. Only the rows of ``self.transitions`` are read.
+
+        Raises
+        ------
+        DimensionError
+            Shapes that do not match the hypothesis or the certificate.
+        NonFiniteError
+            NaN or inf in the data.
+
+        Notes
+        -----
+        The multipliers are those of the original (unscaled) rows: the scaling applied
+        to solve the LP is undone before they are stored, so this check uses nothing
+        but the data, the hypothesis and the multipliers (Section III's LP test).
         """
         check_instance("hypothesis", hypothesis, UncertainLinearSystem)
         p, q = hypothesis.nstates, hypothesis.ninputs
@@ -90,13 +121,43 @@ class EliminationCertificate:
         local = np.arange(t.size)
         return lagrangian_bound(data, local, self.multipliers_upper, self.multipliers_lower, np.zeros(data.nparams), None)
 
-    def recheck(self, hypothesis: UncertainLinearSystem, states, controls) -> float:
-        """Recompute the lower bound from a trajectory: states (N+1, p), controls (N, q)."""
+    def recheck(self, hypothesis: UncertainLinearSystem, states: ArrayLike, controls: ArrayLike) -> float:
+        """Recompute the lower bound from a trajectory.
+
+        Parameters
+        ----------
+        hypothesis : UncertainLinearSystem
+            The eliminated hypothesis.
+        states : array_like
+            Shape (N+1, p), the observed states.
+        controls : array_like
+            Shape (N, q), the controls applied.
+
+        Returns
+        -------
+        float
+            As `recheck_transitions`.
+        """
         X, U, Xn = check_trajectory(states, controls, hypothesis.nstates, hypothesis.ninputs)
         return self.recheck_transitions(hypothesis, X, U, Xn)
 
-    def verify(self, hypothesis: UncertainLinearSystem, states, controls) -> bool:
-        """True iff the re-checked bound exceeds the tolerance (the elimination stands)."""
+    def verify(self, hypothesis: UncertainLinearSystem, states: ArrayLike, controls: ArrayLike) -> bool:
+        """Whether the elimination stands on this trajectory.
+
+        Parameters
+        ----------
+        hypothesis : UncertainLinearSystem
+            The eliminated hypothesis.
+        states : array_like
+            Shape (N+1, p), the observed states.
+        controls : array_like
+            Shape (N, q), the controls applied.
+
+        Returns
+        -------
+        bool
+            True iff the re-checked bound (`recheck`) exceeds ``self.tolerance``.
+        """
         return self.recheck(hypothesis, states, controls) > self.tolerance
 
     def to_dict(self) -> dict:

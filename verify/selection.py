@@ -32,6 +32,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from minimaxplan.models import Box, UncertainLinearSystem
 from minimaxplan.models.errors import NoConsistentModel, SolverFailure
@@ -103,6 +104,7 @@ def _decide(
     start = initial_rows(data) if initial is None else initial
     gen = generate(data, np.zeros(d), None, start, max_rounds=max_rounds)
     sol = gen.solution
+    margin = min(max(sol.s, gen.lower, 0.0), gen.upper)
     certificate = None
     if gen.lower > tolerance:
         # Keep only the transitions with a multiplier: still a valid bound (fewer terms),
@@ -113,7 +115,7 @@ def _decide(
         if lower > tolerance:
             certificate = EliminationCertificate(
                 hypothesis=index,
-                margin=sol.s,
+                margin=margin,
                 lower_bound=lower,
                 transitions=transitions,
                 multipliers_upper=sol.y_upper[keep],
@@ -122,10 +124,10 @@ def _decide(
                 rounding_allowance=allowance,
                 measurement_noise=noise,
             )
-    return _Verdict(sol.s, gen.upper, gen.lower, sol.theta, gen.active, gen.rounds, certificate)
+    return _Verdict(margin, gen.upper, gen.lower, sol.theta, gen.active, gen.rounds, certificate)
 
 
-def _check_options(tolerance, rounding_allowance, max_rounds) -> tuple[float, float, int]:
+def _check_options(tolerance: float, rounding_allowance: float, max_rounds: int) -> tuple[float, float, int]:
     tol = as_positive_scalar("tolerance", tolerance)
     allowance = as_positive_scalar("rounding_allowance", rounding_allowance, allow_zero=True)
     return tol, allowance, as_count("max_rounds", max_rounds, minimum=0)
@@ -134,10 +136,10 @@ def _check_options(tolerance, rounding_allowance, max_rounds) -> tuple[float, fl
 # --------------------------------------------------------------------------- API
 def eliminate_models(
     hypotheses: Sequence[UncertainLinearSystem],
-    states,
-    controls,
+    states: ArrayLike,
+    controls: ArrayLike,
     *,
-    measurement_noise=None,
+    measurement_noise: ArrayLike | None = None,
     tolerance: float = ELIMINATION_MARGIN,
     rounding_allowance: float = ROUNDING_ALLOWANCE,
     max_rounds: int = MAX_GENERATION_ROUNDS,
@@ -191,14 +193,26 @@ def eliminate_models(
     ``-(e_n + s beta) <= z_n - E_n theta - D w_n <= e_n + s beta``  for all n,
 
     with ``beta`` the radius of the interval hull of ``D W + [-v, v]`` (``|D| r_w`` plus
-    the noise bound), or 1 where that is 0, and at least 1e-6 times its largest entry
-    (to keep the LP well scaled). For D = I without noise this is the
+    the noise bound) where it is positive, and elsewhere the row's natural magnitude
+    (the sum of the moduli of its terms, see `HypothesisData`): both scale like their
+    state coordinate, so the margin is dimensionless and does not depend on the units
+    of x and u. The LPs are equilibrated before HiGHS solves them (rows by their
+    magnitude, theta and w by their prior's, see `solve_lp`), so that a change of units
+    ``x -> S x``, ``u -> R u`` applied to the data and to the hypothesis alike
+    (``A0 -> S A0 S^-1``, ``phi_i -> S phi_i S^-1``, ``B -> S B R^-1``, ``D -> S D`` with
+    W unchanged, ``v_bar -> S v_bar``; theta unchanged) leaves the LPs HiGHS solves the
+    same up to rounding. The reported margin is HiGHS's optimum clipped to the certified
+    interval ``[lower, upper]`` (upper: the margin the LP's theta achieves on every row,
+    recomputed with numpy). For D = I without noise this is the
     inflation of W to ``[w_lo - s r_w, w_hi + s r_w]``. When ``D W`` is a box (every
     column of D with a nonzero disturbance radius has one nonzero entry, e.g. D = I or
     ``dt I``), w is eliminated exactly and the LP has d + 1 variables and 2 p N rows;
-    otherwise the ``w_n`` are LP variables (rows of transitions outside the generated
-    subset are checked with the disturbance ``clip(pinv(D) residual, W)``, which only
-    over-estimates their violation, so an undecided transition is simply added).
+    otherwise the ``w_n`` are LP variables, and the rows of transitions outside the
+    generated subset are checked exactly against the facets of the zonotope
+    ``D W + box(e_n + s beta)`` (see ``_regression.zonotope_normals``; when it has more
+    than ``MAX_FACET_NORMALS`` candidate facets, with the disturbance
+    ``clip(pinv(D) residual, W)``, which only over-estimates their violation, so an
+    undecided transition is simply added).
 
     The decision uses a weak-duality bound recomputed with numpy (see
     `EliminationCertificate`), so neither HiGHS's tolerances nor an early stop of
@@ -224,10 +238,10 @@ def eliminate_models(
 
 def feasible_parameter_box(
     hypothesis: UncertainLinearSystem,
-    states,
-    controls,
+    states: ArrayLike,
+    controls: ArrayLike,
     *,
-    measurement_noise=None,
+    measurement_noise: ArrayLike | None = None,
     tolerance: float = ELIMINATION_MARGIN,
     rounding_allowance: float = ROUNDING_ALLOWANCE,
     max_rounds: int = MAX_GENERATION_ROUNDS,
@@ -267,7 +281,9 @@ def feasible_parameter_box(
     tolerances. If the data is consistent only
     up to the margin tolerance (margin ``s`` in (0, tolerance]), the set of
     ``theta`` consistent with the disturbance set inflated by ``s`` is bounded instead:
-    a superset, hence still sound.
+    a superset, hence still sound. The LPs are equilibrated as in `eliminate_models`,
+    so the box does not depend on the units of x and u. Cost: the margin LP and the 2d
+    bound LPs, each by constraint generation from the margin LP's active rows.
     """
     check_instance("hypothesis", hypothesis, UncertainLinearSystem)
     X, U, Xn = check_trajectory(states, controls, hypothesis.nstates, hypothesis.ninputs)
@@ -338,7 +354,7 @@ class ModelSelector:
         self,
         hypotheses: Sequence[UncertainLinearSystem],
         *,
-        measurement_noise=None,
+        measurement_noise: ArrayLike | None = None,
         tolerance: float = ELIMINATION_MARGIN,
         rounding_allowance: float = ROUNDING_ALLOWANCE,
         max_rounds: int = MAX_GENERATION_ROUNDS,
@@ -364,6 +380,7 @@ class ModelSelector:
 
     @property
     def hypotheses(self) -> tuple[UncertainLinearSystem, ...]:
+        """The hypotheses, in the order given (indices of `survivors` refer to it)."""
         return self._hypotheses
 
     @property
@@ -383,6 +400,7 @@ class ModelSelector:
 
     @property
     def ntransitions(self) -> int:
+        """The number of transitions added so far."""
         return self._count
 
     @property
@@ -395,8 +413,30 @@ class ModelSelector:
         n = self._count
         return self._X[:n].copy(), self._U[:n].copy(), self._Xn[:n].copy()
 
-    def add(self, state, control, next_state) -> list[int]:
-        """Record the transition (state, control) -> next_state; return the survivors."""
+    def add(self, state: ArrayLike, control: ArrayLike, next_state: ArrayLike) -> list[int]:
+        """Record the transition (state, control) -> next_state; return the survivors.
+
+        Parameters
+        ----------
+        state : array_like
+            Shape (p,), the observed state x_n (state units).
+        control : array_like
+            Shape (q,), the control u_n applied (input units).
+        next_state : array_like
+            Shape (p,), the observed next state x_{n+1}.
+
+        Returns
+        -------
+        list of int
+            Indices of the hypotheses not eliminated so far, increasing.
+
+        Raises
+        ------
+        DimensionError, NonFiniteError
+            Wrong shapes or NaN/inf (nothing is recorded then).
+        SolverFailure
+            HiGHS failed on a re-solve.
+        """
         x = as_finite_array("state", state, (self._p,))
         u = as_finite_array("control", control, (self._q,))
         xn = as_finite_array("next_state", next_state, (self._p,))

@@ -18,7 +18,7 @@ from minimaxplan.models.errors import (
     NonFiniteError,
     SolverFailure,
 )
-from minimaxplan.verify import ModelSelector, _highs, eliminate_models, feasible_parameter_box
+from minimaxplan.verify import ModelSelector, _highs, _regression, eliminate_models, feasible_parameter_box
 from minimaxplan.verify.selection import ELIMINATION_MARGIN, PARAMETER_BOX_ALLOWANCE, measurement_noise_bound
 
 D_KINDS = ("identity", "scaled", "square", "tall", "wide")
@@ -158,9 +158,13 @@ def dense_reference_margin(system, states, controls):
     n, p, d, r = len(U), system.nstates, system.nparams, system.ndisturbances
     z = Xn - X @ system.A0.T - U @ system.B.T
     E = np.stack([system.regressor(x) for x in X]) if n else np.zeros((0, p, d))
-    beta = np.abs(system.D) @ system.w.radius
-    beta[beta == 0] = 1.0
-    beta = np.maximum(beta, 1e-6 * beta.max())
+    # the inflation unit: the radius of D W, or the row's natural magnitude where that is 0
+    theta_max = np.maximum(np.abs(system.theta.low), np.abs(system.theta.high))
+    w_max = np.maximum(np.abs(system.w.low), np.abs(system.w.high))
+    regression = np.abs(system.A0) + np.tensordot(theta_max, np.abs(system.phi), 1)
+    magnitude = np.abs(Xn) + np.abs(X) @ regression.T + np.abs(U) @ np.abs(system.B).T + np.abs(system.D) @ w_max
+    unit = np.abs(system.D) @ system.w.radius
+    beta = np.where(unit > 1e-150, unit, np.where(magnitude > 0, magnitude, 1.0))
     nvar = d + 1 + n * r
     rows, rhs = [], []
     for k in range(n):
@@ -169,7 +173,7 @@ def dense_reference_margin(system, states, controls):
                 row = np.zeros(nvar)
                 # sign * (E theta + D w - z) - beta s <= 0
                 row[:d] = sign * E[k, i]
-                row[d] = -beta[i]
+                row[d] = -beta[k, i]
                 row[d + 1 + k * r : d + 1 + (k + 1) * r] = sign * system.D[i]
                 rows.append(row)
                 rhs.append(sign * z[k, i])
@@ -441,3 +445,157 @@ def test_every_highs_status_but_optimal_is_a_solver_failure(monkeypatch, status,
     monkeypatch.setattr(_highs, "linprog", lambda *args, **kwargs: _FakeResult(status))
     with pytest.raises(SolverFailure, match=rf"status {status} \({reason}"):
         eliminate_models([scalar_system()], [[1.0], [1.5]], [[0.0]])
+
+
+# ------------------------------------------------------------------ units
+def in_units(system, S, R):
+    """The hypothesis in the units x -> S x, u -> R u (S, R diagonal, given as vectors).
+
+    A0 -> S A0 S^-1, phi_i -> S phi_i S^-1, B -> S B R^-1, D -> S D with W unchanged;
+    theta (and its prior) unchanged.
+    """
+    S, R = np.asarray(S, dtype=float), np.asarray(R, dtype=float)
+    return UncertainLinearSystem(
+        S[:, None] * system.A0 / S[None, :],
+        S[None, :, None] * system.phi / S[None, None, :],
+        S[:, None] * system.B / R[None, :],
+        D=S[:, None] * system.D,
+        w=system.w,
+        theta=system.theta,
+    )
+
+
+def assert_margins_equal(ours, reference):
+    for a, b in zip(ours, reference):
+        assert abs(a - b) <= 1e-6 * max(abs(a), abs(b)) + 1e-9, (ours, reference)
+
+
+def assert_boxes_equal(ours, reference):
+    width = reference.high - reference.low
+    assert np.all(np.abs(ours.low - reference.low) <= 1e-6 * width), (ours, reference)
+    assert np.all(np.abs(ours.high - reference.high) <= 1e-6 * width), (ours, reference)
+
+
+log_scales = st.lists(st.floats(-8.0, 6.0), min_size=4, max_size=4)
+
+
+@given(worlds(max_n=60), log_scales, log_scales, st.sampled_from([0.0, 0.05]))
+def test_verdicts_margins_and_boxes_do_not_depend_on_the_units(world, log_s, log_r, noise):
+    """x -> S x, u -> R u with diagonal S, R from 1e-8 to 1e6, applied to data and hypotheses alike."""
+    system, theta, states, controls, rng = world
+    p, q = system.nstates, system.ninputs
+    S, R = 10.0 ** np.array(log_s[:p]), 10.0 ** np.array(log_r[:q])
+    v_bar = noise * rng.uniform(0.2, 1.0, p)
+    measured = states + v_bar * rng.choice((-1.0, 1.0), states.shape)
+    hypotheses = [system, wrong_variant(system, rng), wrong_variant(system, rng)]
+    reference = eliminate_models(hypotheses, measured, controls, measurement_noise=v_bar)
+    scaled = [in_units(h, S, R) for h in hypotheses]
+    result = eliminate_models(scaled, measured * S, controls * R, measurement_noise=S * v_bar)
+    assert result.survivors == reference.survivors, (reference.margins, result.margins)
+    assert 0 in result.survivors
+    assert_margins_equal(result.margins, reference.margins)
+    for m, certificate in result.eliminated.items():  # re-checked in the units it was found in
+        assert certificate.verify(scaled[m], measured * S, controls * R)
+    box = feasible_parameter_box(system, measured, controls, measurement_noise=v_bar)
+    scaled_box = feasible_parameter_box(scaled[0], measured * S, controls * R, measurement_noise=S * v_bar)
+    assert_boxes_equal(scaled_box, box)
+    assert scaled_box.contains(theta)
+
+
+# Regressions: each of these failed before the LPs were equilibrated (issue 10, item 3).
+def robot_data(n, seed):
+    truth = robot(anisotropic=True)
+    states, controls = simulate(truth, np.array([0.5, 2.0]), n, np.random.default_rng(seed))
+    return truth, states, controls
+
+
+def test_tiny_states_give_a_parameter_box_not_a_solver_failure():
+    rng = np.random.default_rng(0)
+    system = random_system(rng, 3, 2, 1, "identity", True)
+    theta = true_parameter(system, rng, True)
+    states, controls = simulate(system, theta, 100, rng)
+    S = np.full(3, 1e-8)
+    box = feasible_parameter_box(in_units(system, S, [1.0]), states * S, controls)  # was SolverFailure (infeasible)
+    assert box.contains(theta)
+    assert_boxes_equal(box, feasible_parameter_box(system, states, controls))
+
+
+def test_tiny_states_give_the_parameter_box_not_the_prior():
+    truth, states, controls = robot_data(100, seed=0)
+    S = np.full(4, 1e-9)
+    box = feasible_parameter_box(in_units(truth, S, [1.0, 1.0]), states * S, controls)  # was the prior [0, 3]^2
+    reference = feasible_parameter_box(truth, states, controls)
+    assert np.all(reference.radius < 0.2 * truth.theta.radius)
+    assert_boxes_equal(box, reference)
+
+
+def test_tiny_states_eliminate_the_wrong_input_gain():
+    truth, states, controls = robot_data(20, seed=2)
+    hypotheses = [truth, robot(anisotropic=True, input_gain=3.0)]
+    for scale in (1e-9, 1e-10):
+        S = np.full(4, scale)
+        result = eliminate_models([in_units(h, S, [1.0, 1.0]) for h in hypotheses], states * S, controls)
+        assert result.survivors == [0], scale  # the x3 gain survived at 1e-9 and 1e-10
+
+
+def test_tiny_states_report_the_true_margins():
+    truth, states, controls = robot_data(100, seed=0)
+    hypotheses = [truth, robot(anisotropic=True, input_gain=3.0)]
+    reference = eliminate_models(hypotheses, states, controls)
+    assert reference.survivors == [0] and reference.margins[0] == 0.0
+    S = np.full(4, 1e-9)
+    result = eliminate_models([in_units(h, S, [1.0, 1.0]) for h in hypotheses], states * S, controls)
+    assert result.survivors == [0]
+    assert_margins_equal(result.margins, reference.margins)  # were (1e-4, 2e-4): the truth kept with a wrong margin
+
+
+def test_states_of_order_1e17_are_a_normal_problem():
+    A0 = np.array([[1.5, 0.1], [0.0, 1.4]])
+    phi = np.zeros((1, 2, 2))
+    phi[0, 0, 0] = 0.1
+    unstable = UncertainLinearSystem(A0, phi, np.array([[0.0], [1.0]]), w=Box.from_center(np.zeros(2), 0.1), theta=Box([0.0], [1.0]))
+    states, controls = simulate(unstable, np.array([0.5]), 95, np.random.default_rng(0))
+    assert np.max(np.abs(states)) > 1e17
+    result = eliminate_models([unstable], states, controls)  # was a HiGHS "model error"
+    assert result.survivors == [0] and result.margins == [0.0]
+    assert feasible_parameter_box(unstable, states, controls).contains([0.5])
+
+
+# ------------------------------------------- general D: exact per-transition margins
+def transition_margin_lp(data, n, theta):
+    """min s >= 0 over w in W with |z_n - E_n theta - D w| <= e_n + s beta_n (an LP per transition)."""
+    p, r = data.D.shape
+    residual = data.z[n] - data.E[n] @ theta
+    # variables (w, s): +-(D w) - s beta <= +-residual + e
+    A = np.vstack([np.hstack([data.D, -data.beta[n][:, None]]), np.hstack([-data.D, -data.beta[n][:, None]])])
+    b = np.concatenate([residual + data.e[n], data.e[n] - residual])
+    bounds = list(zip(data.w_center - data.w_radius, data.w_center + data.w_radius)) + [(0, None)]
+    res = linprog(np.r_[np.zeros(r), 1.0], A_ub=A, b_ub=b, bounds=bounds, method="highs")
+    assert res.status == 0, res.message
+    return res.fun
+
+
+@given(st.integers(1, 4), st.sampled_from(["square", "tall", "wide"]), st.integers(0, 2**32 - 1))
+def test_general_disturbance_margins_per_transition_are_exact(p, d_kind, seed):
+    rng = np.random.default_rng(seed)
+    system = random_system(rng, p, 2, 1, d_kind, False)
+    states, controls = simulate(system, true_parameter(system, rng, False), 6, rng, w_mode="uniform")
+    states = states + 0.3 * rng.normal(size=states.shape)  # some transitions need a margin
+    structure = _regression.Structure(system, np.zeros(p), 1e-9)
+    data = _regression.HypothesisData(structure, states[:-1], controls, states[1:])
+    theta = true_parameter(system, rng, False)
+    assert data.exact_margins
+    needed = np.maximum(data.needed_margin(theta), 0.0)  # <= 0: explained without inflation
+    for n in range(data.ntransitions):
+        reference = transition_margin_lp(data, n, theta)
+        assert abs(needed[n] - reference) <= 1e-7 * (1 + abs(reference)), (n, needed[n], reference)
+
+
+def test_constraint_generation_stays_small_with_a_wide_disturbance_matrix():
+    """The pinv-based check over-estimated violations: generation grew to every transition."""
+    rng = np.random.default_rng(3)
+    system = random_system(rng, 3, 3, 1, "wide", False)
+    states, controls = simulate(system, true_parameter(system, rng, False), 3000, rng, w_mode="uniform")
+    result = eliminate_models([system], states, controls)
+    assert result.survivors == [0]
+    assert result.rounds[0] <= 4, result.rounds  # was 9: every round added violated-looking rows, up to all 3000
