@@ -279,7 +279,7 @@ def pessimistic_rewards(stack, time, params, rewards, collided):
             collided[m, i] = hit
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def stack_rewards_kernel(params_type: type):
     """`pessimistic_rewards`, compiled and cached for rewards whose ``kernel_params`` have type ``params_type``."""
     version = sources_digest(*reward_sources(params_type))
@@ -288,4 +288,4 @@ def stack_rewards_kernel(params_type: type):
         _ = version  # ties numba's cache entry to the sources it calls into
         pessimistic_rewards(stack, time, params, rewards, collided)
 
-    return compile_per_params_type(stack_rewards, params_type)
+    return compile_per_params_type(stack_rewards, params_type, what="the interval model's pessimistic-reward kernel")

@@ -16,10 +16,9 @@ import functools
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from . import tree_ops
 from ..kernels.reward_protocol import compile_per_params_type, sources_digest
+from . import tree_ops
 from .box_kernels import pessimistic_rewards, propagate, reward_sources
 from .tree_ops import N_EXPANDED, SIZE
 
@@ -126,4 +125,6 @@ def search_kernel(params_type: type):
                 return DONE, bad
         return DONE, -1
 
-    return compile_per_params_type(run_search, params_type)
+    return compile_per_params_type(
+        run_search, params_type, what="the planner's search kernel (tree search, box transitions, reward minima)"
+    )
