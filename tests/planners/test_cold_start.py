@@ -10,6 +10,7 @@ and a numba compile-event listener; none of them is timed.
 import logging
 from collections import namedtuple
 
+import numba.core.config
 import numpy as np
 import pytest
 from numba.core import event
@@ -62,7 +63,10 @@ def empty_cache(monkeypatch, tmp_path):
     return tmp_path
 
 
-def test_the_message_comes_before_the_compile(recorder, empty_cache):
+def test_the_message_comes_before_the_compile(recorder, monkeypatch, tmp_path):
+    # a really empty disk cache: numba places a new dispatcher's cache under NUMBA_CACHE_DIR
+    monkeypatch.setattr(numba.core.config, "CACHE_DIR", str(tmp_path))
+
     def probe(params, x):
         return params.scale * x
 
@@ -74,7 +78,8 @@ def test_the_message_comes_before_the_compile(recorder, empty_cache):
     assert first_log < first_compile
     message = recorder.entries[first_log][1]
     assert message.startswith("INFO compiling the probe kernel for ColdProbeParams")
-    assert str(empty_cache) in message
+    assert str(tmp_path) in message
+    assert list(tmp_path.rglob("*.nbi")), "numba cached the probe kernel where the message said"
 
 
 def test_the_search_kernel_announces_itself_before_any_call(recorder, empty_cache):
