@@ -77,7 +77,27 @@ class BoxReward(Protocol):
     """
 
     def box_minimum(self, lower: np.ndarray, upper: np.ndarray, t: Any = 0) -> tuple[np.ndarray, np.ndarray]:
-        """The exact minimum of the reward over each box at sub-step ``t``, and the collision flags."""
+        """The exact minimum of the reward over each box at sub-step ``t``, and the collision flags.
+
+        Parameters
+        ----------
+        lower, upper : ndarray (..., p)
+            The boxes' lower and upper corners (state units), ``lower <= upper``.
+        t : int or float or ndarray, optional
+            Absolute sub-step indices, a scalar or an array broadcasting against the
+            leading shape.
+
+        Returns
+        -------
+        reward : ndarray
+            ``min_{lower <= x <= upper} J(x, t)`` in [0, 1] (0 where the box may collide).
+        collided : ndarray of bool
+            Whether some state of the box collides.
+
+        Notes
+        -----
+        Each term of the surrogate objective (11) is such a minimum (Theorem 1).
+        """
 
 
 @runtime_checkable
@@ -306,7 +326,7 @@ def _cache_index(dispatcher) -> tuple[pathlib.Path | None, str]:
     if index is None:  # numba's private layout changed: say where the cache lives in general
         from numba.core import config
 
-        return None, config.CACHE_DIR or "the __pycache__ folders next to the sources"
+        return None, getattr(config, "CACHE_DIR", "") or "the __pycache__ folders next to the sources"
     return pathlib.Path(index), str(pathlib.Path(index).parent)
 
 
@@ -357,5 +377,6 @@ def box_minima(params: Any, lower: np.ndarray, upper: np.ndarray, t: Any = 0) ->
     collided = np.empty(n, dtype=bool)
     if n:
         flat_times = np.ascontiguousarray(np.broadcast_to(times, lead)).reshape(n)
-        box_minima_kernel(type(params))(params, z.reshape(n, 2 * p), flat_times, reward, collided)
+        params_type: type = type(params)
+        box_minima_kernel(params_type)(params, z.reshape(n, 2 * p), flat_times, reward, collided)
     return reward.reshape(lead), collided.reshape(lead)

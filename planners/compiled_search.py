@@ -95,11 +95,14 @@ def search_kernel(params_type: type):
         z, stack, actions, time = boxes.z, boxes.stack, boxes.actions, boxes.time
         rewards, new_terminal, terminal, depth, counts = tree.rewards, tree.new_terminal, tree.terminal, tree.depth, tree.counts
         n_models, n_actions = rewards.shape
-        substeps = stack.shape[0]
+        substeps, n_box = stack.shape[0], stack.shape[3]
         capacity = tree.parent.shape[0]
         if not resume:
             reset(tree)
-            z[0] = boxes.root
+            root = boxes.root  # copied element by element: an array assignment compiles numba's shape-error formatting
+            for m in range(root.shape[0]):
+                for j in range(root.shape[1]):
+                    z[0, m, j] = root[m, j]
         while counts[N_EXPANDED] < budget:
             if counts[SIZE] + n_actions > capacity:
                 return FULL, -1
@@ -116,10 +119,13 @@ def search_kernel(params_type: type):
                 pessimistic_rewards(stack, time + depth[leaf] * substeps, params, rewards, new_terminal)
                 for a in range(n_actions):
                     for m in range(n_models):
-                        z[first + a, m] = stack[substeps - 1, m, a]
+                        for j in range(n_box):
+                            z[first + a, m, j] = stack[substeps - 1, m, a, j]
             else:  # every model terminated: nothing is stepped (`expand` zeroes the rewards)
                 for a in range(n_actions):
-                    z[first + a] = z[leaf]
+                    for m in range(n_models):
+                        for j in range(n_box):
+                            z[first + a, m, j] = z[leaf, m, j]
             bad = expand(tree, leaf)
             if bad >= 0:
                 return DONE, bad

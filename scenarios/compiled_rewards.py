@@ -68,7 +68,8 @@ def collision_params(collision) -> CollisionParams:
 
 
 def _is(params, cls) -> bool:
-    return isinstance(params, types.BaseNamedTuple) and params.instance_class is cls
+    """Whether numba type ``params`` is the namedtuple type ``cls`` (an overload's dispatch test)."""
+    return isinstance(params, types.BaseNamedTuple) and getattr(params, "instance_class", None) is cls
 
 
 @njit(inline="always")
