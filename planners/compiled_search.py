@@ -20,7 +20,11 @@ import numpy as np
 from ..kernels.reward_protocol import compile_per_params_type, sources_digest
 from . import tree_ops
 from .box_kernels import pessimistic_rewards, propagate, reward_sources
-from .tree_ops import N_EXPANDED, SIZE
+
+# Module globals, not closure cells: numba keys a cached closure by its cells' pickles, and a
+# dispatcher's pickle differs from process to process (a closure over `tree_ops.reset` & co.
+# was recompiled by every new process, the cache never hit).
+from .tree_ops import N_EXPANDED, SIZE, expand, reset, select
 
 __all__ = ["BoxArrays", "allocate_boxes", "grow_boxes", "search_kernel", "DONE", "SOLVED", "FULL"]
 
@@ -78,7 +82,6 @@ def search_kernel(params_type: type):
     `tree_ops`, `box_kernels` and the reward family's module.
     """
     version = sources_digest(__file__, tree_ops.__file__, *reward_sources(params_type))
-    reset, select, expand = tree_ops.reset, tree_ops.select, tree_ops.expand
 
     def run_search(budget, tree, boxes, kernel, params, resume):
         """Expand ``tree`` (`tree_ops.TreeArrays`) from ``boxes.root`` until it holds ``budget`` expansions.

@@ -117,3 +117,23 @@ def test_the_cache_index_is_where_numba_writes_it():
     assert index.name.startswith("test_cold_start.") and ".located_" in index.name
     kernel(ColdProbeParams(1.0), np.float64(2.0))
     assert index.exists() and directory == str(index.parent)
+
+
+def test_cached_kernels_close_over_plain_digests_only():
+    """numba keys a cached closure by its cells' pickles: a dispatcher's differs in every process.
+
+    The search kernel closed over `tree_ops.reset`, `select` and `expand`, so a new process
+    never found it in the disk cache and recompiled it (seconds on every run); a cell
+    holding only the int digest keys the same entry in every process.
+    """
+    from minimaxplan.kernels import box_minima_kernel
+    from minimaxplan.planners import box_kernels
+    from minimaxplan.scenarios.compiled_rewards import SpeedLaneParams
+
+    kernels = [box_kernels.substep, box_kernels.propagate, box_kernels._linear_part_once, box_kernels._finish_once]
+    for params_type in (GoalParams, SpeedLaneParams):
+        kernels += [compiled_search.search_kernel(params_type), stack_rewards_kernel(params_type),
+                    box_minima_kernel(params_type)]
+    for kernel in kernels:
+        cells = [cell.cell_contents for cell in kernel.py_func.__closure__ or ()]
+        assert cells and all(type(value) is int for value in cells), (kernel.py_func.__qualname__, cells)
