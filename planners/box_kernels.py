@@ -253,10 +253,11 @@ def _make_propagate(version: int):
         # Open loop without saturation: the first sub-step's product is the same for every action
         shared = not core.per_action and not core.saturating
         base, base_error = scratch[9, :n], scratch[10, : n // 2]
+        no_slot = np.int64(0)  # an int64, not a literal 0: one compiled `_linear_part_once` for both callers
         for m in range(n_models):
             start = z0[m if z0.shape[0] > 1 else 0]
             if shared:
-                _linear_part_once(start, m, 0, core, base, base_error, scratch)
+                _linear_part_once(start, m, no_slot, core, base, base_error, scratch)
             for i in range(n_actions):
                 a = actions[i]
                 source = start
