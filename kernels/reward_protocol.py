@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import logging
 import math
 import pathlib
 import sys
@@ -114,6 +115,10 @@ class CompiledBoxReward(BoxReward, Protocol):
 
     kernel_params: Any
 
+
+#: The logger that says, before a kernel of `compile_per_params_type` is first compiled, what is compiling
+#: and where it is cached (INFO; DEBUG when numba's disk cache already holds an index for it).
+COMPILE_LOGGER = logging.getLogger("minimaxplan.kernels")
 
 # params type -> the extra source files its kernel calls into (beyond its own module)
 _REWARD_PARAMS_TYPES: dict[type, tuple[str, ...]] = {}
@@ -271,10 +276,10 @@ def box_minima_kernel(params_type: type):
             reward[k] = value
             collided[k] = hit
 
-    return compile_per_params_type(box_minima_loop, params_type)
+    return compile_per_params_type(box_minima_loop, params_type, what="the reward's box-minimum loop")
 
 
-def compile_per_params_type(function, params_type: type):
+def compile_per_params_type(function, params_type: type, *, what: str = "a compiled kernel"):
     """``numba.njit(cache=True)`` of a kernel made for one params type, with an on-disk index of its own.
 
     numba keeps one cache index per function (by module and qualified name) holding
@@ -284,6 +289,11 @@ def compile_per_params_type(function, params_type: type):
     loading fail for every type. The function's qualified name is therefore suffixed
     with a digest of the type's module and name before compiling.
 
+    Before returning (so before the first call compiles anything), logs on
+    `COMPILE_LOGGER` what is about to be compiled and where numba caches it: at INFO
+    when numba's disk cache has no index for the kernel yet (the first run on this
+    machine, or after a source change: tens of seconds), at DEBUG otherwise.
+
     Parameters
     ----------
     function
@@ -291,6 +301,8 @@ def compile_per_params_type(function, params_type: type):
         ``sources_digest(*minimum_sources(params_type))``).
     params_type
         The type the kernel is made for.
+    what
+        What the kernel is, for the log message (e.g. "the planner's search kernel").
 
     Returns
     -------
@@ -298,7 +310,27 @@ def compile_per_params_type(function, params_type: type):
     """
     tag = hashlib.sha256(f"{params_type.__module__}.{params_type.__qualname__}".encode()).hexdigest()[:12]
     function.__qualname__ = f"{function.__qualname__}_{tag}"
-    return njit(cache=True)(function)
+    dispatcher = njit(cache=True)(function)
+    index, directory = _cache_index(dispatcher)
+    if index is not None and index.exists():
+        COMPILE_LOGGER.debug("loading %s for %s from numba's cache in %s", what, params_type.__name__, directory)
+    else:
+        COMPILE_LOGGER.info(
+            "compiling %s for %s (once: the first run takes tens of seconds; cached in %s)",
+            what, params_type.__name__, directory,
+        )
+    return dispatcher
+
+
+def _cache_index(dispatcher) -> tuple[pathlib.Path | None, str]:
+    """The path of numba's on-disk cache index of ``dispatcher`` (None if numba hides it) and its folder."""
+    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+    index = getattr(cache_file, "_index_path", None)
+    if index is None:  # numba's private layout changed: say where the cache lives in general
+        from numba.core import config
+
+        return None, getattr(config, "CACHE_DIR", "") or "the __pycache__ folders next to the sources"
+    return pathlib.Path(index), str(pathlib.Path(index).parent)
 
 
 def box_minima(params: Any, lower: np.ndarray, upper: np.ndarray, t: Any = 0) -> tuple[np.ndarray, np.ndarray]:

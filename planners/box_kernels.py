@@ -27,6 +27,7 @@ from __future__ import annotations
 import functools
 import math
 from collections import namedtuple
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -46,6 +47,9 @@ __all__ = ["IntervalKernel", "propagate", "stack_rewards_kernel"]
 # numba's disk cache checks only a function's own source file: the kernels below inline
 # `box_primitives`, so they close over its digest and recompile when it changes.
 _PRIMITIVES_VERSION = sources_digest(box_primitives.__file__)
+
+# Compiled without numba's reference counting (see `minimaxplan.planners.tree_ops`): helpers that allocate nothing.
+_NO_REFCOUNTS: dict[str, Any] = {"cache": True, "_nrt": False}
 
 
 IntervalKernel = namedtuple(
@@ -93,46 +97,6 @@ def _magnitudes(z, mag):
     p = mag.shape[0]
     for i in range(p):
         mag[i] = _maximum(abs(z[i]), abs(z[p + i]))
-
-
-def _make_substep(version: int):
-    """`substep`, compiled with a cache key that covers `minimaxplan.kernels.box_primitives`."""
-
-    def substep(z, m, a, core, out, scratch):
-        """One sub-step of hypothesis m's box ``z`` under controller a, written to ``out`` (2p,), rounded outward.
-
-        ``core`` is the `IntervalKernel` that `IntervalModel` precomputes, in the z-form's
-        column layout (``M x`` is ``sum_i column_i x_i``):
-
-        - ``closed`` (M, A or 1, k, 2p, 2p): Z-form columns of the closed-loop vertex
-          matrices ``A(v) - B_m K_a`` (one action slot when no controller has feedback);
-        - ``opened`` (M, k, 2p, 2p): the open-loop vertex matrices ``A(v)``;
-        - ``drift`` (M, A, 2p): ``B_m c_a`` plus the disturbance box ``D w``, z-form;
-        - ``w`` (M, 2p): the disturbance box alone; ``gains`` (A, 2p, 2q) and ``inputs``
-          (M, 2q, 2p): Z-form columns of ``K_a`` and ``B_m``;
-        - ``offsets``, ``low``, ``high`` (A, q): ``u = clip(c_a - K_a x, low_a, high_a)``;
-        - the ``*_error`` arrays: rigorous bounds on the rounding of each part, as columns
-          applied to the box's magnitudes (``closed_error`` (M, A or 1, p, p),
-          ``opened_error`` (M, p, p), ``gain_error`` (A, p, q), ``input_error`` (M, q, p))
-          or constants (``drift_error`` (M, A, p), ``w_error`` (M, p), ``offset_error`` (A, q),
-          ``tiny`` for underflow); see `IntervalModel` (Notes) for how they are formed.
-
-        Without saturation: ``Z(A(v) - B K) z`` maximised over vertices, plus the drift,
-        plus the error bound. With saturation (see `IntervalModel`): that box plus ``B
-        s(v)`` with the saturation correction's interval, intersected with the open-loop
-        box ``A(theta) x + B sat(v) + D w``; the scalar steps of the correction are moved
-        one ulp outward. ``scratch`` is a (11, max(2p, 2q)) work array.
-        """
-        _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
-        n = z.shape[0]
-        error = scratch[6, : n // 2]
-        _linear_part(z, m, a if core.per_action else 0, core, out, error, scratch)
-        _finish(z, m, a, core, out, error, scratch)
-
-    return njit(cache=True)(substep)
-
-
-substep = _make_substep(_PRIMITIVES_VERSION)
 
 
 @njit(cache=True, inline="always")
@@ -200,12 +164,76 @@ def _finish(z, m, a, core, out, error, scratch):
     through[:] = 0.0
     _add_products(inputs[m], applied, through)
     open_rounding = scratch[8, :p]
-    open_rounding[:] = w_error[m]
+    for j in range(p):
+        open_rounding[j] = w_error[m, j]
     _add_products(opened_error[m], mag, open_rounding)
     _add_products(input_error[m], input_mag, open_rounding)
     for j in range(p):
         out[j] = _minimum(out[j], open_box[j] + w[m, j] + through[j] + open_rounding[j])
         out[p + j] = _minimum(out[p + j], open_box[p + j] + w[m, p + j] + through[p + j] + open_rounding[j])
+
+
+def _make_helpers(version: int):
+    """`_linear_part` and `_finish` each compiled once, called (not inlined) by `substep` and `propagate`.
+
+    Inlined into both, the saturation path was typed and lowered twice per plan (a third
+    of the cold compile). Compiled without numba's reference counting, as `tree_ops` is
+    (they allocate nothing, and ``core`` holds 17 arrays); closing over ``version``
+    keys their cache by the box primitives' source, like `substep`.
+    """
+
+    def linear_part(z, m, slot, core, out, error, scratch):
+        _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
+        _linear_part(z, m, slot, core, out, error, scratch)
+
+    def finish(z, m, a, core, out, error, scratch):
+        _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
+        _finish(z, m, a, core, out, error, scratch)
+
+    return njit(**_NO_REFCOUNTS)(linear_part), njit(**_NO_REFCOUNTS)(finish)
+
+
+_linear_part_once, _finish_once = _make_helpers(_PRIMITIVES_VERSION)
+
+
+def _make_substep(version: int):
+    """`substep`, compiled with a cache key that covers `minimaxplan.kernels.box_primitives`."""
+
+    def substep(z, m, a, core, out, scratch):
+        """One sub-step of hypothesis m's box ``z`` under controller a, written to ``out`` (2p,), rounded outward.
+
+        ``core`` is the `IntervalKernel` that `IntervalModel` precomputes, in the z-form's
+        column layout (``M x`` is ``sum_i column_i x_i``):
+
+        - ``closed`` (M, A or 1, k, 2p, 2p): Z-form columns of the closed-loop vertex
+          matrices ``A(v) - B_m K_a`` (one action slot when no controller has feedback);
+        - ``opened`` (M, k, 2p, 2p): the open-loop vertex matrices ``A(v)``;
+        - ``drift`` (M, A, 2p): ``B_m c_a`` plus the disturbance box ``D w``, z-form;
+        - ``w`` (M, 2p): the disturbance box alone; ``gains`` (A, 2p, 2q) and ``inputs``
+          (M, 2q, 2p): Z-form columns of ``K_a`` and ``B_m``;
+        - ``offsets``, ``low``, ``high`` (A, q): ``u = clip(c_a - K_a x, low_a, high_a)``;
+        - the ``*_error`` arrays: rigorous bounds on the rounding of each part, as columns
+          applied to the box's magnitudes (``closed_error`` (M, A or 1, p, p),
+          ``opened_error`` (M, p, p), ``gain_error`` (A, p, q), ``input_error`` (M, q, p))
+          or constants (``drift_error`` (M, A, p), ``w_error`` (M, p), ``offset_error`` (A, q),
+          ``tiny`` for underflow); see `IntervalModel` (Notes) for how they are formed.
+
+        Without saturation: ``Z(A(v) - B K) z`` maximised over vertices, plus the drift,
+        plus the error bound. With saturation (see `IntervalModel`): that box plus ``B
+        s(v)`` with the saturation correction's interval, intersected with the open-loop
+        box ``A(theta) x + B sat(v) + D w``; the scalar steps of the correction are moved
+        one ulp outward. ``scratch`` is a (11, max(2p, 2q)) work array.
+        """
+        _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
+        n = z.shape[0]
+        error = scratch[6, : n // 2]
+        _linear_part_once(z, m, a if core.per_action else 0, core, out, error, scratch)
+        _finish_once(z, m, a, core, out, error, scratch)
+
+    return njit(cache=True)(substep)
+
+
+substep = _make_substep(_PRIMITIVES_VERSION)
 
 
 def _make_propagate(version: int):
@@ -225,18 +253,20 @@ def _make_propagate(version: int):
         # Open loop without saturation: the first sub-step's product is the same for every action
         shared = not core.per_action and not core.saturating
         base, base_error = scratch[9, :n], scratch[10, : n // 2]
+        no_slot = np.int64(0)  # an int64, not a literal 0: one compiled `_linear_part_once` for both callers
         for m in range(n_models):
             start = z0[m if z0.shape[0] > 1 else 0]
             if shared:
-                _linear_part(start, m, 0, core, base, base_error, scratch)
+                _linear_part_once(start, m, no_slot, core, base, base_error, scratch)
             for i in range(n_actions):
                 a = actions[i]
                 source = start
                 first = 0
                 if shared:
                     out = stack[0, m, i]
-                    out[:] = base
-                    _finish(start, m, a, core, out, base_error, scratch)
+                    for j in range(n):
+                        out[j] = base[j]
+                    _finish_once(start, m, a, core, out, base_error, scratch)
                     source = out
                     first = 1
                 for s in range(first, n_sub):
@@ -279,7 +309,7 @@ def pessimistic_rewards(stack, time, params, rewards, collided):
             collided[m, i] = hit
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def stack_rewards_kernel(params_type: type):
     """`pessimistic_rewards`, compiled and cached for rewards whose ``kernel_params`` have type ``params_type``."""
     version = sources_digest(*reward_sources(params_type))
@@ -288,4 +318,4 @@ def stack_rewards_kernel(params_type: type):
         _ = version  # ties numba's cache entry to the sources it calls into
         pessimistic_rewards(stack, time, params, rewards, collided)
 
-    return compile_per_params_type(stack_rewards, params_type)
+    return compile_per_params_type(stack_rewards, params_type, what="the interval model's pessimistic-reward kernel")

@@ -16,12 +16,15 @@ import functools
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from . import tree_ops
 from ..kernels.reward_protocol import compile_per_params_type, sources_digest
+from . import tree_ops
 from .box_kernels import pessimistic_rewards, propagate, reward_sources
-from .tree_ops import N_EXPANDED, SIZE
+
+# Module globals, not closure cells: numba keys a cached closure by its cells' pickles, and a
+# dispatcher's pickle differs from process to process (a closure over `tree_ops.reset` & co.
+# was recompiled by every new process, the cache never hit).
+from .tree_ops import N_EXPANDED, SIZE, expand, reset, select
 
 __all__ = ["BoxArrays", "allocate_boxes", "grow_boxes", "search_kernel", "DONE", "SOLVED", "FULL"]
 
@@ -79,7 +82,6 @@ def search_kernel(params_type: type):
     `tree_ops`, `box_kernels` and the reward family's module.
     """
     version = sources_digest(__file__, tree_ops.__file__, *reward_sources(params_type))
-    reset, select, expand = tree_ops.reset, tree_ops.select, tree_ops.expand
 
     def run_search(budget, tree, boxes, kernel, params, resume):
         """Expand ``tree`` (`tree_ops.TreeArrays`) from ``boxes.root`` until it holds ``budget`` expansions.
@@ -96,11 +98,14 @@ def search_kernel(params_type: type):
         z, stack, actions, time = boxes.z, boxes.stack, boxes.actions, boxes.time
         rewards, new_terminal, terminal, depth, counts = tree.rewards, tree.new_terminal, tree.terminal, tree.depth, tree.counts
         n_models, n_actions = rewards.shape
-        substeps = stack.shape[0]
+        substeps, n_box = stack.shape[0], stack.shape[3]
         capacity = tree.parent.shape[0]
         if not resume:
             reset(tree)
-            z[0] = boxes.root
+            root = boxes.root  # copied element by element: an array assignment compiles numba's shape-error formatting
+            for m in range(root.shape[0]):
+                for j in range(root.shape[1]):
+                    z[0, m, j] = root[m, j]
         while counts[N_EXPANDED] < budget:
             if counts[SIZE] + n_actions > capacity:
                 return FULL, -1
@@ -117,13 +122,18 @@ def search_kernel(params_type: type):
                 pessimistic_rewards(stack, time + depth[leaf] * substeps, params, rewards, new_terminal)
                 for a in range(n_actions):
                     for m in range(n_models):
-                        z[first + a, m] = stack[substeps - 1, m, a]
+                        for j in range(n_box):
+                            z[first + a, m, j] = stack[substeps - 1, m, a, j]
             else:  # every model terminated: nothing is stepped (`expand` zeroes the rewards)
                 for a in range(n_actions):
-                    z[first + a] = z[leaf]
+                    for m in range(n_models):
+                        for j in range(n_box):
+                            z[first + a, m, j] = z[leaf, m, j]
             bad = expand(tree, leaf)
             if bad >= 0:
                 return DONE, bad
         return DONE, -1
 
-    return compile_per_params_type(run_search, params_type)
+    return compile_per_params_type(
+        run_search, params_type, what="the planner's search kernel (tree search, box transitions, reward minima)"
+    )

@@ -26,7 +26,7 @@ walking both paths up to their deepest common ancestor (ties are rare, paths sho
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -47,7 +47,7 @@ REWARD_ERROR = -2
 # an array field of `TreeArrays` would otherwise cost an atomic increment and decrement, which the
 # compiled search pays on every expansion (measured: +15% on a whole search with M = |A| = 4, one
 # sub-step). The entry points called from Python (`start`, `expand_and_select`, `best_path`) keep it.
-_NO_REFCOUNTS = {"cache": True, "_nrt": False}
+_NO_REFCOUNTS: dict[str, Any] = {"cache": True, "_nrt": False}
 
 
 class TreeArrays(NamedTuple):

@@ -68,8 +68,8 @@ def collision_params(collision) -> CollisionParams:
 
 
 def _is(params, cls) -> bool:
-    # numba's typing classes carry instance_class on NamedTuple types but its stubs do not declare it.
-    return isinstance(params, types.BaseNamedTuple) and params.instance_class is cls  # type: ignore[attr-defined]
+    """Whether numba type ``params`` is the namedtuple type ``cls`` (an overload's dispatch test)."""
+    return isinstance(params, types.BaseNamedTuple) and getattr(params, "instance_class", None) is cls
 
 
 @njit(inline="always")

@@ -1,0 +1,144 @@
+"""The first run: from ``import minimaxplan`` to the first robot `Decision`, with an empty numba cache.
+
+A fresh checkout compiles the planner's numba kernels on its first plan. Each
+measurement runs a fresh Python process (``sys.executable``) with its own
+``NUMBA_CACHE_DIR``:
+
+- cold: an empty cache directory (what a new user's first ``make demo`` pays);
+- warm: the same directory again, now filled by the cold run (the reference, measured
+  in the same run on the same machine: loading the cached kernels).
+
+In each process: the seconds to import the library and build the first robot decision
+(the paper's robot in a seeded "pedestrian" world, the robust multi-model planner on
+its four hypotheses, the velocity controllers, K = 100, 5 sub-steps: the compiled engine
+with the goal reward), then the seconds for each further reward family's first decision
+on the same system (`SpeedLaneReward`: only its search kernel is new), then the
+seconds of a second goal-reward decision (nothing left to compile).
+
+Writes benchmarks/results/cold_start.md and .json (BENCH_RESULTS: another output
+directory; BENCH_COLD_REPEATS: cold/warm pairs, default 1, the medians are reported).
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import pathlib
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+
+HERE = pathlib.Path(__file__).parent
+RESULTS = pathlib.Path(os.environ.get("BENCH_RESULTS", HERE / "results"))
+REPEATS = int(os.environ.get("BENCH_COLD_REPEATS", 1))
+GOAL_SECONDS = 10.0
+
+# Run in the fresh process: prints one JSON line of timings.
+CHILD = r"""
+import json, time
+started = time.perf_counter()
+import numpy as np
+import minimaxplan
+from minimaxplan.analysis.episode import LoopConfig
+from minimaxplan.analysis.robot_methods import velocity_controllers
+from minimaxplan.analysis.robot_scenario import RobotScenario
+from minimaxplan.planners.comparison import multi_model_robust_planner, root_state
+from minimaxplan.scenarios import SpeedLaneReward
+imported = time.perf_counter()
+
+scenario, config = RobotScenario("pedestrian"), LoopConfig()
+world = scenario.make_world(0, config)
+pairs = [(h.system, h.system.theta) for h in scenario.hypotheses(world)]
+controllers = velocity_controllers(config)
+start = np.asarray(world.state, dtype=float)
+
+
+def decide(reward):
+    planner = multi_model_robust_planner(pairs, reward, controllers, gamma=config.gamma, budget=config.budget,
+                                         substeps=world.params.substeps)
+    began = time.perf_counter()
+    decision = planner.plan(root_state(planner, start - 0.01, start + 0.01, time=0))
+    assert planner.engine_used == "compiled", planner.engine_used
+    return time.perf_counter() - began, decision
+
+
+goal = scenario.objective(world, world.goal, uncertain=True)
+first, decision = decide(goal)
+first_decision = time.perf_counter()
+speed_lane, _ = decide(SpeedLaneReward(target_speed=1.0, speed_range=2.0, speed_indices=(2, 3), lateral_index=1,
+                                        obstacles=world.obstacles, robot_radius=world.params.robot_radius))
+again, second = decide(goal)
+assert second.action == decision.action
+print(json.dumps({
+    "import_s": imported - started,
+    "to_first_decision_s": first_decision - started,
+    "first_plan_s": first,
+    "speed_lane_first_plan_s": speed_lane,
+    "compiled_plan_s": again,
+    "action": int(decision.action),
+}))
+"""
+
+
+def run_child(cache: str) -> dict:
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    done = subprocess.run([sys.executable, "-c", CHILD], env=env, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"the cold-start process failed:\n{done.stderr}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main() -> dict:
+    cold, warm = [], []
+    for _ in range(REPEATS):
+        with tempfile.TemporaryDirectory(prefix="minimaxplan-numba-") as cache:
+            cold.append(run_child(cache))
+            warm.append(run_child(cache))
+
+    def median(runs, key):
+        return statistics.median(run[key] for run in runs)
+
+    keys = ["to_first_decision_s", "import_s", "first_plan_s", "speed_lane_first_plan_s", "compiled_plan_s"]
+    result = {
+        "cold": {key: median(cold, key) for key in keys},
+        "warm": {key: median(warm, key) for key in keys},
+        "runs": {"cold": cold, "warm": warm},
+        "goal_s": GOAL_SECONDS,
+        "repeats": REPEATS,
+        "machine": f"{platform.machine()} {platform.python_implementation()} {platform.python_version()}, "
+                   f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}",
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+    }
+    labels = {
+        "to_first_decision_s": "import to the first robot Decision",
+        "import_s": "of which: import",
+        "first_plan_s": "of which: the first plan (goal reward)",
+        "speed_lane_first_plan_s": "first plan of a further family (SpeedLaneReward)",
+        "compiled_plan_s": "a later plan (nothing to compile)",
+    }
+    cold_total = result["cold"]["to_first_decision_s"]
+    lines = [
+        "# Cold start: import to the first robot Decision",
+        "",
+        f"{result['date']}, {result['machine']}; fresh processes, median of {REPEATS} "
+        "(benchmarks/bench_cold_start.py).",
+        "",
+        "| seconds | cold (empty NUMBA_CACHE_DIR) | warm (same cache, reference) |",
+        "|---|---:|---:|",
+    ]
+    for key in keys:
+        lines.append(f"| {labels[key]} | {result['cold'][key]:.2f} | {result['warm'][key]:.2f} |")
+    verdict = "met" if cold_total < GOAL_SECONDS else "NOT met"
+    lines += ["", f"Goal: under {GOAL_SECONDS:.0f} s cold to the first Decision: {verdict} ({cold_total:.1f} s).", ""]
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "cold_start.md").write_text("\n".join(lines))
+    (RESULTS / "cold_start.json").write_text(json.dumps(result, indent=2) + "\n")
+    print("\n".join(lines))
+    return result
+
+
+if __name__ == "__main__":
+    main()

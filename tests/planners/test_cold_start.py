@@ -1,0 +1,139 @@
+"""The first run: the planner says what it compiles, and where it caches it, before compiling.
+
+A fresh checkout compiles the numba kernels on its first plan (tens of seconds, see
+benchmarks/bench_cold_start.py). Nothing below `analysis` prints: the kernels' factories
+log on the "minimaxplan.kernels" logger, and the CLI shows those records on stderr.
+These tests check the order (message first, then numba's compile) with a logging handler
+and a numba compile-event listener; none of them is timed.
+"""
+
+import logging
+from collections import namedtuple
+
+import numba.core.config
+import numpy as np
+import pytest
+from numba.core import event
+
+from minimaxplan.kernels import compile_per_params_type, reward_protocol
+from minimaxplan.planners import compiled_search
+from minimaxplan.planners.box_kernels import stack_rewards_kernel
+from minimaxplan.scenarios.compiled_rewards import GoalParams
+
+ColdProbeParams = namedtuple("ColdProbeParams", ["scale"])
+
+
+class _Recorder(logging.Handler, event.Listener):
+    """One ordered log of both the logger's records and numba's compile events."""
+
+    def __init__(self):
+        logging.Handler.__init__(self, level=logging.DEBUG)
+        self.entries: list[tuple[str, str]] = []
+
+    def emit(self, record):
+        self.entries.append(("log", record.levelname + " " + record.getMessage()))
+
+    def on_start(self, ev):
+        self.entries.append(("compile", ev.data["dispatcher"].py_func.__qualname__))
+
+    def on_end(self, ev):
+        pass
+
+
+@pytest.fixture
+def recorder():
+    logger = logging.getLogger("minimaxplan.kernels")
+    handler = _Recorder()
+    previous = logger.level
+    logger.setLevel(logging.DEBUG)
+    logger.addHandler(handler)
+    event.register("numba:compile", handler)
+    try:
+        yield handler
+    finally:
+        event.unregister("numba:compile", handler)
+        logger.removeHandler(handler)
+        logger.setLevel(previous)
+
+
+@pytest.fixture
+def empty_cache(monkeypatch, tmp_path):
+    """numba's disk cache seen as empty (the stub of a fresh checkout): no index for any kernel."""
+    monkeypatch.setattr(reward_protocol, "_cache_index", lambda dispatcher: (tmp_path / "absent.nbi", str(tmp_path)))
+    return tmp_path
+
+
+def test_the_message_comes_before_the_compile(recorder, monkeypatch, tmp_path):
+    # a really empty disk cache: numba places a new dispatcher's cache under NUMBA_CACHE_DIR
+    monkeypatch.setattr(numba.core.config, "CACHE_DIR", str(tmp_path))
+
+    def probe(params, x):
+        return params.scale * x
+
+    kernel = compile_per_params_type(probe, ColdProbeParams, what="the probe kernel")
+    assert kernel(ColdProbeParams(2.0), 3.0) == 6.0
+    kinds = [kind for kind, _ in recorder.entries]
+    assert "compile" in kinds, "the probe kernel was compiled"
+    first_log, first_compile = kinds.index("log"), kinds.index("compile")
+    assert first_log < first_compile
+    message = recorder.entries[first_log][1]
+    assert message.startswith("INFO compiling the probe kernel for ColdProbeParams")
+    assert str(tmp_path) in message
+    assert list(tmp_path.rglob("*.nbi")), "numba cached the probe kernel where the message said"
+
+
+def test_the_search_kernel_announces_itself_before_any_call(recorder, empty_cache):
+    # a fresh dispatcher (not the process-wide cached one) and no call: nothing compiles
+    kernel = compiled_search.search_kernel.__wrapped__(GoalParams)
+    assert not kernel.signatures
+    assert [kind for kind, _ in recorder.entries] == ["log"]
+    message = recorder.entries[0][1]
+    assert message.startswith("INFO compiling the planner's search kernel") and "GoalParams" in message
+    assert f"cached in {empty_cache}" in message
+
+
+def test_the_reward_kernel_announces_itself(recorder, empty_cache):
+    stack_rewards_kernel.__wrapped__(GoalParams)
+    assert len(recorder.entries) == 1
+    assert recorder.entries[0][1].startswith("INFO compiling the interval model's pessimistic-reward kernel for GoalParams")
+
+
+def test_a_cached_kernel_is_only_a_debug_record(recorder, monkeypatch, tmp_path):
+    index = tmp_path / "present.nbi"
+    index.write_bytes(b"")
+    monkeypatch.setattr(reward_protocol, "_cache_index", lambda dispatcher: (index, str(tmp_path)))
+    compiled_search.search_kernel.__wrapped__(GoalParams)
+    assert len(recorder.entries) == 1
+    assert recorder.entries[0][1].startswith("DEBUG loading the planner's search kernel (")
+
+
+def test_the_cache_index_is_where_numba_writes_it():
+    def located(params, x):
+        return params.scale + x
+
+    kernel = compile_per_params_type(located, ColdProbeParams)
+    index, directory = reward_protocol._cache_index(kernel)
+    assert index is not None and index.suffix == ".nbi"
+    assert index.name.startswith("test_cold_start.") and ".located_" in index.name
+    kernel(ColdProbeParams(1.0), np.float64(2.0))
+    assert index.exists() and directory == str(index.parent)
+
+
+def test_cached_kernels_close_over_plain_digests_only():
+    """numba keys a cached closure by its cells' pickles: a dispatcher's differs in every process.
+
+    The search kernel closed over `tree_ops.reset`, `select` and `expand`, so a new process
+    never found it in the disk cache and recompiled it (seconds on every run); a cell
+    holding only the int digest keys the same entry in every process.
+    """
+    from minimaxplan.kernels import box_minima_kernel
+    from minimaxplan.planners import box_kernels
+    from minimaxplan.scenarios.compiled_rewards import SpeedLaneParams
+
+    kernels = [box_kernels.substep, box_kernels.propagate, box_kernels._linear_part_once, box_kernels._finish_once]
+    for params_type in (GoalParams, SpeedLaneParams):
+        kernels += [compiled_search.search_kernel(params_type), stack_rewards_kernel(params_type),
+                    box_minima_kernel(params_type)]
+    for kernel in kernels:
+        cells = [cell.cell_contents for cell in kernel.py_func.__closure__ or ()]
+        assert cells and all(type(value) is int for value in cells), (kernel.py_func.__qualname__, cells)
