@@ -93,7 +93,9 @@ def test_a_volume_tolerance_stops_the_split_and_leaves_uncovered_pieces():
     coarse = certified_region(matrices, BOX, form="continuous", max_depth=5, min_volume=0.25)
     widths = [p.box.high[0] - p.box.low[0] for p in coarse.pieces]
     assert widths == [0.75] * 4
-    assert [p.certified for p in coarse.pieces] == [shorten_narendra(p.box.low[0], p.box.high[0]) for p in coarse.pieces]
+    assert [p.certified for p in coarse.pieces] == [
+        shorten_narendra(p.box.low[0], p.box.high[0]) for p in coarse.pieces
+    ]
     assert [p.certified for p in coarse.pieces] == [False, False, False, True]
     assert coarse.certified_fraction == pytest.approx(0.25)
     assert coarse.infeasible_fraction + coarse.inconclusive_fraction == pytest.approx(0.75)
