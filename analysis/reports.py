@@ -24,6 +24,7 @@ __all__ = [
     "LMIReport",
     "SelectionReport",
     "render_lmi_reports",
+    "render_region_map",
     "lmi_reports_to_dict",
     "to_json",
     "REPORT_FORMAT_VERSION",
@@ -324,8 +325,31 @@ class LMIReport:
         return "\n".join(lines)
 
 
+def render_region_map(regions: RegionMap) -> str:
+    """The Markdown section "Where Assumption 4 holds" of a region map.
+
+    Parameters
+    ----------
+    regions : RegionMap
+        The result of `minimaxplan.verify.certified_region`.
+
+    Returns
+    -------
+    str
+        The certified, infeasible and inconclusive fractions of the box, the conflicting
+        vertices of the whole box (when it is proven infeasible) and a table of the
+        pieces with their verdicts, normalised slacks and cond(P).
+
+    Notes
+    -----
+    Assumption 4 over a polytope (eq. (8)), piece by piece: each certified piece has
+    its own P.
+    """
+    return "\n".join(_regions_markdown(regions))
+
+
 def _regions_markdown(regions: RegionMap) -> list[str]:
-    """The section "Where Assumption 4 holds": fractions, the conflicting set, the pieces."""
+    """The lines of `render_region_map`."""
     lines = ["### Where Assumption 4 holds", ""]
     lines.append(
         f"The parameter box was split recursively (depth <= {regions.max_depth}, "
