@@ -406,12 +406,15 @@ def certified_region(
     min_volume = as_positive_scalar("min_volume", min_volume, allow_zero=True)
     if min_volume > 1:
         raise InputError(f"min_volume must be a fraction in [0, 1], got {min_volume}")
+    D_mat: np.ndarray | None = None if D is None else as_finite_array("D", D, ndim=2)
     if isinstance(system, UncertainLinearSystem):
         matrix_function: MatrixFunction = system.A
         root = system.theta if box is None else box
-        D_mat = np.asarray(system.D) if D is None else as_finite_array("D", D, ndim=2)
+        check_instance("box", root, Box)
         if root.dim != system.nparams:
             raise DimensionError(f"box must have dimension {system.nparams} (the system's d), got {root.dim}")
+        if D_mat is None:
+            D_mat = np.asarray(system.D)
     else:
         if not callable(system):
             raise InputError(f"system must be an UncertainLinearSystem or a callable, got {type(system).__name__}")
@@ -419,8 +422,7 @@ def certified_region(
             raise InputError("certified_region needs a box for a matrix function")
         matrix_function = system
         root = box
-        D_mat = None if D is None else as_finite_array("D", D, ndim=2)
-    check_instance("box", root, Box)
+        check_instance("box", root, Box)
     widths = root.high - root.low
     splittable = widths > 0
 
