@@ -93,7 +93,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--depth",
         type=_depth,
-        default=DEFAULT_DEPTH,
+        default=None,
         metavar="N",
         help=f"largest number of bisections along a branch of --regions (default: {DEFAULT_DEPTH})",
     )
@@ -281,13 +281,17 @@ def run(args: argparse.Namespace) -> int:
     from .model_file import load_model_file
     from .reports import lmi_reports_to_dict, render_lmi_reports, to_json
 
+    if args.depth is not None and not args.regions:
+        print("minimaxplan lmi: error: --depth needs --regions", file=sys.stderr)
+        return EXIT_ERROR
+    depth = DEFAULT_DEPTH if args.depth is None else args.depth
     try:
         model_file = load_model_file(args.model)
         if args.model_name is not None:
             model_file = model_file.select(args.model_name)
         reports = [
             check_model(
-                m, form=args.form, vertices=args.vertices, solver=args.solver, regions=args.regions, depth=args.depth
+                m, form=args.form, vertices=args.vertices, solver=args.solver, regions=args.regions, depth=depth
             )
             for m in model_file.hypotheses
         ]

@@ -373,6 +373,8 @@ def test_lmi_depth_must_be_a_count(tmp_path, capsys):
     model = write(tmp_path, "oscillator.toml", OSCILLATOR)
     code, _, err = run(capsys, "lmi", model, "--regions", "--depth", "-1")
     assert code == 2 and "--depth: expected an integer >= 0, got -1" in err
+    code, out, err = run(capsys, "lmi", model, "--depth", "2")
+    assert (code, out) == (2, "") and err == "minimaxplan lmi: error: --depth needs --regions\n"
 
 
 def test_lmi_markdown_prints_the_digits_that_matter(tmp_path, capsys):
