@@ -1,7 +1,12 @@
 """``minimaxplan lmi``: check Assumption 4 for the models of a TOML model file.
 
     minimaxplan lmi MODEL.toml [--form discrete|continuous] [--vertices] [--model NAME]
-                               [--solver CLARABEL|SCS] [--json] [--out FILE]
+                               [--regions [--depth N]] [--solver CLARABEL|SCS] [--json] [--out FILE]
+
+With ``--regions`` the report also says where Assumption 4 holds: the parameter box is
+split recursively (`minimaxplan.verify.certified_region`) and each piece certified with
+its own P; the conflicting vertices of the whole box are named; with ``--out`` and a
+parameter dimension d <= 2 a PNG of the map is written beside the report.
 
 Exit codes: 0 if Assumption 4 holds with a re-checked certificate for every model
 checked; 1 if it does not for some model (infeasible, inconclusive, or a feasible
@@ -12,18 +17,33 @@ unreadable or malformed file, a solver failure), with a message on stderr.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import pathlib
+import re
 import sys
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .arguments import output_file
 
 if TYPE_CHECKING:
+    from minimaxplan.verify import RegionMap
+
     from .model_file import ModelHypothesis
     from .reports import LMIReport
 
-__all__ = ["register", "run", "check_model", "EXIT_HOLDS", "EXIT_FAILS", "EXIT_ERROR", "FORMS"]
+__all__ = [
+    "register",
+    "run",
+    "check_model",
+    "draw_region_map",
+    "save_region_map",
+    "EXIT_HOLDS",
+    "EXIT_FAILS",
+    "EXIT_ERROR",
+    "FORMS",
+    "DEFAULT_DEPTH",
+]
 
 EXIT_HOLDS = 0
 EXIT_FAILS = 1
@@ -32,6 +52,8 @@ EXIT_ERROR = 2
 #: The LMI forms, `model_file.DISCRETE` and `model_file.CONTINUOUS` (spelled out here so
 #: that parsing the command line imports neither numpy nor cvxpy).
 FORMS = ("discrete", "continuous")
+#: Default ``--depth`` of ``--regions``: bisections along a branch (2^4 pieces at most for d = 1).
+DEFAULT_DEPTH = 4
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -64,6 +86,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="check every vertex A(theta) of the parameter box with one common P (default: the nominal A)",
     )
     parser.add_argument(
+        "--regions",
+        action="store_true",
+        help="also map where Assumption 4 holds: split the parameter box and certify each piece with its own P",
+    )
+    parser.add_argument(
+        "--depth",
+        type=_depth,
+        default=None,
+        metavar="N",
+        help=f"largest number of bisections along a branch of --regions (default: {DEFAULT_DEPTH})",
+    )
+    parser.add_argument(
         "--solver", choices=("CLARABEL", "SCS"), default="CLARABEL", help="conic solver (default: CLARABEL)"
     )
     parser.add_argument("--model", dest="model_name", metavar="NAME", help="check only the model with this name")
@@ -74,8 +108,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
+def _depth(text: str) -> int:
+    """``--depth``: an integer >= 0 (argparse reports a bad value in one line)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value}")
+    return value
+
+
 def check_model(
-    model: ModelHypothesis, *, form: str | None = None, vertices: bool = False, solver: str = "CLARABEL"
+    model: ModelHypothesis,
+    *,
+    form: str | None = None,
+    vertices: bool = False,
+    solver: str = "CLARABEL",
+    regions: bool = False,
+    depth: int = DEFAULT_DEPTH,
 ) -> LMIReport:
     """Check Assumption 4 for one model and wrap the result in an `LMIReport`.
 
@@ -92,11 +143,17 @@ def check_model(
         the nominal A, at the box's centre).
     solver : {"CLARABEL", "SCS"}
         The conic solver.
+    regions : bool
+        Also split the parameter box recursively and certify each piece
+        (`minimaxplan.verify.certified_region`); the map goes to `LMIReport.regions`.
+    depth : int
+        Largest number of bisections along a branch of the map (>= 0).
 
     Returns
     -------
     LMIReport
-        The matrices checked, their parameters, and the re-checked result.
+        The matrices checked, their parameters, the re-checked result and, with
+        ``regions``, the region map.
 
     Raises
     ------
@@ -110,7 +167,7 @@ def check_model(
     Assumption 4 of the paper (Section III) is the continuous-time LMI; the discrete
     form is its analogue for x_{n+1} = A x_n + D w_n (DESIGN.md).
     """
-    from minimaxplan.verify import check_assumption4
+    from minimaxplan.verify import certified_region, check_assumption4
 
     from .reports import LMIReport
 
@@ -121,7 +178,88 @@ def check_model(
     started = time.perf_counter()
     result = check_assumption4(list(matrices) if vertices else matrices[0], form=form, D=D, solver=solver)
     wall_time = time.perf_counter() - started
-    return LMIReport(model.name, form, matrices, parameters, D, result, wall_time, vertices)
+    region_map = certified_region(system, form=form, D=D, max_depth=depth, solver=solver) if regions else None
+    return LMIReport(model.name, form, matrices, parameters, D, result, wall_time, vertices, region_map)
+
+
+def draw_region_map(regions: RegionMap, ax: Any, *, names: tuple[str, ...] | None = None) -> Any:
+    """Draw a region map (d <= 2) on a matplotlib axis: certified pieces green, others red or grey.
+
+    Parameters
+    ----------
+    regions : RegionMap
+        The result of `minimaxplan.verify.certified_region`, parameter dimension 1 or 2.
+    ax : matplotlib.axes.Axes
+        The axis to draw on.
+    names : tuple of str, optional
+        Axis labels of the parameters (default ``theta[i]``).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        ``ax``.
+
+    Raises
+    ------
+    InputError
+        If the parameter dimension is above 2.
+    """
+    from matplotlib.patches import Patch, Rectangle
+
+    from minimaxplan.models import InputError
+
+    d = regions.box.dim
+    if d > 2:
+        raise InputError(f"a region map is drawn for d <= 2 parameters, got d = {d}")
+    labels = names or tuple(f"theta[{i}]" for i in range(d))
+    colours = {"certified": "tab:green", "infeasible": "tab:red", "inconclusive": "0.6"}
+    for piece in regions.pieces:
+        kind = "certified" if piece.certified else piece.status.value
+        low, high = piece.box.low, piece.box.high
+        y0, height = (low[1], high[1] - low[1]) if d == 2 else (0.0, 1.0)
+        ax.add_patch(Rectangle((low[0], y0), high[0] - low[0], height, facecolor=colours[kind], edgecolor="k", lw=0.5))
+    box = regions.box
+    ax.set_xlim(box.low[0], box.high[0] if box.high[0] > box.low[0] else box.low[0] + 1)
+    if d == 2:
+        ax.set_ylim(box.low[1], box.high[1] if box.high[1] > box.low[1] else box.low[1] + 1)
+        ax.set_ylabel(labels[1])
+    else:
+        ax.set_ylim(0.0, 1.0)
+        ax.set_yticks([])
+    ax.set_xlabel(labels[0])
+    ax.set_title(f"Assumption 4 ({regions.form}): certified fraction {regions.certified_fraction:.4g}")
+    ax.legend(handles=[Patch(color=c, label=k) for k, c in colours.items()], loc="upper right", fontsize="small")
+    return ax
+
+
+def save_region_map(regions: RegionMap, path: pathlib.Path) -> pathlib.Path:
+    """Write the region map (d <= 2) as a PNG.
+
+    Parameters
+    ----------
+    regions : RegionMap
+        The map to draw (`draw_region_map`).
+    path : pathlib.Path
+        Where to write the PNG.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 2.2 if regions.box.dim == 1 else 5))
+    try:
+        draw_region_map(regions, ax)
+        fig.tight_layout()
+        fig.savefig(path, dpi=120)
+    finally:
+        plt.close(fig)
+    return path
 
 
 def run(args: argparse.Namespace) -> int:
@@ -131,7 +269,7 @@ def run(args: argparse.Namespace) -> int:
     ----------
     args : argparse.Namespace
         The options of `register`'s parser: ``model``, ``form``, ``vertices``,
-        ``solver``, ``model_name``, ``json``, ``out``.
+        ``regions``, ``depth``, ``solver``, ``model_name``, ``json``, ``out``.
 
     Returns
     -------
@@ -143,13 +281,22 @@ def run(args: argparse.Namespace) -> int:
     from .model_file import load_model_file
     from .reports import lmi_reports_to_dict, render_lmi_reports, to_json
 
+    if args.depth is not None and not args.regions:
+        print("minimaxplan lmi: error: --depth needs --regions", file=sys.stderr)
+        return EXIT_ERROR
+    depth = DEFAULT_DEPTH if args.depth is None else args.depth
     try:
         model_file = load_model_file(args.model)
         if args.model_name is not None:
             model_file = model_file.select(args.model_name)
         reports = [
-            check_model(m, form=args.form, vertices=args.vertices, solver=args.solver) for m in model_file.hypotheses
+            check_model(
+                m, form=args.form, vertices=args.vertices, solver=args.solver, regions=args.regions, depth=depth
+            )
+            for m in model_file.hypotheses
         ]
+        if args.out is not None:
+            reports = [_with_map_image(report, args.out) for report in reports]
         code = EXIT_HOLDS if all(r.holds for r in reports) else EXIT_FAILS
         if args.json:
             text = to_json(lmi_reports_to_dict(reports, source=str(args.model), exit_code=code))
@@ -160,6 +307,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"minimaxplan lmi: error: {exc}", file=sys.stderr)
         return EXIT_ERROR
     return code
+
+
+def _with_map_image(report: LMIReport, out: pathlib.Path) -> LMIReport:
+    """Write the report's region map (d <= 2) as a PNG beside ``out``; name it in the report."""
+    if report.regions is None or report.regions.box.dim > 2:
+        return report
+    slug = re.sub(r"[^A-Za-z0-9]+", "-", report.model).strip("-").lower() or "model"
+    path = out.with_name(f"{out.stem}-{slug}-regions.png")
+    save_region_map(report.regions, path)
+    return dataclasses.replace(report, region_image=path.name)
 
 
 def _emit(text: str, out: pathlib.Path | None) -> None:

@@ -18,12 +18,13 @@ from typing import Any
 import numpy as np
 
 from minimaxplan.models import Box
-from minimaxplan.verify import LMIResult, LMIStatus, SelectionResult, lmi_matrix
+from minimaxplan.verify import LMIResult, LMIStatus, RegionMap, SelectionResult, lmi_matrix
 
 __all__ = [
     "LMIReport",
     "SelectionReport",
     "render_lmi_reports",
+    "render_region_map",
     "lmi_reports_to_dict",
     "to_json",
     "REPORT_FORMAT_VERSION",
@@ -61,6 +62,24 @@ def _num(x: float | None, digits: int = 4) -> str:
     if not math.isfinite(x):
         return str(x)
     return f"{x:.{digits}g}"
+
+
+def _significant(x: float | None, reference: float, digits: int = 7) -> str:
+    """``x`` with at least ``digits`` significant digits, and more if needed to tell it from ``reference``.
+
+    A spectral radius of 0.99999975 prints as ``0.9999998``, never as ``1``; a value
+    equal to ``reference`` prints as it is.
+    """
+    if x is None:
+        return "-"
+    x = float(x)
+    if not math.isfinite(x):
+        return str(x)
+    text = f"{x:.{digits}g}"
+    while x != reference and float(text) == reference and digits < 17:
+        digits += 1
+        text = f"{x:.{digits}g}"
+    return text
 
 
 def _vector(values, digits: int = 4) -> str:
@@ -111,6 +130,11 @@ class LMIReport:
         Seconds spent in `check_assumption4` (model building, solve and re-check).
     vertices
         True if ``matrices`` are the vertices of the parameter box, False for the nominal matrix.
+    regions
+        The `RegionMap` of `certified_region` over the parameter box (where Assumption 4
+        holds, piece by piece), or None when it was not asked for.
+    region_image
+        File name (relative to the report) of a PNG of the region map, or None.
     """
 
     model: str
@@ -121,6 +145,8 @@ class LMIReport:
     result: LMIResult
     wall_time: float
     vertices: bool = False
+    regions: RegionMap | None = None
+    region_image: str | None = None
 
     @property
     def has_certificate(self) -> bool:
@@ -200,6 +226,8 @@ class LMIReport:
             "Q0_eigenvalues": None if Q0 is None else np.linalg.eigvalsh(Q0).tolist(),
             "wall_time": self.wall_time,
             "result": self.result.to_dict(),
+            "regions": None if self.regions is None else self.regions.to_dict(),
+            "region_image": self.region_image,
         }
 
     def to_markdown(self) -> str:
@@ -228,6 +256,12 @@ class LMIReport:
         ]
         if getattr(result, "rho", None) is not None:
             rows.append(("rho", _num(result.rho, 6)))
+        slack = "- (no primal SDP optimum behind this result)" if result.slack is None else _num(result.slack, 6)
+        rows.append(("normalised slack t* of the primal SDP", slack))
+        if result.margin is not None:
+            rows.append(("proven bound on the normalised margin", _num(result.margin, 6)))
+        if result.eigenvalues_P is not None and result.eigenvalues_P[0] > 0:
+            rows.append(("cond(P)", _num(result.eigenvalues_P[-1] / result.eigenvalues_P[0], 6)))
         if getattr(result, "reason", ""):
             rows.append(("reason", result.reason))
         lines = [f"## {self.model}", ""] + _table(("", ""), rows) + [""]
@@ -235,6 +269,7 @@ class LMIReport:
         margins = self.lmi_max_eigenvalues()
         stability = self.stability_margins()
         label = "max Re eig(A)" if self.form == "continuous" else "spectral radius of A"
+        boundary = 0.0 if self.form == "continuous" else 1.0
         lines += ["### Margins", ""]
         rows = []
         for k, (theta, ev) in enumerate(zip(self.parameters, self.state_eigenvalues())):
@@ -242,16 +277,16 @@ class LMIReport:
                 (
                     str(k),
                     _vector(theta),
-                    _num(stability[k]),
-                    "-" if margins is None else _num(margins[k]),
-                    _complex_list(ev),
+                    _significant(stability[k], boundary),
+                    "-" if margins is None else _significant(margins[k], 0.0),
+                    _complex_list(ev, 7),
                 )
             )
         lines += _table(("matrix", "theta", label, "max eig of the LMI at P", "eigenvalues of A"), rows)
         lines.append("")
         if margins is not None:
             lines.append(
-                f"Largest LMI eigenvalue over all matrices: {_num(np.max(margins), 6)} "
+                f"Largest LMI eigenvalue over all matrices: {_significant(np.max(margins), 0.0)} "
                 "(negative means every LMI holds strictly at the returned certificate)."
             )
             lines.append("")
@@ -262,7 +297,7 @@ class LMIReport:
             lines += ["### Certificate", ""]
             rows = [
                 ("eigenvalues of P", _vector(p_eig)),
-                ("condition number of P", _num(p_eig[-1] / p_eig[0])),
+                ("condition number of P", _num(p_eig[-1] / p_eig[0], 6)),
                 ("eigenvalues of Q0", _vector(q_eig)),
             ]
             if self.holds:
@@ -283,7 +318,81 @@ class LMIReport:
                     "for every A of the checked set (Theorem 2, bound constants of `LMIResult.bound_constants`).",
                     "",
                 ]
+        if self.regions is not None:
+            lines += _regions_markdown(self.regions)
+            if self.region_image is not None:
+                lines += [f"![where Assumption 4 holds]({self.region_image})", ""]
         return "\n".join(lines)
+
+
+def render_region_map(regions: RegionMap) -> str:
+    """The Markdown section "Where Assumption 4 holds" of a region map.
+
+    Parameters
+    ----------
+    regions : RegionMap
+        The result of `minimaxplan.verify.certified_region`.
+
+    Returns
+    -------
+    str
+        The certified, infeasible and inconclusive fractions of the box, the conflicting
+        vertices of the whole box (when it is proven infeasible) and a table of the
+        pieces with their verdicts, normalised slacks and cond(P).
+
+    Notes
+    -----
+    Assumption 4 over a polytope (eq. (8)), piece by piece: each certified piece has
+    its own P.
+    """
+    return "\n".join(_regions_markdown(regions))
+
+
+def _regions_markdown(regions: RegionMap) -> list[str]:
+    """The lines of `render_region_map`."""
+    lines = ["### Where Assumption 4 holds", ""]
+    lines.append(
+        f"The parameter box was split recursively (depth <= {regions.max_depth}, "
+        f"pieces of at least {_num(regions.min_volume, 4)} of its volume) and each piece checked over its "
+        "corner matrices with its own P (exactly re-checked)."
+    )
+    lines.append("")
+    lines += _table(
+        ("certified fraction", "infeasible fraction", "inconclusive fraction", "pieces"),
+        [
+            (
+                _significant(regions.certified_fraction, 1.0, 4),
+                _significant(regions.infeasible_fraction, 0.0, 4),
+                _significant(regions.inconclusive_fraction, 0.0, 4),
+                str(len(regions.pieces)),
+            )
+        ],
+    ) + [""]
+    conflict = regions.conflict
+    if conflict is not None:
+        proven = "proven irreducible" if conflict.irreducible else "irreducibility not proven for every member"
+        lines += [
+            f"Conflicting vertices of the whole box: {', '.join(str(i) for i in conflict.indices)} "
+            f"(no common P with normalised margin above {_num(conflict.infeasible.margin, 3)}; "
+            f"dropping any one restores one: {proven}).",
+            "",
+        ]
+    rows = []
+    for n, piece in enumerate(regions.pieces):
+        rows.append(
+            (
+                str(n),
+                _vector(piece.box.low, 7),
+                _vector(piece.box.high, 7),
+                str(piece.depth),
+                _num(piece.fraction, 4),
+                "**certified**" if piece.certified else piece.status.value,
+                _num(piece.result.slack, 4),
+                _num(piece.condition_P, 4),
+            )
+        )
+    lines += _table(("piece", "low", "high", "depth", "fraction", "verdict", "normalised slack", "cond(P)"), rows)
+    return lines + [""]
 
 
 def lmi_reports_to_dict(reports: Sequence[LMIReport], *, source: str, exit_code: int) -> dict:

@@ -15,6 +15,14 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 TIMEOUT_PER_CELL = 120  # seconds; each notebook must run in well under a minute
+#: Text that a notebook's printed output must contain once executed (what it must show).
+EXPECTED_OUTPUT = {
+    "assumption4_regions.ipynb": [
+        "infeasible - no certificate with normalised margin above",
+        "certified fraction: 1.0",
+        "conflicting vertices: (0, 1) irreducible: True",
+    ],
+}
 
 
 def test_there_are_notebooks_to_run():
@@ -50,3 +58,13 @@ def test_notebook_executes(path, monkeypatch):
     client.execute()  # raises CellExecutionError, naming the cell, if any cell fails
     executed = [cell for cell in notebook.cells if cell.cell_type == "code"]
     assert executed and all(cell.execution_count is not None for cell in executed)
+    printed = "".join(
+        output.get("text", "") for cell in executed for output in cell.outputs if output.get("output_type") == "stream"
+    )
+    for expected in EXPECTED_OUTPUT.get(path.name, []):
+        assert expected in printed, f"{path.name}: the output lacks {expected!r}"
+    if path.name == "assumption4_regions.ipynb":
+        # every piece's verdict agrees with the Shorten-Narendra test for its interval
+        verdicts = [line.split() for line in printed.splitlines() if "Shorten-Narendra:" in line]
+        assert len(verdicts) >= 2
+        assert all(words[3] == words[5] for words in verdicts), verdicts

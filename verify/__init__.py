@@ -5,11 +5,14 @@
   are proven both ways in exact rational arithmetic: "feasible" with a certificate
   (`LMIResult`), "infeasible" with a `DualCertificate` of the normalised problem. The
   only module of the library that imports cvxpy.
+* `conflicting_vertices`, `certified_region`: where Assumption 4 holds: an irreducible
+  set of vertex matrices with no common P, and a recursive split of a parameter box
+  into pieces certified each with its own P (`RegionMap`).
 * `eliminate_models`, `ModelSelector`, `feasible_parameter_box`: LP feasibility of
   structural hypotheses against observed transitions (HiGHS through scipy), with
   certificates of inconsistency.
 
-Modules: `lmi` (the SDPs and their exact re-checks); `selection` (the public model-elimination
+Modules: `lmi` (the SDPs and their exact re-checks); `regions` (conflicts and region maps); `selection` (the public model-elimination
 API); `certificates` (`EliminationCertificate`, `SelectionResult`); and, internal,
 `_regression` (input checks and the per-hypothesis regression data), `_highs` (the
 only `linprog` call and its status map) and `_generation` (constraint generation and
@@ -18,6 +21,7 @@ the weak-duality bound).
 
 from .certificates import EliminationCertificate, SelectionResult
 from .lmi import DualCertificate, LMIResult, LMIStatus, check_assumption4, lmi_matrix
+from .regions import ConflictSet, RegionMap, RegionPiece, certified_region, conflicting_vertices
 from .selection import ModelSelector, eliminate_models, feasible_parameter_box
 
 __all__ = [
@@ -26,6 +30,11 @@ __all__ = [
     "LMIStatus",
     "DualCertificate",
     "lmi_matrix",
+    "conflicting_vertices",
+    "certified_region",
+    "ConflictSet",
+    "RegionPiece",
+    "RegionMap",
     "eliminate_models",
     "ModelSelector",
     "feasible_parameter_box",

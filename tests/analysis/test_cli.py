@@ -309,3 +309,79 @@ def test_select_passes_the_measurement_noise_bound(tmp_path, capsys):
     i = model_file.names.index("anisotropic friction")
     box = feasible_parameter_box(model_file.systems[i], data.states, data.controls, measurement_noise=0.001)
     assert document["hypotheses"][i]["feasible_box"] == box.to_dict()
+
+
+# ------------------------------------------------------------- lmi --regions
+# A(k) = [[0, 1], [-k, -c]], c = 0.2, k in [1, 4]: every vertex is Hurwitz, but by the
+# Shorten-Narendra test a common P over [k1, k2] exists iff
+# (k2 - k1)^2 < 2 c^2 (k1 + k2) - c^4 (tests/verify/test_regions.py checks the library).
+OSCILLATOR = """
+name = "damped oscillator"
+time = "continuous"
+dt = 0.1
+A = [[0.0, 1.0], [0.0, -0.2]]
+phi = [[[0.0, 0.0], [-1.0, 0.0]]]
+B = [[0.0], [1.0]]
+w = { low = [-0.1, -0.1], high = [0.1, 0.1] }
+theta = { low = [1.0], high = [4.0] }
+"""
+
+
+def shorten_narendra(k1: float, k2: float, c: float = 0.2) -> bool:
+    return (k2 - k1) ** 2 < 2 * c**2 * (k1 + k2) - c**4
+
+
+def test_lmi_regions_json_and_png_map_where_assumption4_holds(tmp_path, capsys):
+    model = write(tmp_path, "oscillator.toml", OSCILLATOR)
+    out_file = tmp_path / "report.json"
+    code, out, err = run(capsys, "lmi", model, "--vertices", "--regions", "--depth", "2", "--json", "--out", out_file)
+    assert (code, out, err) == (1, "", "")  # one P over the whole box does not exist
+    (report,) = json.loads(out_file.read_text())["models"]
+    assert report["result"]["status"] == "infeasible"
+    regions = report["regions"]
+    assert regions["conflict"]["indices"] == [0, 1] and regions["conflict"]["irreducible"] is True
+    assert [(p["low"], p["high"]) for p in regions["pieces"]] == [
+        ([1.0], [1.75]),
+        ([1.75], [2.5]),
+        ([2.5], [3.25]),
+        ([3.25], [4.0]),
+    ]
+    assert [p["certified"] for p in regions["pieces"]] == [
+        shorten_narendra(p["low"][0], p["high"][0]) for p in regions["pieces"]
+    ]
+    assert regions["certified_fraction"] == pytest.approx(0.25)
+    image = tmp_path / report["region_image"]
+    assert image.name == "report-damped-oscillator-regions.png"
+    assert image.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_lmi_regions_markdown_names_the_conflict_and_the_pieces(tmp_path, capsys):
+    model = write(tmp_path, "oscillator.toml", OSCILLATOR)
+    out_file = tmp_path / "report.md"
+    code, _, _ = run(capsys, "lmi", model, "--regions", "--depth", "2", "--out", out_file)
+    text = out_file.read_text()
+    assert code == 0  # the exit code is the main check's: here the nominal matrix, which is stable
+    assert "### Where Assumption 4 holds" in text
+    assert "| 0.25 | 0.75 | 0 | 4 |" in text
+    assert "Conflicting vertices of the whole box: 0, 1" in text and "proven irreducible" in text
+    assert "| 3 | [3.25] | [4] | 2 | 0.25 | **certified** |" in text
+    assert "![where Assumption 4 holds](report-damped-oscillator-regions.png)" in text
+    assert (tmp_path / "report-damped-oscillator-regions.png").is_file()
+
+
+def test_lmi_depth_must_be_a_count(tmp_path, capsys):
+    model = write(tmp_path, "oscillator.toml", OSCILLATOR)
+    code, _, err = run(capsys, "lmi", model, "--regions", "--depth", "-1")
+    assert code == 2 and "--depth: expected an integer >= 0, got -1" in err
+    code, out, err = run(capsys, "lmi", model, "--depth", "2")
+    assert (code, out) == (2, "") and err == "minimaxplan lmi: error: --depth needs --regions\n"
+
+
+def test_lmi_markdown_prints_the_digits_that_matter(tmp_path, capsys):
+    model = write(
+        tmp_path, "slow.toml", SCALAR.replace("A0 = [[0.5]]", "A0 = [[0.9999975]]").replace("[[[1.0]]]", "[[[0.0]]]")
+    )
+    code, out, _ = run(capsys, "lmi", model)
+    assert code == 0
+    assert "| 0 | [0] | 0.9999975 |" in out
+    assert "| normalised slack t* of the primal SDP |" in out and "| cond(P) |" in out
