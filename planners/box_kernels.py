@@ -27,7 +27,6 @@ from __future__ import annotations
 import functools
 import math
 from collections import namedtuple
-from typing import Any
 
 import numpy as np
 from numba import njit
@@ -47,9 +46,6 @@ __all__ = ["IntervalKernel", "propagate", "stack_rewards_kernel"]
 # numba's disk cache checks only a function's own source file: the kernels below inline
 # `box_primitives`, so they close over its digest and recompile when it changes.
 _PRIMITIVES_VERSION = sources_digest(box_primitives.__file__)
-
-# Compiled without numba's reference counting (see `minimaxplan.planners.tree_ops`): helpers that allocate nothing.
-_NO_REFCOUNTS: dict[str, Any] = {"cache": True, "_nrt": False}
 
 
 IntervalKernel = namedtuple(
@@ -173,29 +169,6 @@ def _finish(z, m, a, core, out, error, scratch):
         out[p + j] = _minimum(out[p + j], open_box[p + j] + w[m, p + j] + through[p + j] + open_rounding[j])
 
 
-def _make_helpers(version: int):
-    """`_linear_part` and `_finish` each compiled once, called (not inlined) by `substep` and `propagate`.
-
-    Inlined into both, the saturation path was typed and lowered twice per plan (a third
-    of the cold compile). Compiled without numba's reference counting, as `tree_ops` is
-    (they allocate nothing, and ``core`` holds 17 arrays); closing over ``version``
-    keys their cache by the box primitives' source, like `substep`.
-    """
-
-    def linear_part(z, m, slot, core, out, error, scratch):
-        _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
-        _linear_part(z, m, slot, core, out, error, scratch)
-
-    def finish(z, m, a, core, out, error, scratch):
-        _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
-        _finish(z, m, a, core, out, error, scratch)
-
-    return njit(**_NO_REFCOUNTS)(linear_part), njit(**_NO_REFCOUNTS)(finish)
-
-
-_linear_part_once, _finish_once = _make_helpers(_PRIMITIVES_VERSION)
-
-
 def _make_substep(version: int):
     """`substep`, compiled with a cache key that covers `minimaxplan.kernels.box_primitives`."""
 
@@ -227,8 +200,8 @@ def _make_substep(version: int):
         _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
         n = z.shape[0]
         error = scratch[6, : n // 2]
-        _linear_part_once(z, m, a if core.per_action else 0, core, out, error, scratch)
-        _finish_once(z, m, a, core, out, error, scratch)
+        _linear_part(z, m, a if core.per_action else 0, core, out, error, scratch)
+        _finish(z, m, a, core, out, error, scratch)
 
     return njit(cache=True)(substep)
 
@@ -253,11 +226,11 @@ def _make_propagate(version: int):
         # Open loop without saturation: the first sub-step's product is the same for every action
         shared = not core.per_action and not core.saturating
         base, base_error = scratch[9, :n], scratch[10, : n // 2]
-        no_slot = np.int64(0)  # an int64, not a literal 0: one compiled `_linear_part_once` for both callers
+        no_slot = np.int64(0)  # an int64, not a literal 0: one typing of the inlined `_linear_part` for both callers
         for m in range(n_models):
             start = z0[m if z0.shape[0] > 1 else 0]
             if shared:
-                _linear_part_once(start, m, no_slot, core, base, base_error, scratch)
+                _linear_part(start, m, no_slot, core, base, base_error, scratch)
             for i in range(n_actions):
                 a = actions[i]
                 source = start
@@ -266,7 +239,7 @@ def _make_propagate(version: int):
                     out = stack[0, m, i]
                     for j in range(n):
                         out[j] = base[j]
-                    _finish_once(start, m, a, core, out, base_error, scratch)
+                    _finish(start, m, a, core, out, base_error, scratch)
                     source = out
                     first = 1
                 for s in range(first, n_sub):

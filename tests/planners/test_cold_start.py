@@ -130,7 +130,7 @@ def test_cached_kernels_close_over_plain_digests_only():
     from minimaxplan.planners import box_kernels
     from minimaxplan.scenarios.compiled_rewards import SpeedLaneParams
 
-    kernels = [box_kernels.substep, box_kernels.propagate, box_kernels._linear_part_once, box_kernels._finish_once]
+    kernels = [box_kernels.substep, box_kernels.propagate]
     for params_type in (GoalParams, SpeedLaneParams):
         kernels += [compiled_search.search_kernel(params_type), stack_rewards_kernel(params_type),
                     box_minima_kernel(params_type)]
