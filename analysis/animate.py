@@ -3,17 +3,20 @@
 Each frame shows the robot (its disc and its path so far), the static discs, the goal,
 the pedestrians (discs and paths so far) and, for the robust method, the position boxes
 of the plan being executed, the pedestrians' predicted boxes it was planned against
-and the hypotheses still surviving model elimination. Written with matplotlib's Pillow
-writer (Pillow is a matplotlib dependency).
+and the hypotheses still surviving model elimination. Each frame is drawn once by
+matplotlib and the GIF is written by Pillow (a matplotlib dependency).
 """
 
 from __future__ import annotations
 
 import argparse
 import pathlib
-from typing import Any
+from typing import TYPE_CHECKING
 
 from .arguments import count, output_directory, report_error
+
+if TYPE_CHECKING:
+    from .episode import EpisodeRecord
 
 __all__ = ["MAX_FRAMES", "animate_episode", "register"]
 
@@ -22,7 +25,7 @@ MAX_FRAMES = 80
 
 
 def animate_episode(
-    record: Any, path: str | pathlib.Path, *, fps: int = 8, max_frames: int = MAX_FRAMES
+    record: EpisodeRecord, path: str | pathlib.Path, *, fps: int = 8, max_frames: int = MAX_FRAMES
 ) -> pathlib.Path:
     """Write an animated GIF of a robot episode.
 
@@ -60,12 +63,13 @@ def animate_episode(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-    from matplotlib.animation import FuncAnimation, PillowWriter
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Circle, Rectangle
+    from PIL import Image
 
     from minimaxplan.models import InputError
     from minimaxplan.models.validation import as_count
+    from minimaxplan.scenarios.worlds import PEDESTRIAN_RADIUS
 
     from .plots import PEDESTRIAN_BOX_COLOR, method_style
 
@@ -86,7 +90,7 @@ def animate_episode(
     steps = sorted(set(np.linspace(0, len(states) - 1, min(max_frames, len(states))).round().astype(int).tolist()))
     style = method_style(record.method)
 
-    fig, ax = plt.subplots(figsize=(6, 6))
+    fig, ax = plt.subplots(figsize=(6, 6), dpi=80)
     obstacles = world.get("obstacles", {})
     for c, rad in zip(obstacles.get("centers", []), obstacles.get("radii", [])):
         ax.add_patch(Circle(c, rad, color="0.6"))
@@ -101,10 +105,12 @@ def animate_episode(
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     (path_line,) = ax.plot([], [], color=style["color"], lw=1.5, label=f"{record.method} path")
-    robot = Circle(states[0, :2], robot_radius, color=style["color"], zorder=6, label="robot")
+    robot = Circle(
+        (float(states[0, 0]), float(states[0, 1])), robot_radius, color=style["color"], zorder=6, label="robot"
+    )
     ax.add_patch(robot)
     ped_paths = [ax.plot([], [], "k:", lw=1.0)[0] for _ in range(peds.shape[1])]
-    ped_discs = [Circle(p, 0.3, color="k", alpha=0.8, zorder=6) for p in peds[0]] if len(peds) else []
+    ped_discs = [Circle((float(p[0]), float(p[1])), PEDESTRIAN_RADIUS, color="k", alpha=0.8, zorder=6) for p in peds[0]]
     for disc in ped_discs:
         ax.add_patch(disc)
     plan_boxes = PatchCollection([], match_original=False, facecolor="none", edgecolor=style["color"], lw=0.6)
@@ -154,10 +160,16 @@ def animate_episode(
         text.set_text("\n".join(lines))
         return [path_line, robot, text, plan_boxes, ped_boxes, *ped_paths, *ped_discs]
 
-    animation = FuncAnimation(fig, draw, frames=steps, blit=False)
-    out = pathlib.Path(path)
-    animation.save(out, writer=PillowWriter(fps=fps), dpi=80)
+    # One draw per frame, straight into Pillow (matplotlib's animation writers draw each
+    # frame two or three times).
+    frames = []
+    for step in steps:
+        draw(step)
+        fig.canvas.draw()
+        frames.append(Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3]).quantize(colors=64))
     plt.close(fig)
+    out = pathlib.Path(path)
+    frames[0].save(out, save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0)
     return out
 
 

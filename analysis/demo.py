@@ -15,8 +15,13 @@ from __future__ import annotations
 import argparse
 import pathlib
 import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from .arguments import count, output_directory, report_error
+
+if TYPE_CHECKING:
+    from .episode import EpisodeRecord
 
 __all__ = ["DT", "run", "report", "register"]
 
@@ -164,9 +169,7 @@ def _run(args: argparse.Namespace) -> int:
     print(f"\nShort experiment: {args.episodes} episodes per method in each world (paper: 100)", flush=True)
     scenarios = scenario_names()
     try:
-        result = run_experiment(
-            scenarios, method_names(), episodes=args.episodes, seed=args.seed, workers=args.workers
-        )
+        result = run_experiment(scenarios, method_names(), episodes=args.episodes, seed=args.seed, workers=args.workers)
         out = write_outputs(result, args.out)
         plot_experiment(result.records, out, scenarios=scenarios)
         animated = _animated_record(result.records, args.seed)
@@ -181,7 +184,7 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _animated_record(records, seed: int):
+def _animated_record(records: Sequence[EpisodeRecord], seed: int) -> EpisodeRecord | None:
     """The episode the demo animates: the robust method among pedestrians, world seed ``seed``
     (else the first robust episode, else none)."""
     robust = [r for r in records if r.method == "robust"]

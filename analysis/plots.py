@@ -250,7 +250,7 @@ def _save(fig: Any, path: str | pathlib.Path) -> pathlib.Path:
 
 
 def speed_and_heading(states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Speed (m/s) and heading of the velocity (degrees, in (-180, 180]) of planar states.
+    """Speed (m/s) and heading of the velocity (degrees) of planar states.
 
     Parameters
     ----------
@@ -260,16 +260,15 @@ def speed_and_heading(states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Returns
     -------
     speed, heading : numpy.ndarray
-        Shape (n,); the heading is NaN where the speed is below `HEADING_MIN_SPEED`
-        (standing still has no heading) and where it wraps around +-180 degrees (so a
-        plotted line breaks there instead of crossing the panel).
+        Shape (n,). The heading is unwrapped (continuous across +-180 degrees, starting
+        in (-180, 180]), and NaN where the speed is below `HEADING_MIN_SPEED` (standing
+        still has no heading).
     """
     velocity = np.asarray(states, dtype=float)[:, 2:4]
     speed = np.linalg.norm(velocity, axis=1)
-    heading = np.degrees(np.arctan2(velocity[:, 1], velocity[:, 0]))
-    heading[speed < HEADING_MIN_SPEED] = np.nan
-    wraps = np.flatnonzero(np.abs(np.diff(heading)) > 180.0)
-    heading[wraps] = np.nan
+    heading = np.full(speed.shape, np.nan)
+    moving = speed >= HEADING_MIN_SPEED
+    heading[moving] = np.degrees(np.unwrap(np.arctan2(velocity[moving, 1], velocity[moving, 0])))
     return speed, heading
 
 
@@ -293,6 +292,7 @@ def motion_figure(records: Sequence[EpisodeRecord], *, title: str = "") -> Any:
         ended in one. The robot is holonomic: its heading is that of its velocity.
     """
     from matplotlib.lines import Line2D
+    from matplotlib.ticker import MultipleLocator
 
     plt = _pyplot()
     seeds = sorted({r.seed for r in records})
@@ -337,8 +337,7 @@ def motion_figure(records: Sequence[EpisodeRecord], *, title: str = "") -> Any:
         speed_ax.set_title("speed, decisions marked", fontsize=9)
         heading_ax.set_xlabel("time (s)")
         heading_ax.set_ylabel("heading of the velocity (deg)")
-        heading_ax.set_ylim(-185, 185)
-        heading_ax.set_yticks([-180, -90, 0, 90, 180])
+        heading_ax.yaxis.set_major_locator(MultipleLocator(90))
         heading_ax.set_title("heading (not drawn below 0.05 m/s)", fontsize=9)
         for ax in (speed_ax, heading_ax):
             ax.grid(alpha=0.3)

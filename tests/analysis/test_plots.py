@@ -169,7 +169,7 @@ def test_speed_and_heading_of_the_velocity():
     np.testing.assert_allclose(speed, [0, 2, 1, 1, np.sqrt(2)])
     assert np.isnan(heading[0])  # standing still has no heading
     assert heading[1] == 90.0 and heading[4] == 45.0
-    assert np.isnan(heading[2])  # the wrap from +180 to -180 breaks the line
+    np.testing.assert_allclose(heading[2:4], 180.0)  # unwrapped: no jump from +180 to -180
 
 
 def test_plot_experiment_writes_both_figures(tmp_path, records):
