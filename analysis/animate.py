@@ -32,7 +32,7 @@ def animate_episode(
     Parameters
     ----------
     record : EpisodeRecord
-        A robot episode (its ``extra["trace"]`` and ``extra["world"]``; for the robust
+        A robot episode (its ``trace`` and ``extra["world"]``; for the robust
         method also ``extra["decisions"]``).
     path : str or pathlib.Path
         The GIF file.
@@ -75,7 +75,7 @@ def animate_episode(
 
     fps = as_count("fps", fps)
     max_frames = as_count("max_frames", max_frames, minimum=2)
-    trace = record.extra.get("trace") or {}
+    trace = record.trace
     states = np.asarray(trace.get("states", []), dtype=float)
     if states.ndim != 2 or states.shape[0] < 2 or states.shape[1] < 2:
         raise InputError(f"the record of {record.method} in {record.scenario} has no trace of planar states to animate")

@@ -13,7 +13,7 @@ episode is a pure function of ``(scenario, method, seed, config)`` wherever it r
 from __future__ import annotations
 
 import time as wallclock
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -92,6 +92,9 @@ class LoopConfig:
 
 DEFAULT_CONFIG = LoopConfig()
 
+#: The fields of an `EpisodeRecord` that its CSV row leaves out.
+_NOT_IN_ROW = ("trajectory", "extra", "trace")
+
 
 @dataclass(frozen=True)
 class EpisodeRecord:
@@ -104,11 +107,12 @@ class EpisodeRecord:
 
     ``trajectory`` holds the robot's true position after every sub-step (row 0 the
     start). ``extra`` holds the method's `Method.report` (the robust method's
-    ``plans`` and per-decision ``decisions``), the world's setup (``world``) and the
-    loop's ``trace``: ``dt`` (s), the true ``states`` and the pedestrians' true
-    positions (m) after every sub-step, and the sub-step index of every decision
-    (``decision_steps``). Nothing in ``extra`` but the Assumption 4 report enters
-    `row`.
+    ``plans`` and per-decision ``decisions``) and the world's setup (``world``).
+    ``trace`` is what the plots and the animation read (`minimaxplan.analysis.plots`):
+    ``dt`` (s), the true ``states`` and the pedestrians' true positions (m, robot
+    worlds) after every sub-step, and the sub-step index of every decision
+    (``decision_steps``). Neither ``trajectory``, ``trace`` nor ``extra`` (but its
+    Assumption 4 report) enters `row`.
     """
 
     scenario: str
@@ -121,6 +125,7 @@ class EpisodeRecord:
     wall_time_s: float
     trajectory: tuple = field(default=(), repr=False)
     extra: dict = field(default_factory=dict, repr=False)
+    trace: dict = field(default_factory=dict, repr=False)
 
     @property
     def success(self) -> bool:
@@ -128,9 +133,7 @@ class EpisodeRecord:
 
     def row(self) -> dict:
         """The flat CSV row (no trajectory)."""
-        data = asdict(self)
-        data.pop("trajectory")
-        data.pop("extra")
+        data = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in _NOT_IN_ROW}
         data["success"] = self.success
         # The Assumption 4 report of the robust method (once per episode), empty otherwise.
         lmi = self.extra.get("lmi") or {}
@@ -240,7 +243,8 @@ def run_job(job: EpisodeJob) -> EpisodeRecord:
         decisions=len(rewards),
         wall_time_s=wallclock.perf_counter() - started,
         trajectory=tuple(map(tuple, np.round(positions, 4).tolist())),
-        extra={**method.report(), "world": world.to_dict(), "trace": trace.to_dict(world)},
+        extra={**method.report(), "world": world.to_dict()},
+        trace=trace.to_dict(world),
     )
 
 

@@ -30,8 +30,8 @@ __all__ = [
 #: so that methods on the same path stay apart (oracle wide and pale under nominal's dashes).
 METHOD_STYLES: dict[str, dict[str, Any]] = {
     "oracle": {"color": "tab:blue", "ls": "-", "lw": 4.0, "alpha": 0.45, "zorder": 3},
-    "nominal": {"color": "tab:orange", "ls": (0, (5, 2)), "lw": 1.8, "alpha": 1.0, "zorder": 5},
-    "robust": {"color": "tab:green", "ls": "-", "lw": 1.8, "alpha": 1.0, "zorder": 6},
+    "nominal": {"color": "tab:orange", "ls": (0, (5, 2)), "lw": 2.6, "alpha": 1.0, "zorder": 5},
+    "robust": {"color": "tab:green", "ls": "-", "lw": 1.2, "alpha": 1.0, "zorder": 6},
     "dwa": {"color": "tab:red", "ls": "-.", "lw": 1.5, "alpha": 1.0, "zorder": 4},
     "teb": {"color": "tab:purple", "ls": ":", "lw": 2.0, "alpha": 1.0, "zorder": 4},
 }
@@ -66,14 +66,10 @@ def method_style(method: str) -> dict[str, Any]:
     return dict(METHOD_STYLES.get(method, {"color": "0.3", "ls": "-", "lw": 1.5, "alpha": 1.0, "zorder": 4}))
 
 
-def _trace(record: EpisodeRecord) -> dict:
-    return record.extra.get("trace") or {}
-
-
 def _pedestrian_paths(group: Sequence[EpisodeRecord]) -> np.ndarray:
     """The pedestrians' positions per sub-step, shape (steps, m, 2), from the longest episode
     (they ignore the robot, so every method of a seed sees the same walk)."""
-    longest = max((np.asarray(_trace(r).get("pedestrians", []), dtype=float) for r in group), key=len, default=None)
+    longest = max((np.asarray(r.trace.get("pedestrians", []), dtype=float) for r in group), key=len, default=None)
     if longest is None or longest.ndim != 3 or longest.shape[1] == 0:
         return np.zeros((0, 0, 2))
     return longest
@@ -118,7 +114,7 @@ def _draw_collision(ax, record: EpisodeRecord, trajectory: np.ndarray, handles: 
         return
     ax.plot(*trajectory[-1], marker="X", color="red", mec="k", ms=11, ls="none", zorder=9, gid="collision")
     handles.setdefault("collision", Line2D([], [], marker="X", color="red", mec="k", ms=9, ls="none"))
-    peds = np.asarray(_trace(record).get("pedestrians", []), dtype=float)
+    peds = np.asarray(record.trace.get("pedestrians", []), dtype=float)
     if peds.ndim == 3 and peds.shape[1]:
         ax.plot(peds[-1, :, 0], peds[-1, :, 1], "o", mfc="none", mec="red", ms=9, zorder=9)
         handles.setdefault("pedestrians at the collision", Line2D([], [], marker="o", mfc="none", mec="red", ls="none"))
@@ -153,6 +149,15 @@ def _draw_predicted_boxes(ax, record: EpisodeRecord, handles: dict) -> None:
         )
 
 
+def _identical_paths(group: Sequence[EpisodeRecord]) -> list[list[str]]:
+    """The methods whose paths coincide exactly (lines drawn on top of each other), in groups."""
+    paths: dict[tuple, list[str]] = {}
+    for r in group:
+        if r.trajectory:
+            paths.setdefault(tuple(r.trajectory), []).append(r.method)
+    return [methods for methods in paths.values() if len(methods) > 1]
+
+
 def trajectory_figure(records: Sequence[EpisodeRecord], *, title: str = "") -> Any:
     """One panel per world seed: every method's path and what it met.
 
@@ -167,7 +172,8 @@ def trajectory_figure(records: Sequence[EpisodeRecord], *, title: str = "") -> A
     -------
     matplotlib.figure.Figure
         Axes in metres; one line per method (styles `METHOD_STYLES`, labelled with the
-        outcome), the static discs, start, goal region, the pedestrians' true paths and
+        outcome; methods whose paths coincide are named in the panel's corner), the
+        static discs, start, goal region, the pedestrians' true paths and
         starts, a cross where an episode ended in a collision (and the pedestrians then),
         and the robust method's predicted position boxes and the pedestrians' predicted
         boxes it planned against (every eighth decision, eqs. (16)-(18)). One legend
@@ -195,6 +201,17 @@ def trajectory_figure(records: Sequence[EpisodeRecord], *, title: str = "") -> A
             _draw_predicted_boxes(ax, r, handles)
             if planar:
                 _draw_collision(ax, r, trajectory, handles)
+        same = _identical_paths(group)
+        if same:
+            ax.text(
+                0.02,
+                0.02,
+                "same path: " + "; ".join(" = ".join(m) for m in same),
+                transform=ax.transAxes,
+                fontsize=7,
+                va="bottom",
+                gid="identical paths",
+            )
         if planar:
             ax.set_aspect("equal")
             ax.set_xlabel("x (m)")
@@ -278,7 +295,7 @@ def motion_figure(records: Sequence[EpisodeRecord], *, title: str = "") -> Any:
     Parameters
     ----------
     records : sequence of EpisodeRecord
-        Episodes of one robot scenario whose ``extra["trace"]`` holds the true states.
+        Episodes of one robot scenario whose ``trace`` holds the true states.
     title : str
         Figure title (none if empty).
 
@@ -306,18 +323,18 @@ def motion_figure(records: Sequence[EpisodeRecord], *, title: str = "") -> Any:
         path_ax, speed_ax, heading_ax = row
         _draw_map(path_ax, group, handles)
         for r in group:
-            states = np.asarray(_trace(r).get("states", []), dtype=float)
+            states = np.asarray(r.trace.get("states", []), dtype=float)
             if states.ndim != 2 or states.shape[1] < 4:
                 continue
             style = method_style(r.method)
-            dt = float(_trace(r).get("dt", 1.0))
+            dt = float(r.trace.get("dt", 1.0))
             time = np.arange(len(states)) * dt
             speed, heading = speed_and_heading(states)
             (line,) = path_ax.plot(states[:, 0], states[:, 1], gid=f"method {r.method}", **style)
             handles.setdefault(f"method {r.method}", line)
             speed_ax.plot(time, speed, gid=f"method {r.method}", **style)
             heading_ax.plot(time, heading, gid=f"method {r.method}", **style)
-            steps = np.asarray(_trace(r).get("decision_steps", []), dtype=int)
+            steps = np.asarray(r.trace.get("decision_steps", []), dtype=int)
             steps = steps[steps < len(states)]
             speed_ax.plot(time[steps], speed[steps], "o", ms=2.5, color=style["color"], zorder=7, gid="decisions")
             if r.outcome == "collision":
@@ -396,6 +413,6 @@ def plot_experiment(
         if not group:
             continue
         written.append(plot_trajectories(group, out / f"trajectories_{scenario}.png"))
-        if any(np.shape(_trace(r).get("states", []))[1:] == (4,) for r in group):
+        if any(np.shape(r.trace.get("states", []))[1:] == (4,) for r in group):
             written.append(plot_motion(group, out / f"motion_{scenario}.png"))
     return written

@@ -43,12 +43,12 @@ def _record(method: str, outcome: str, *, seed: int = 4, steps: int = 30, offset
             "pedestrians": {"positions": [[2.5, 8.0]], "announced": [[0.0, -1.0]]},
             "params": {"goal_tolerance": 0.5, "robot_radius": 0.3},
         },
-        "trace": {
-            "dt": DT,
-            "states": states.tolist(),
-            "pedestrians": pedestrians.tolist(),
-            "decision_steps": list(range(0, steps, 5)),
-        },
+    }
+    trace = {
+        "dt": DT,
+        "states": states.tolist(),
+        "pedestrians": pedestrians.tolist(),
+        "decision_steps": list(range(0, steps, 5)),
     }
     if method == "robust":
         lower = states[:6, :2] - 0.2
@@ -72,10 +72,11 @@ def _record(method: str, outcome: str, *, seed: int = 4, steps: int = 30, offset
         outcome=outcome,
         time_s=steps * DT,
         discounted_return=1.0,
-        decisions=len(extra["trace"]["decision_steps"]),
+        decisions=len(trace["decision_steps"]),
         wall_time_s=0.0,
         trajectory=tuple(map(tuple, states[:, :2].tolist())),
         extra=extra,
+        trace=trace,
     )
 
 
@@ -126,6 +127,8 @@ def test_trajectory_figure_labels_every_mark(records):
         (oracle,) = _lines(ax, "method oracle")
         assert nominal.get_zorder() > oracle.get_zorder()
         assert nominal.get_linestyle() != "-" and oracle.get_linewidth() > nominal.get_linewidth()
+        (same,) = [t for t in ax.texts if t.get_gid() == "identical paths"]
+        assert same.get_text() == "same path: robust = oracle"
         # the pedestrian's whole walk, not only its start
         (walk,) = _lines(ax, "pedestrian path")
         assert len(walk.get_xdata()) == 31
@@ -188,7 +191,7 @@ def test_animate_episode_frames(tmp_path, records):
 
 def test_episode_records_the_trace_the_plots_need():
     record = run_episode("pedestrian", "robust", 3, LoopConfig(budget=8, max_decisions=3))
-    trace = record.extra["trace"]
+    trace = record.trace
     states = np.array(trace["states"])
     assert states.shape == (len(record.trajectory), 4)
     np.testing.assert_allclose(states[:, :2], np.array(record.trajectory), atol=1e-4)
