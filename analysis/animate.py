@@ -63,6 +63,7 @@ def animate_episode(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Circle, Rectangle
     from PIL import Image
@@ -162,11 +163,12 @@ def animate_episode(
 
     # One draw per frame, straight into Pillow (matplotlib's animation writers draw each
     # frame two or three times).
+    canvas = FigureCanvasAgg(fig)
     frames = []
     for step in steps:
         draw(step)
-        fig.canvas.draw()
-        frames.append(Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3]).quantize(colors=64))
+        canvas.draw()
+        frames.append(Image.fromarray(np.asarray(canvas.buffer_rgba())[..., :3]).quantize(colors=64))
     plt.close(fig)
     out = pathlib.Path(path)
     frames[0].save(out, save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0)
