@@ -5,8 +5,9 @@ integrator with unknown anisotropic friction), learns a confidence set for the
 friction, discards the structural hypotheses that the data contradicts, checks
 Assumption 4 on the velocity subsystem, and predicts an interval tube that contains
 every possible future trajectory. Part 2 is a short version of the paper's experiment:
-5 episodes per method in both worlds (under a minute), the Table 3 layout printed and the plots
-written to ``out/demo``.
+5 episodes per method in both worlds, the Table 3 layout printed, the trajectory and
+speed/heading plots and an animated GIF of the robust method among pedestrians written
+to ``out/demo``.
 """
 
 from __future__ import annotations
@@ -14,8 +15,13 @@ from __future__ import annotations
 import argparse
 import pathlib
 import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from .arguments import count, output_directory, report_error
+
+if TYPE_CHECKING:
+    from .episode import EpisodeRecord
 
 __all__ = ["DT", "run", "report", "register"]
 
@@ -152,28 +158,38 @@ def report(result: dict) -> str:
 def _run(args: argparse.Namespace) -> int:
     from minimaxplan.models import MinimaxplanError
 
-    from .experiment_command import run_and_report
+    from .animate import animate_episode
+    from .experiment import markdown_table, run_experiment, write_outputs
+    from .plots import plot_experiment
     from .registry import method_names, scenario_names
 
     print(report(run(seed=args.seed)), flush=True)
     if args.episodes == 0:
         return 0
     print(f"\nShort experiment: {args.episodes} episodes per method in each world (paper: 100)", flush=True)
+    scenarios = scenario_names()
     try:
-        table, out = run_and_report(
-            scenario_names(),
-            method_names(),
-            episodes=args.episodes,
-            seed=args.seed,
-            workers=args.workers,
-            dask_address=None,
-            out=args.out,
-        )
+        result = run_experiment(scenarios, method_names(), episodes=args.episodes, seed=args.seed, workers=args.workers)
+        out = write_outputs(result, args.out)
+        plot_experiment(result.records, out, scenarios=scenarios)
+        animated = _animated_record(result.records, args.seed)
+        if animated is not None:
+            gif = animate_episode(animated, out / f"episode_{animated.scenario}_{animated.method}_{animated.seed}.gif")
     except MinimaxplanError as exc:
         return report_error("demo", exc)
-    print(table)
+    print(markdown_table(result.summary) + f"\nWall time of the run: {result.wall_time_s:.1f} s\n")
     print(f"plots and per-episode data written to {out}/")
+    if animated is not None:
+        print(f"animation of {animated.method} in the {animated.scenario} world, seed {animated.seed}: {gif}")
     return 0
+
+
+def _animated_record(records: Sequence[EpisodeRecord], seed: int) -> EpisodeRecord | None:
+    """The episode the demo animates: the robust method among pedestrians, world seed ``seed``
+    (else the first robust episode, else none)."""
+    robust = [r for r in records if r.method == "robust"]
+    chosen = [r for r in robust if r.scenario == "pedestrian" and r.seed == seed] or robust
+    return chosen[0] if chosen else None
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

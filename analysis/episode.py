@@ -13,7 +13,7 @@ episode is a pure function of ``(scenario, method, seed, config)`` wherever it r
 from __future__ import annotations
 
 import time as wallclock
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -92,6 +92,9 @@ class LoopConfig:
 
 DEFAULT_CONFIG = LoopConfig()
 
+#: The fields of an `EpisodeRecord` that its CSV row leaves out.
+_NOT_IN_ROW = ("trajectory", "extra", "trace")
+
 
 @dataclass(frozen=True)
 class EpisodeRecord:
@@ -101,6 +104,15 @@ class EpisodeRecord:
     `EpisodeFailure` outcome of the method (e.g. "no_consistent_model"), or "horizon"
     (stopped after ``LoopConfig.max_decisions``); only "goal" is a success.
     ``time_s`` is the simulated time at the end of the episode.
+
+    ``trajectory`` holds the robot's true position after every sub-step (row 0 the
+    start). ``extra`` holds the method's `Method.report` (the robust method's
+    ``plans`` and per-decision ``decisions``) and the world's setup (``world``).
+    ``trace`` is what the plots and the animation read (`minimaxplan.analysis.plots`):
+    ``dt`` (s), the true ``states`` and the pedestrians' true positions (m, robot
+    worlds) after every sub-step, and the sub-step index of every decision
+    (``decision_steps``). Neither ``trajectory``, ``trace`` nor ``extra`` (but its
+    Assumption 4 report) enters `row`.
     """
 
     scenario: str
@@ -113,6 +125,7 @@ class EpisodeRecord:
     wall_time_s: float
     trajectory: tuple = field(default=(), repr=False)
     extra: dict = field(default_factory=dict, repr=False)
+    trace: dict = field(default_factory=dict, repr=False)
 
     @property
     def success(self) -> bool:
@@ -120,9 +133,7 @@ class EpisodeRecord:
 
     def row(self) -> dict:
         """The flat CSV row (no trajectory)."""
-        data = asdict(self)
-        data.pop("trajectory")
-        data.pop("extra")
+        data = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in _NOT_IN_ROW}
         data["success"] = self.success
         # The Assumption 4 report of the robust method (once per episode), empty otherwise.
         lmi = self.extra.get("lmi") or {}
@@ -151,6 +162,40 @@ class EpisodeJob:
         return (self.scenario, self.method, self.seed)
 
 
+class _Trace:
+    """What the plots and the animation read of an episode, recorded by the loop only.
+
+    Reading the world's true state and the pedestrians' positions draws no random
+    number and changes nothing, so the records stay those of an untraced loop.
+    """
+
+    def __init__(self, world: Any):
+        self.states: list[list[float]] = []
+        self.pedestrians: list[list[list[float]]] = []
+        self.decision_steps: list[int] = []
+        self.stepped(world)
+
+    def decided(self, world: Any) -> None:
+        self.decision_steps.append(int(getattr(world, "step_index", len(self.decision_steps))))
+
+    def stepped(self, world: Any) -> None:
+        state = getattr(world, "state", None)
+        if state is not None:
+            self.states.append(np.round(np.asarray(state, dtype=float), 4).tolist())
+        crowd = getattr(world, "crowd", None)
+        if crowd is not None:
+            self.pedestrians.append(np.round(np.asarray(crowd.positions, dtype=float), 4).tolist())
+
+    def to_dict(self, world: Any) -> dict:
+        params = getattr(world, "params", None)
+        return {
+            "dt": float(getattr(params, "dt", 1.0)),
+            "states": self.states,
+            "pedestrians": self.pedestrians,
+            "decision_steps": self.decision_steps,
+        }
+
+
 def run_job(job: EpisodeJob) -> EpisodeRecord:
     """Run ``job`` (in whichever process receives it); see `run_episode`."""
     started = wallclock.perf_counter()
@@ -161,6 +206,7 @@ def run_job(job: EpisodeJob) -> EpisodeRecord:
     x = world.measure()
     rewards: list[float] = []
     positions = [np.array(world.position, dtype=float)]
+    trace = _Trace(world)
     outcome = None
     while not world.done:
         if job.config.max_decisions is not None and len(rewards) >= job.config.max_decisions:
@@ -171,11 +217,13 @@ def run_job(job: EpisodeJob) -> EpisodeRecord:
         except EpisodeFailure as failure:
             outcome = failure.outcome  # a failure of the episode, not an error of the run
             break
+        trace.decided(world)
         worst = 1.0
         for _ in range(world.substeps):
             u = policy.control(x)
             world.apply(u)
             positions.append(np.array(world.position, dtype=float))
+            trace.stepped(world)
             worst = min(worst, world.reward())
             x_next = world.measure()
             method.observe(Transition(x, u, x_next))
@@ -196,6 +244,7 @@ def run_job(job: EpisodeJob) -> EpisodeRecord:
         wall_time_s=wallclock.perf_counter() - started,
         trajectory=tuple(map(tuple, np.round(positions, 4).tolist())),
         extra={**method.report(), "world": world.to_dict()},
+        trace=trace.to_dict(world),
     )
 
 

@@ -196,6 +196,12 @@ class _Learner:
         return boxes
 
 
+def _outward(corners: np.ndarray, direction: int) -> list:
+    """Box corners rounded outward to 0.1 mm (``direction`` -1: lower, +1: upper), as lists."""
+    scaled = np.asarray(corners, dtype=float) * 1e4
+    return ((np.ceil(scaled) if direction > 0 else np.floor(scaled)) / 1e4).tolist()
+
+
 class _HeldControl:
     """A baseline's control, held for one decision period."""
 
@@ -283,6 +289,7 @@ class RobustMethod(RobotMethod):
         self.planning = [planning_system(h.system, self.config.gain * self.noise) for h in hypotheses]
         self.lmi: dict | None = None
         self.plans: list = []
+        self.decisions: list[dict] = []
 
     def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:
         world, config = self.world, self.config
@@ -306,14 +313,37 @@ class RobustMethod(RobotMethod):
         decision = planner.plan(root)
         lower, upper, _, _ = planner.models[0].rollout(root, decision.sequence)
         self.plans.append((t, lower[:, :2].tolist(), upper[:, :2].tolist()))
+        self.decisions.append(self._decision_trace(t, lower, upper, survivors, decision.action))
         return self.controllers[decision.action]
+
+    def _decision_trace(self, t: int, lower: np.ndarray, upper: np.ndarray, survivors, action: int) -> dict:
+        """What the animation shows of a decision: the executed plan's position boxes, the
+        pedestrians' predicted boxes over the same sub-steps and the surviving hypotheses."""
+        peds = self.world.pedestrians
+        steps = t + np.arange(lower.shape[0])
+        ped_lower, ped_upper = peds.boxes(steps) if len(peds) else (np.zeros((len(steps), 0, 2)),) * 2
+        return {
+            "step": int(t),
+            "action": int(action),
+            "lower": _outward(lower[:, :2], -1),
+            "upper": _outward(upper[:, :2], 1),
+            "pedestrian_lower": _outward(ped_lower - peds.radii[:, None], -1),
+            "pedestrian_upper": _outward(ped_upper + peds.radii[:, None], 1),
+            "survivors": [self.learner.hypotheses[i].name for i, _ in survivors],
+        }
 
     def observe(self, transition: Transition) -> None:
         self.learner.add(*transition)
 
     def report(self) -> dict:
+        """The Assumption 4 report, every eighth plan's boxes (``plans``) and every decision's
+        trace (``decisions``: plan boxes, pedestrians' predicted boxes, survivors)."""
         plans = self.plans
-        return {"lmi": self.lmi, "plans": plans[:: max(1, len(plans) // 8)] if plans else []}
+        return {
+            "lmi": self.lmi,
+            "plans": plans[:: max(1, len(plans) // 8)] if plans else [],
+            "decisions": self.decisions,
+        }
 
 
 class OracleMethod(RobotMethod):
