@@ -67,16 +67,13 @@ def run_and_report(
         Before any episode runs, if the Dask scheduler cannot be reached.
     """
     from .experiment import markdown_table, run_experiment, write_outputs
-    from .plots import plot_trajectories
+    from .plots import plot_experiment
 
     result = run_experiment(
         scenarios, methods, episodes=episodes, seed=seed, workers=workers, dask_address=dask_address, progress=progress
     )
     out = write_outputs(result, out)
-    for scenario in scenarios:
-        shown = sorted({r.seed for r in result.records if r.scenario == scenario})[:plot_seeds]
-        records = [r for r in result.records if r.scenario == scenario and r.seed in shown]
-        plot_trajectories(records, out / f"trajectories_{scenario}.png")
+    plot_experiment(result.records, out, scenarios=scenarios, plot_seeds=plot_seeds)
     table = markdown_table(result.summary) + f"\nWall time of the run: {result.wall_time_s:.1f} s\n"
     return table, out
 

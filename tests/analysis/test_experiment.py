@@ -174,6 +174,7 @@ def test_experiment_command_writes_every_output(tmp_path):
     assert "| scenario | method |" in (out / "table.md").read_text()
     assert "Assumption 4" not in (out / "table.md").read_text()  # no robust episode, no report
     assert (out / "trajectories_static.png").stat().st_size > 1000
+    assert (out / "motion_static.png").stat().st_size > 1000  # speed and heading over time (Figures 3-4)
 
 
 def test_experiment_command_rejects_unknown_method(capsys):
