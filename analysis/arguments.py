@@ -27,6 +27,7 @@ __all__ = [
     "output_directory",
     "output_file",
     "report_error",
+    "one_line",
 ]
 
 #: Exit status of a usage error (a bad option or value), as argparse's own.
@@ -77,8 +78,27 @@ class CommandParser(argparse.ArgumentParser):
         ----------
         message : str
             What is wrong, naming the option (argparse prefixes ``argument --name:``).
+            A character that is not printable (a newline in a stray argument) is shown
+            escaped, so that the message stays on one line.
         """
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {one_line(message)} (see '{self.prog} --help')\n")
+
+
+def one_line(text: str) -> str:
+    """``text`` with every non-printable character escaped (``"\\n"`` for a newline).
+
+    Parameters
+    ----------
+    text : str
+        A message that may quote user input.
+
+    Returns
+    -------
+    str
+        The same text on one line: printable characters are kept, the others are
+        replaced by their Python escape (as in `repr`).
+    """
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def _integer(text: str) -> int:

@@ -86,6 +86,13 @@ def _run(args: argparse.Namespace) -> int:
 
     from .registry import method_names, scenario_names
 
+    for option, names, known in (
+        ("--scenario", args.scenario, scenario_names()),
+        ("--methods", args.methods, method_names()),
+    ):
+        unknown = [name for name in names or () if name not in known]
+        if unknown:
+            args.parser.error(f"argument {option}: unknown name {unknown[0]!r}; the registered names are {list(known)}")
     try:
         table, out = run_and_report(
             args.scenario or scenario_names(),
