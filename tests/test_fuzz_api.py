@@ -391,13 +391,13 @@ for _name in ("sigma", "lam", "bound"):
     add(
         "confidence_ellipsoid",
         _name,
-        positive_bad(allow_zero=_name == "bound"),
+        positive_bad(),
         lambda v, n=_name: confidence_ellipsoid(REGRESSORS, TARGETS, **{**CE_ARGS, n: v}),
     )
     add(
         "ConfidenceEllipsoidEstimator",
         _name,
-        positive_bad(allow_zero=_name == "bound"),
+        positive_bad(),
         lambda v, n=_name: ConfidenceEllipsoidEstimator(1, **{**CE_ARGS, n: v}),
     )
 add(
@@ -684,7 +684,12 @@ add(
 add("make_world", "kind", choice_bad(("static", "pedestrian")), lambda v: make_world(v, 0))
 add("make_world", "seed", count_bad(minimum=0, seed=True), lambda v: make_world("static", v))
 add("make_world", "measurement", choice_bad(("uniform", "gaussian")), lambda v: make_world("static", 0, measurement=v))
-add("make_world", "params", ALWAYS_BAD + [("dict of parameters", {"dt": 0.1})], lambda v: make_world("static", 0, params=v))
+add(
+    "make_world",
+    "params",
+    ALWAYS_BAD + [("dict of parameters", {"dt": 0.1})],
+    lambda v: make_world("static", 0, params=v),
+)
 
 
 class ScalarBoxReward:
@@ -733,7 +738,6 @@ add(
     [("no rows", np.empty((3, 0, 1)))],  # no samples at all (N = 0) is valid: the prior-only set
     lambda v: confidence_ellipsoid(v, np.empty((v.shape[0], v.shape[1])), **CE_ARGS),
 )
-
 
 
 # --------------------------------------------------------------------------- the contract
@@ -856,3 +860,68 @@ def test_entry_point_rejects_drawn(row: str, data: st.DataObject) -> None:
 def test_drawn_rows_cover_the_arguments() -> None:
     """Most arguments get drawn values too (those whose catalogue has a kind)."""
     assert len(DRAWN) >= 60, len(DRAWN)
+
+
+# --------------------------------------------------------------------------- valid edges
+
+VALID_EDGES: list[tuple[str, Callable[[], bool]]] = [
+    ("degenerate box", lambda: Box(np.zeros(2), np.zeros(2)).contains(np.zeros(2)) is True),
+    ("float32 bounds", lambda: Box(np.zeros(2, dtype=np.float32), np.ones(2, dtype=np.float32)).dim == 2),
+    ("integer bounds", lambda: Box([0, 0], [1, 1]).high.dtype == np.float64),
+    ("scalar radius", lambda: np.array_equal(Box.from_center(np.zeros(2), 0.5).high, [0.5, 0.5])),
+    ("zero radius", lambda: np.array_equal(Box.from_center(np.ones(2), 0).low, [1.0, 1.0])),
+    ("batch of points", lambda: X0.contains(np.zeros((5, 2)), tol=1e-9) is True),
+    ("no points", lambda: X0.contains(np.zeros((0, 2))) is True),
+    ("numpy scalar tol", lambda: X0.contains(np.full(2, 0.15), tol=np.float64(0.1)) is True),
+    ("integer tol", lambda: ELLIPSOID.contains(np.array([1.2, 0.0]), tol=1) is True),
+    ("0-d array radius", lambda: Ellipsoid(np.zeros(2), np.eye(2), np.array(2.0)).radius == 2.0),
+    ("B as a vector", lambda: UncertainLinearSystem(A0, PHI, np.array([0.0, 1.0]), w=W, theta=THETA).ninputs == 1),
+    (
+        "one state",
+        lambda: UncertainLinearSystem([[0.5]], [[[1.0]]], [[1.0]], w=Box([-0.1], [0.1]), theta=THETA).nstates == 1,
+    ),
+    ("batch of thetas", lambda: SYSTEM.A(np.zeros((4, 1))).shape == (4, 2, 2)),
+    ("horizon zero", lambda: predict_tube(SYSTEM, X0, np.zeros((0, 1))).lower.shape == (1, 2)),
+    (
+        "ellipsoid parameters",
+        lambda: predict_tube(SYSTEM, X0, CONTROLS, Ellipsoid(np.zeros(1), np.eye(1) * 100, 1.0)).horizon == 3,
+    ),
+    ("vertex parameters", lambda: predict_tube(SYSTEM, X0, CONTROLS, np.array([[-0.1], [0.1]])).horizon == 3),
+    ("no samples", lambda: confidence_ellipsoid(np.empty((0, 2, 1)), np.empty((0, 2)), **CE_ARGS).dim == 1),
+    ("numpy count", lambda: ConfidenceEllipsoidEstimator(np.int64(2), **CE_ARGS).nparams == 2),
+    ("per-row noise bound", lambda: SetMembershipEstimator(1, noise_bound=[0.1, 0.2], prior=THETA).nparams == 1),
+    ("tiny margin", lambda: check_assumption4(0.5 * np.eye(2), form="discrete", margin=1e-12).status == "feasible"),
+    ("no transitions", lambda: eliminate_models([SYSTEM], STATES[:1], INPUTS[:0]).survivors == [0]),
+    (
+        "per-state noise",
+        lambda: eliminate_models([SYSTEM], STATES, INPUTS, measurement_noise=[0.0, 0.001]).survivors == [0],
+    ),
+    ("max_rounds zero", lambda: feasible_parameter_box(SYSTEM, STATES, INPUTS, max_rounds=0).dim == 1),
+    ("budget one", lambda: RobustTreePlanner([ScalarModel()], ACTIONS, gamma=1e-9, budget=1).plan(0.0).expansions == 1),
+    (
+        "integer rewards",
+        lambda: OptimisticPlanner(ScalarModel(reward=1), ACTIONS, gamma=0.5, budget=4).plan(0.0).lower > 0,
+    ),
+    (
+        "numpy reward",
+        lambda: (
+            OptimisticPlanner(ScalarModel(reward=np.float32(0.25)), ACTIONS, gamma=0.5, budget=4).plan(0.0).lower > 0
+        ),
+    ),
+    (
+        "huge seed",
+        lambda: (
+            RobustTreePlanner([ScalarModel()], ACTIONS, gamma=0.9, budget=3, seed=10**30).plan(0.0).action in ACTIONS
+        ),
+    ),
+    ("many substeps", lambda: interval_model(substeps=50).substeps == 50),
+    ("numpy indices", lambda: GoalReward(GOAL, position_indices=np.array([1, 0])).position_indices == (1, 0)),
+    ("many lanes", lambda: SpeedLaneReward(1.0, 1.0, n_lanes=10**30).n_lanes == 10**30),
+    ("numpy seed", lambda: make_world("pedestrian", np.int64(3)).seed == 3),
+]
+
+
+@pytest.mark.parametrize(("label", "check"), VALID_EDGES, ids=[label for label, _ in VALID_EDGES])
+def test_valid_edge_inputs_are_accepted(label: str, check: Callable[[], bool]) -> None:
+    """Edge values that are valid are accepted and give the expected result (the checks are not too eager)."""
+    assert check(), label
