@@ -162,11 +162,13 @@ def as_finite_array(
     Raises
     ------
     InputError
-        If ``value`` is not real and numeric (complex values are refused, not truncated).
+        If ``value`` is not real and numeric: complex values are refused (not truncated),
+        and so are text (even numeric, ``["0.5"]``) and booleans, which a float cast
+        would silently parse or turn into 0 and 1.
     DimensionError
         If the shape or the number of dimensions is wrong.
     NonFiniteError
-        If an entry is NaN or infinite.
+        If an entry is NaN or infinite, or an integer too large for a float.
     """
     try:
         raw = np.asarray(value)
