@@ -262,7 +262,7 @@ def output_file(text: str) -> pathlib.Path:
     return path
 
 
-def report_error(command: str, exc: BaseException) -> int:
+def report_error(command: str, exc: BaseException, *, option: str | None = None) -> int:
     """Print ``minimaxplan COMMAND: error: ...`` on one line of stderr; return `EXIT_USAGE`.
 
     Parameters
@@ -271,6 +271,9 @@ def report_error(command: str, exc: BaseException) -> int:
         The subcommand's name.
     exc : BaseException
         The error; its message is printed with line breaks folded to spaces.
+    option : str, optional
+        The option at fault (e.g. ``"--methods"``): the message is then prefixed
+        ``argument OPTION:``, as argparse's own errors are.
 
     Returns
     -------
@@ -278,5 +281,7 @@ def report_error(command: str, exc: BaseException) -> int:
         `EXIT_USAGE` (2).
     """
     message = " ".join(str(exc).split())
+    if option is not None:
+        message = f"argument {option}: {message}"
     print(f"minimaxplan {command}: error: {message}", file=sys.stderr)
     return EXIT_USAGE

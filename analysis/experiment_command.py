@@ -86,13 +86,8 @@ def _run(args: argparse.Namespace) -> int:
 
     from .registry import method_names, scenario_names
 
-    for option, names, known in (
-        ("--scenario", args.scenario, scenario_names()),
-        ("--methods", args.methods, method_names()),
-    ):
-        unknown = [name for name in names or () if name not in known]
-        if unknown:
-            args.parser.error(f"argument {option}: unknown name {unknown[0]!r}; the registered names are {list(known)}")
+    from .registry import UnknownMethod, UnknownScenario, UnsupportedScenario
+
     try:
         table, out = run_and_report(
             args.scenario or scenario_names(),
@@ -104,6 +99,10 @@ def _run(args: argparse.Namespace) -> int:
             out=args.out,
             progress=not args.no_progress,
         )
+    except UnknownScenario as exc:  # raised before any episode runs, like the two below
+        return report_error("experiment", exc, option="--scenario")
+    except (UnknownMethod, UnsupportedScenario) as exc:
+        return report_error("experiment", exc, option="--methods")
     except MinimaxplanError as exc:
         return report_error("experiment", exc)
     print(table)

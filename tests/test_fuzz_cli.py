@@ -114,7 +114,7 @@ OPTIONS: list[tuple[str, list[str], str, list[str]]] = [
     ("experiment", [], "--episodes", BAD_COUNT[1]),
     ("experiment", [], "--seed", BAD_COUNT[0]),
     ("experiment", [], "--workers", BAD_COUNT[1]),
-    ("experiment", [], "--scenario", BAD_NAMES),
+    ("experiment", ["--methods", "robust"], "--scenario", BAD_NAMES),
     ("experiment", ["--scenario", "static"], "--methods", BAD_NAMES),
     ("suboptimality", [], "--episodes", BAD_COUNT[1]),
     ("suboptimality", [], "--horizon", BAD_COUNT[1]),
