@@ -84,9 +84,7 @@ def run_and_report(
 def _run(args: argparse.Namespace) -> int:
     from minimaxplan.models import MinimaxplanError
 
-    from .registry import method_names, scenario_names
-
-    from .registry import UnknownMethod, UnknownScenario, UnsupportedScenario
+    from .registry import UnknownMethod, UnknownScenario, UnsupportedScenario, method_names, scenario_names
 
     try:
         table, out = run_and_report(

@@ -8,9 +8,9 @@ import pytest
 from minimaxplan.models import Box, DimensionError, InputError, NonFiniteError
 from minimaxplan.models.validation import (
     as_choice,
-    as_finite_array,
     as_count,
     as_discount,
+    as_finite_array,
     as_points,
     as_positive_scalar,
     as_probability,
