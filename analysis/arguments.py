@@ -27,6 +27,7 @@ __all__ = [
     "output_directory",
     "output_file",
     "report_error",
+    "one_line",
 ]
 
 #: Exit status of a usage error (a bad option or value), as argparse's own.
@@ -77,8 +78,27 @@ class CommandParser(argparse.ArgumentParser):
         ----------
         message : str
             What is wrong, naming the option (argparse prefixes ``argument --name:``).
+            A character that is not printable (a newline in a stray argument) is shown
+            escaped, so that the message stays on one line.
         """
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {one_line(message)} (see '{self.prog} --help')\n")
+
+
+def one_line(text: str) -> str:
+    """``text`` with every non-printable character escaped (``"\\n"`` for a newline).
+
+    Parameters
+    ----------
+    text : str
+        A message that may quote user input.
+
+    Returns
+    -------
+    str
+        The same text on one line: printable characters are kept, the others are
+        replaced by their Python escape (as in `repr`).
+    """
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def _integer(text: str) -> int:
@@ -242,7 +262,7 @@ def output_file(text: str) -> pathlib.Path:
     return path
 
 
-def report_error(command: str, exc: BaseException) -> int:
+def report_error(command: str, exc: BaseException, *, option: str | None = None) -> int:
     """Print ``minimaxplan COMMAND: error: ...`` on one line of stderr; return `EXIT_USAGE`.
 
     Parameters
@@ -251,6 +271,9 @@ def report_error(command: str, exc: BaseException) -> int:
         The subcommand's name.
     exc : BaseException
         The error; its message is printed with line breaks folded to spaces.
+    option : str, optional
+        The option at fault (e.g. ``"--methods"``): the message is then prefixed
+        ``argument OPTION:``, as argparse's own errors are.
 
     Returns
     -------
@@ -258,5 +281,7 @@ def report_error(command: str, exc: BaseException) -> int:
         `EXIT_USAGE` (2).
     """
     message = " ".join(str(exc).split())
+    if option is not None:
+        message = f"argument {option}: {message}"
     print(f"minimaxplan {command}: error: {message}", file=sys.stderr)
     return EXIT_USAGE

@@ -81,7 +81,7 @@ def run_and_report(
 def _run(args: argparse.Namespace) -> int:
     from minimaxplan.models import MinimaxplanError
 
-    from .registry import method_names, scenario_names
+    from .registry import UnknownMethod, UnknownScenario, UnsupportedScenario, method_names, scenario_names
 
     try:
         table, out = run_and_report(
@@ -94,6 +94,10 @@ def _run(args: argparse.Namespace) -> int:
             out=args.out,
             progress=not args.no_progress,
         )
+    except UnknownScenario as exc:  # raised before any episode runs, like the two below
+        return report_error("experiment", exc, option="--scenario")
+    except (UnknownMethod, UnsupportedScenario) as exc:
+        return report_error("experiment", exc, option="--methods")
     except MinimaxplanError as exc:
         return report_error("experiment", exc)
     print(table)

@@ -212,9 +212,12 @@ class ConfidenceEllipsoidEstimator:
         self._lam = as_positive_scalar("lam", lam)
         self._delta = as_probability("delta", delta)
         self._bound = as_positive_scalar("bound", bound)
-        self._gramian = _EXTENDED(self._lam) * np.eye(self._d, dtype=_EXTENDED)
-        self._factor = np.sqrt(self._lam) * np.eye(self._d)
-        self._moment = np.zeros(self._d, dtype=_EXTENDED)
+        try:
+            self._gramian = _EXTENDED(self._lam) * np.eye(self._d, dtype=_EXTENDED)
+            self._factor = np.sqrt(self._lam) * np.eye(self._d)
+            self._moment = np.zeros(self._d, dtype=_EXTENDED)
+        except (ValueError, MemoryError):  # numpy cannot allocate the d x d Gram matrix
+            raise InputError(f"nparams = {self._d} is too large: its Gram matrix cannot be allocated") from None
         self._nsamples = 0
 
     @property

@@ -22,6 +22,7 @@ from .validation import (
     as_points,
     as_positive_scalar,
     check_dimension,
+    check_instance,
     check_same_shape,
     check_shape,
     frozen_copy,
@@ -242,11 +243,13 @@ class Box:
         Raises
         ------
         DimensionError
-            If ``radius`` is an array whose shape is not ``center``'s.
+            If ``center`` is empty or ``radius`` is an array whose shape is not ``center``'s.
         EmptySetError
             If some radius is negative.
         """
         c = as_finite_array("center", center, ndim=1)
+        if c.size == 0:
+            raise DimensionError("center needs at least one dimension, got shape (0,)")
         r = as_finite_array("radius", radius)
         if r.ndim == 0:
             r = np.full_like(c, float(r))
@@ -278,7 +281,7 @@ class Box:
         x : array_like
             One point, shape (n,), or k points, shape (k, n).
         tol : float
-            Absolute slack, in the coordinates' units: the test is
+            Absolute slack, finite and >= 0, in the coordinates' units: the test is
             ``low - tol <= x <= high + tol``.
         witness : bool
             Return a `Membership` naming the first violation instead: the first point
@@ -293,8 +296,11 @@ class Box:
         ------
         DimensionError
             If ``x`` is not of shape (n,) or (k, n).
+        InputError, NonFiniteError
+            If ``tol`` is not a finite real number >= 0.
         """
         pts = as_points("x", x, self.dim)
+        tol = as_positive_scalar("tol", tol, allow_zero=True)
         if not witness:
             return bool(np.all(pts >= self.low - tol) and np.all(pts <= self.high + tol))
         rows = np.atleast_2d(pts)
@@ -332,11 +338,14 @@ class Box:
 
         Raises
         ------
+        InputError
+            If ``other`` is not a `Box`.
         DimensionError
             If the dimensions differ.
         EmptySetError
             If the boxes do not meet.
         """
+        check_instance("other", other, Box)
         check_dimension("other", other.dim, self.dim)
         return Box(np.maximum(self.low, other.low), np.minimum(self.high, other.high))
 
@@ -462,7 +471,7 @@ class Ellipsoid:
         t : array_like
             One point, shape (d,), or k points, shape (k, d).
         tol : float
-            Relative slack on the quadratic form: the test is
+            Relative slack on the quadratic form, finite and >= 0: the test is
             ``(t-c)^T G (t-c) <= radius^2 (1 + tol)``.
         witness : bool
             Return a `Membership` naming the first point outside and by how much its
@@ -476,8 +485,11 @@ class Ellipsoid:
         ------
         DimensionError
             If ``t`` is not of shape (d,) or (k, d).
+        InputError, NonFiniteError
+            If ``tol`` is not a finite real number >= 0.
         """
         pts = as_points("t", t, self.dim)
+        tol = as_positive_scalar("tol", tol, allow_zero=True)
         delta = np.atleast_2d(pts) - self.center
         q = np.einsum("ki,ij,kj->k", delta, self.gramian, delta)
         limit = self.radius**2 * (1 + tol)

@@ -8,7 +8,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .errors import InputError
+from .errors import DimensionError, InputError
 from .sets import Box
 from .validation import (
     as_choice,
@@ -73,6 +73,8 @@ class UncertainLinearSystem:
         A0_ = as_finite_array("A0", A0, ndim=2)
         p = A0_.shape[0]
         check_shape("A0", A0_, (p, p))
+        if p == 0:
+            raise DimensionError("A0 needs at least one state, got shape (0, 0)")
         phi_ = as_finite_array("phi", phi, ndim=3)
         check_shape("phi", phi_, (None, p, p))
         B_ = as_finite_array("B", B)

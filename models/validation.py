@@ -22,6 +22,7 @@ from .errors import DimensionError, InputError, NonFiniteError
 __all__ = [
     "as_finite_array",
     "as_positive_scalar",
+    "as_real_scalar",
     "as_count",
     "as_choice",
     "as_points",
@@ -161,17 +162,24 @@ def as_finite_array(
     Raises
     ------
     InputError
-        If ``value`` is not real and numeric (complex values are refused, not truncated).
+        If ``value`` is not real and numeric: complex values are refused (not truncated),
+        and so are text (even numeric, ``["0.5"]``) and booleans, which a float cast
+        would silently parse or turn into 0 and 1.
     DimensionError
         If the shape or the number of dimensions is wrong.
     NonFiniteError
-        If an entry is NaN or infinite.
+        If an entry is NaN or infinite, or an integer too large for a float.
     """
     try:
         raw = np.asarray(value)
         if np.iscomplexobj(raw):  # a float cast would silently drop the imaginary part
             raise InputError(f"{name} must be a real numeric array, got complex values")
+        # A float cast would parse numeric text (["0.5"]) and turn bools into 0/1: refuse both.
+        if raw.dtype.kind in "USb" or (raw.dtype.kind == "O" and any(_is_text_or_bool(x) for x in raw.flat)):
+            raise InputError(f"{name} must be a real numeric array, got {_kind_of(raw)}")
         array = raw.astype(float, copy=False)
+    except OverflowError:  # an int too large for a float (10**400)
+        raise NonFiniteError(f"{name} contains an integer too large for a float") from None
     except (TypeError, ValueError) as exc:
         if isinstance(exc, InputError):
             raise
@@ -183,6 +191,16 @@ def as_finite_array(
     if not np.all(np.isfinite(array)):
         raise NonFiniteError(f"{name} contains NaN or infinite entries")
     return array
+
+
+def _is_text_or_bool(x: Any) -> bool:
+    return isinstance(x, (str, bytes, bool, np.bool_))
+
+
+def _kind_of(raw: np.ndarray) -> str:
+    if raw.dtype.kind == "b" or (raw.dtype.kind == "O" and any(isinstance(x, (bool, np.bool_)) for x in raw.flat)):
+        return "booleans"
+    return "text"
 
 
 def as_points(name: str, value, dim: int, *, batch: str = "k") -> np.ndarray:
@@ -233,6 +251,31 @@ def frozen_copy(array: np.ndarray) -> np.ndarray:
     out = np.array(array, dtype=float, copy=True)
     out.setflags(write=False)
     return out
+
+
+def as_real_scalar(name: str, value) -> float:
+    """Check that ``value`` is a finite real scalar (any sign); return it as a float.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, used in error messages.
+    value : float
+        The value to check: Python and numpy numbers; strings (even numeric ones such as
+        ``"0.5"``), bools, complex numbers and arrays are refused.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    InputError
+        If ``value`` is not a real scalar.
+    NonFiniteError
+        If it is NaN or infinite, or an integer too large for a float.
+    """
+    return _as_real_scalar(name, value)
 
 
 def _as_real_scalar(name: str, value) -> float:

@@ -149,6 +149,18 @@ def _check_reward(reward, nstates: int):
     return raw if callable(raw) else minimum
 
 
+def _as_result_array(name: str, what: str, value, shape: tuple[int, ...]) -> np.ndarray:
+    """A user callable's array result, checked to have ``shape`` (an array of that shape passes as it is)."""
+    if type(value) is not np.ndarray:
+        value = np.asarray(value)
+    if value.shape != shape:
+        raise DimensionError(
+            f"{name}.box_minimum must return {what} of shape {shape} (sub-steps, models, actions), "
+            f"got shape {value.shape}"
+        )
+    return value
+
+
 class _ActionIndex:
     """Maps the planner's actions (controller indices) to an int64 index array, cached per actions object."""
 
@@ -257,7 +269,10 @@ class IntervalGroup:
         self.systems = tuple(system for system, _ in resolved)
         self.parameters = tuple(parameters for _, parameters in resolved)
         self.p = p
-        self.times = _SubstepTimes(self.substeps)
+        try:
+            self.times = _SubstepTimes(self.substeps)
+        except (ValueError, MemoryError):  # numpy cannot allocate the sub-step offsets
+            raise InputError(f"substeps = {self.substeps} is too large: its sub-step arrays cannot be allocated") from None
         self.predictors = tuple(IntervalPredictor(system, parameters) for system, parameters in resolved)
         self.kernel = build_interval_kernel(self.systems, self.predictors, self.bank)
         self.actions = _ActionIndex(len(self.bank))
@@ -298,7 +313,15 @@ class IntervalGroup:
             # looked up per call (a cached dict lookup), so that models stay picklable
             stack_rewards_kernel(type(self.kernel_params))(stack, time, self.kernel_params, rewards, collided)
             return stack, rewards, collided
-        reward, collided = self.reward_minimum(-stack[..., :p], stack[..., p:], self.times[time])
+        out = self.reward_minimum(-stack[..., :p], stack[..., p:], self.times[time])
+        try:
+            reward, collided = out
+        except (TypeError, ValueError):
+            raise InputError(
+                f"reward.box_minimum must return a pair (rewards, collided), got {type(out).__name__}"
+            ) from None
+        reward = _as_result_array("reward", "rewards", reward, stack.shape[:3])
+        collided = _as_result_array("reward", "collision flags", collided, stack.shape[:3])
         return stack, np.minimum.reduce(reward, axis=0), np.logical_or.reduce(collided, axis=0)
 
     # ------------------------------------------------- BatchedTransitions

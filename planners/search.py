@@ -110,8 +110,11 @@ class _Transitions:
 
     def _as_float_array(self, rewards) -> np.ndarray:
         try:
-            return np.asarray(rewards, dtype=float)
-        except (TypeError, ValueError):
+            raw = np.asarray(rewards)
+            if raw.dtype.kind in "USbc" or (raw.dtype.kind == "O" and any(isinstance(r, _NOT_A_REWARD) for r in raw.flat)):
+                raise TypeError
+            return raw.astype(float, copy=False)
+        except (TypeError, ValueError, OverflowError):
             raise RewardRangeError(
                 f"models[{self.index}].expand returned non-numeric rewards {rewards!r}"
             ) from None
@@ -130,9 +133,12 @@ class _Transitions:
                     f"{action!r} (index {a})"
                 )
             next_states[a] = out[0]
+            reward = out[1]
             try:
-                rewards[a] = float(out[1])
-            except (TypeError, ValueError):
+                if isinstance(reward, _NOT_A_REWARD):  # float() would parse "0.5" and take True as 1
+                    raise TypeError
+                rewards[a] = float(reward)
+            except (TypeError, ValueError, OverflowError):
                 raise RewardRangeError(
                     f"models[{self.index}] returned a non-numeric reward {out[1]!r} for action "
                     f"{action!r} (index {a})"
@@ -140,6 +146,10 @@ class _Transitions:
             if len(out) == 3:
                 terminals[a] = _as_flag(out[2], self.index, action, a)
         return next_states, rewards, terminals
+
+
+#: Types that float() converts but that are not a reward: numeric text and truth values.
+_NOT_A_REWARD = (str, bytes, bool, np.bool_)
 
 
 def _linked_group(models: Sequence) -> BatchedTransitions | None:

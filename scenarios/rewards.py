@@ -45,7 +45,7 @@ import numpy as np
 
 from minimaxplan.kernels import box_minima
 from minimaxplan.models.errors import DimensionError, InputError
-from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, frozen_copy
+from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, as_real_scalar, frozen_copy
 
 from .compiled_rewards import GoalParams, SpeedLaneParams, collision_params
 from .geometry import CircularObstacles, MovingObstacles, box_box_sq_distance, box_point_sq_distance
@@ -57,12 +57,17 @@ WEIGHT_SUM_TOL = 1e-12
 
 
 def _as_index_tuple(name: str, value, *, length: int | None = None) -> tuple[int, ...]:
+    if isinstance(value, (str, bytes)):
+        raise InputError(f"{name} must be a sequence of integers, got {value!r}")
     try:
-        indices = tuple(int(i) for i in value)
+        items = tuple(value)
     except TypeError:
         raise InputError(f"{name} must be a sequence of integers, got {value!r}") from None
-    if any(int(i) != i for i in value) or any(i < 0 for i in indices):
-        raise InputError(f"{name} must hold nonnegative integers, got {value!r}")
+    # Each index is an integer >= 0 (not a float, a bool or numeric text).
+    try:
+        indices = tuple(as_count(name, i, minimum=0) for i in items)
+    except InputError:
+        raise InputError(f"{name} must hold nonnegative integers, got {value!r}") from None
     if length is not None and len(indices) != length:
         raise DimensionError(f"{name} must have length {length}, got length {len(indices)}")
     if len(set(indices)) != len(indices):
@@ -564,13 +569,7 @@ class SpeedLaneReward(RewardFamily):
     _kernel_params: SpeedLaneParams = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        try:
-            target = float(self.target_speed)
-        except (TypeError, ValueError):
-            raise InputError(f"target_speed must be a real scalar, got {self.target_speed!r}") from None
-        if not np.isfinite(target):
-            raise InputError(f"target_speed must be finite, got {target}")
-        object.__setattr__(self, "target_speed", target)
+        object.__setattr__(self, "target_speed", as_real_scalar("target_speed", self.target_speed))
         object.__setattr__(self, "speed_range", as_positive_scalar("speed_range", self.speed_range))
         speed = _as_index_tuple("speed_indices", self.speed_indices)
         if len(speed) not in (1, 2):
@@ -592,6 +591,12 @@ class SpeedLaneReward(RewardFamily):
             object.__setattr__(self, "lateral_index", lateral)
         object.__setattr__(self, "lane_width", as_positive_scalar("lane_width", self.lane_width))
         object.__setattr__(self, "n_lanes", as_count("n_lanes", self.n_lanes, minimum=2))
+        try:
+            road_width = float(self.n_lanes) * self.lane_width
+        except OverflowError:
+            road_width = float("inf")
+        if not np.isfinite(road_width):
+            raise InputError(f"n_lanes * lane_width (the road's width) must be finite, got n_lanes = {self.n_lanes}")
         collision = _CollisionTerm(self.obstacles, self.moving_obstacles, self.robot_radius, self.position_indices)
         if set(speed) & set(collision.position_indices):
             raise InputError(f"speed_indices {speed} must differ from position_indices {collision.position_indices}")

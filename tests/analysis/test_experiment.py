@@ -180,7 +180,9 @@ def test_experiment_command_writes_every_output(tmp_path):
 def test_experiment_command_rejects_unknown_method(capsys):
     assert main(["experiment", "--methods", "robust,magic"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("minimaxplan experiment: error: method must be one of the registered methods ['robust', ")
+    assert err.startswith(
+        "minimaxplan experiment: error: argument --methods: method must be one of the registered methods ['robust', "
+    )
     assert "got 'magic'" in err and err.count("\n") == 1
 
 

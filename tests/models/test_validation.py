@@ -10,9 +10,11 @@ from minimaxplan.models.validation import (
     as_choice,
     as_count,
     as_discount,
+    as_finite_array,
     as_points,
     as_positive_scalar,
     as_probability,
+    as_real_scalar,
     check_dimension,
     check_instance,
     check_same_shape,
@@ -98,3 +100,25 @@ def test_instances():
         from minimaxplan.models import UncertainLinearSystem
 
         check_instance("system", {}, UncertainLinearSystem)
+
+
+def test_finite_arrays_refuse_text_bools_and_integers_too_large_for_a_float():
+    assert as_finite_array("x", [1, 2]).dtype == np.float64
+    assert as_finite_array("x", np.array([1.5], dtype=object))[0] == 1.5
+    for bad in (["0.5", "1"], np.array(["1"]), np.array(["1"], dtype=object), [1.0, "2"]):
+        with pytest.raises(InputError, match=r"^x must be a real numeric array, got text$"):
+            as_finite_array("x", bad)
+    for bad in ([True, False], np.ones(2, dtype=bool), np.array([1.0, True], dtype=object)):
+        with pytest.raises(InputError, match=r"^x must be a real numeric array, got booleans$"):
+            as_finite_array("x", bad)
+    with pytest.raises(NonFiniteError, match=r"^x contains an integer too large for a float$"):
+        as_finite_array("x", [10**400])
+
+
+def test_real_scalars_of_any_sign():
+    assert as_real_scalar("speed", -2) == -2.0 and as_real_scalar("speed", np.float32(0.5)) == 0.5
+    for bad in ("0.5", True, None, [1.0], 1j):
+        with pytest.raises(InputError, match=r"^speed must be a real scalar, got "):
+            as_real_scalar("speed", bad)
+    with pytest.raises(NonFiniteError, match=r"^speed must be finite"):
+        as_real_scalar("speed", float("-inf"))
