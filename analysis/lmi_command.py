@@ -24,7 +24,7 @@ import sys
 import time
 from typing import TYPE_CHECKING, Any
 
-from .arguments import output_file
+from .arguments import output_file, report_error
 
 if TYPE_CHECKING:
     from minimaxplan.verify import RegionMap
@@ -288,7 +288,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         model_file = load_model_file(args.model)
         if args.model_name is not None:
-            model_file = model_file.select(args.model_name)
+            try:
+                model_file = model_file.select(args.model_name)
+            except MinimaxplanError as exc:
+                return report_error("lmi", exc, option="--model")
         reports = [
             check_model(
                 m, form=args.form, vertices=args.vertices, solver=args.solver, regions=args.regions, depth=depth

@@ -126,11 +126,7 @@ OPTIONS: list[tuple[str, list[str], str, list[str]]] = [
     ("lmi", [str(HYPOTHESES), "--form", "discrete"], "--model", ["", "no such model", "0"]),
 ]
 #: Cases whose error is raised in another helper's file this wave; the lead fixes them at merge.
-KNOWN_FAILURES = {
-    f"lmi --model {value!r}": "fixed at merge: lmi_command.py names the file but not the option --model "
-    "('argument --model: no model named ...')"
-    for value in ["", "no such model", "0"]
-}
+KNOWN_FAILURES: dict[str, str] = {}  # label -> reason, for cases marked xfail(strict=True)
 OPTION_CASES: list = []  # pytest.param(label, argv, option)
 for _command, _positional, _option, _values in OPTIONS:
     for _value in _values:

@@ -120,12 +120,25 @@ class ProportionalMethod(Method):
         return {"transitions": len(self.transitions)}
 
 
-register_scenario("toy-line", LineScenario)
-register_scenario("toy-line-far", functools.partial(LineScenario, 3.0))
-register_method("toy-proportional", ProportionalMethod)
-register_method("toy-quitter", functools.partial(ProportionalMethod, give_up=2))
-# The same name serving a second world: the robot's "robust" still serves the robot worlds.
-register_method("robust", ProportionalMethod)
+@pytest.fixture(autouse=True, scope="module")
+def toy_registrations():
+    """Register the toy world and methods for this module's tests, and leave the registries
+    as they were afterwards (later tests in the same process see only the built-ins)."""
+    from minimaxplan.analysis import registry
+
+    registry.scenario_names()  # load the built-ins first, so that they are part of the snapshot
+    scenarios, methods = dict(registry._SCENARIOS), {k: list(v) for k, v in registry._METHODS.items()}
+    register_scenario("toy-line", LineScenario)
+    register_scenario("toy-line-far", functools.partial(LineScenario, 3.0))
+    register_method("toy-proportional", ProportionalMethod)
+    register_method("toy-quitter", functools.partial(ProportionalMethod, give_up=2))
+    # The same name serving a second world: the robot's "robust" still serves the robot worlds.
+    register_method("robust", ProportionalMethod)
+    yield
+    registry._SCENARIOS.clear()
+    registry._SCENARIOS.update(scenarios)
+    registry._METHODS.clear()
+    registry._METHODS.update(methods)
 
 
 def _comparable(result):
