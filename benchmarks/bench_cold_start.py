@@ -109,7 +109,7 @@ def main() -> dict:
         "goal_s": GOAL_SECONDS,
         "repeats": REPEATS,
         "machine": f"{platform.machine()} {platform.python_implementation()} {platform.python_version()}, "
-                   f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}",
+        f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}",
         "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
     }
     labels = {

@@ -44,8 +44,13 @@ RESULTS = pathlib.Path(__file__).parent / "results"
 
 # ----------------------------------------------------------------------- plant
 def robot_hypothesis(
-    *, friction: str = "anisotropic", input_gain: float = 1.0, coupling: bool = False,
-    prior_high: float = 3.0, D_velocity=None, w_bound: float = W_BOUND,
+    *,
+    friction: str = "anisotropic",
+    input_gain: float = 1.0,
+    coupling: bool = False,
+    prior_high: float = 3.0,
+    D_velocity=None,
+    w_bound: float = W_BOUND,
 ) -> UncertainLinearSystem:
     """(px, py, vx, vy): dp = v, dv = -friction * v + gain * u + D w, forward Euler."""
     A = np.zeros((4, 4))
@@ -84,7 +89,10 @@ def general_hypotheses() -> tuple[list[str], list[UncertainLinearSystem]]:
     """D W not a box: the LPs carry the disturbances w_n as variables (2 per transition)."""
     return (
         ["true, correlated D (bound 0.13 covers the plant's)", "isotropic friction, correlated D"],
-        [robot_hypothesis(D_velocity=MIX, w_bound=0.13), robot_hypothesis(friction="isotropic", D_velocity=MIX, w_bound=0.13)],
+        [
+            robot_hypothesis(D_velocity=MIX, w_bound=0.13),
+            robot_hypothesis(friction="isotropic", D_velocity=MIX, w_bound=0.13),
+        ],
     )
 
 
@@ -177,7 +185,11 @@ def speed(states, controls, names, hyps) -> dict:
         ref_out = reference[m] > ELIMINATION_MARGIN
         our_out = m in ours.eliminated
         assert ref_out == our_out, (name, reference[m], ours.margins[m])
-        assert abs(ours.margins[m] - reference[m]) <= 1e-6 * (1 + abs(reference[m])), (name, ours.margins[m], reference[m])
+        assert abs(ours.margins[m] - reference[m]) <= 1e-6 * (1 + abs(reference[m])), (
+            name,
+            ours.margins[m],
+            reference[m],
+        )
         rows.append((name, "eliminated" if our_out else "survives", reference[m], ours.margins[m], ours.rounds[m]))
     return {"ours": t_ours, "reference": t_reference, "rows": rows}
 
@@ -188,9 +200,20 @@ def parameter_box_cost(states, controls, hyps) -> list[dict]:
     for name, hyp in hyps:
         d = hyp.nparams
         box, t_box = best_time(lambda h=hyp: feasible_parameter_box(h, states, controls), REPEATS)
-        _, t_elim = best_time(lambda h=hyp, k=2 * d + 1: [eliminate_models([h], states, controls) for _ in range(k)], REPEATS)
-        rows.append({"hypothesis": name, "d": d, "box_seconds": t_box, "eliminations_seconds": t_elim,
-                     "ratio": t_box / t_elim, "box_low": box.low.tolist(), "box_high": box.high.tolist()})
+        _, t_elim = best_time(
+            lambda h=hyp, k=2 * d + 1: [eliminate_models([h], states, controls) for _ in range(k)], REPEATS
+        )
+        rows.append(
+            {
+                "hypothesis": name,
+                "d": d,
+                "box_seconds": t_box,
+                "eliminations_seconds": t_elim,
+                "ratio": t_box / t_elim,
+                "box_low": box.low.tolist(),
+                "box_high": box.high.tolist(),
+            }
+        )
     return rows
 
 
@@ -232,9 +255,14 @@ def main() -> dict:
     general = speed(states[: N_GENERAL + 1], controls[:N_GENERAL], general_names, general_hyps)
     box_hyps = [
         ("true + coupling parameter (d = 3)", robot_hypothesis(coupling=True)),
-        ("true + coupling, correlated D (d = 3, w_n as LP variables)", robot_hypothesis(coupling=True, D_velocity=MIX, w_bound=0.13)),
-        ("true + coupling, wide D (d = 3, 3 disturbances on 2 velocities)",
-         robot_hypothesis(coupling=True, D_velocity=np.array([[1.0, 0.0, 0.1], [0.0, 1.0, 0.1]]), w_bound=0.1)),
+        (
+            "true + coupling, correlated D (d = 3, w_n as LP variables)",
+            robot_hypothesis(coupling=True, D_velocity=MIX, w_bound=0.13),
+        ),
+        (
+            "true + coupling, wide D (d = 3, 3 disturbances on 2 velocities)",
+            robot_hypothesis(coupling=True, D_velocity=np.array([[1.0, 0.0, 0.1], [0.0, 1.0, 0.1]]), w_bound=0.1),
+        ),
     ]
     boxes = parameter_box_cost(states, controls, box_hyps)
     counts = transitions_to_elimination(names, hyps)
@@ -263,7 +291,10 @@ def main() -> dict:
         "",
         "| hypothesis | feasible_parameter_box | 7 x eliminate_models | ratio (goal <= 1) |",
         "|---|---|---|---|",
-        *[f"| {b['hypothesis']} | {b['box_seconds']:.3f} s | {b['eliminations_seconds']:.3f} s | {b['ratio']:.2f} |" for b in boxes],
+        *[
+            f"| {b['hypothesis']} | {b['box_seconds']:.3f} s | {b['eliminations_seconds']:.3f} s | {b['ratio']:.2f} |"
+            for b in boxes
+        ],
         "",
         "| hypothesis | verdict (both agree) | margin, dense LP | margin, ours | LPs solved (ours) | transitions to elimination from rest, 20 seeds: median [min, max] |",
         "|---|---|---|---|---|---|",
@@ -292,8 +323,16 @@ def main() -> dict:
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "selection.md").write_text(text)
     results = {
-        "machine": machine, "date": date, "seed": SEED, "n_transitions": N_TRANSITIONS, "run_seconds": total,
-        "speed": spd, "general": general, "parameter_box": boxes, "counts": counts, "streaming": stream,
+        "machine": machine,
+        "date": date,
+        "seed": SEED,
+        "n_transitions": N_TRANSITIONS,
+        "run_seconds": total,
+        "speed": spd,
+        "general": general,
+        "parameter_box": boxes,
+        "counts": counts,
+        "streaming": stream,
     }
     (RESULTS / "selection.json").write_text(json.dumps(results, indent=2, default=float) + "\n")
     print(text)

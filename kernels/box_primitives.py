@@ -94,5 +94,13 @@ def box_gaps_sq(lower, upper, other_lower, other_upper, out) -> None:
         Float64 array of shape (K,), written.
     """
     for k in range(out.shape[0]):
-        out[k] = box_gap_sq(lower[k, 0], lower[k, 1], upper[k, 0], upper[k, 1],
-                            other_lower[k, 0], other_lower[k, 1], other_upper[k, 0], other_upper[k, 1])
+        out[k] = box_gap_sq(
+            lower[k, 0],
+            lower[k, 1],
+            upper[k, 0],
+            upper[k, 1],
+            other_lower[k, 0],
+            other_lower[k, 1],
+            other_upper[k, 0],
+            other_upper[k, 1],
+        )

@@ -236,9 +236,7 @@ def minimum_sources(params_type: type) -> list[str]:
         it in a module file.
     """
     if params_type not in _REWARD_PARAMS_TYPES:
-        raise TypeError(
-            f"{params_type.__name__} is not registered (see minimaxplan.kernels.register_reward_params)"
-        )
+        raise TypeError(f"{params_type.__name__} is not registered (see minimaxplan.kernels.register_reward_params)")
     module = sys.modules.get(params_type.__module__)
     source = getattr(module, "__file__", None)
     if source is None:
@@ -317,7 +315,9 @@ def compile_per_params_type(function, params_type: type, *, what: str = "a compi
     else:
         COMPILE_LOGGER.info(
             "compiling %s for %s (once: the first run takes tens of seconds; cached in %s)",
-            what, params_type.__name__, directory,
+            what,
+            params_type.__name__,
+            directory,
         )
     return dispatcher
 

@@ -50,10 +50,31 @@ _PRIMITIVES_VERSION = sources_digest(box_primitives.__file__)
 
 IntervalKernel = namedtuple(
     "IntervalKernel",
-    ["closed", "opened", "drift", "w", "gains", "inputs", "offsets", "low", "high", "per_action", "saturating",
-     "closed_error", "drift_error", "opened_error", "w_error", "gain_error", "offset_error", "input_error", "tiny"],
+    [
+        "closed",
+        "opened",
+        "drift",
+        "w",
+        "gains",
+        "inputs",
+        "offsets",
+        "low",
+        "high",
+        "per_action",
+        "saturating",
+        "closed_error",
+        "drift_error",
+        "opened_error",
+        "w_error",
+        "gain_error",
+        "offset_error",
+        "input_error",
+        "tiny",
+    ],
 )
-IntervalKernel.__doc__ = """The precomputed arrays of `substep` (built by `IntervalModel`; see `substep` for each field)."""
+IntervalKernel.__doc__ = (
+    """The precomputed arrays of `substep` (built by `IntervalModel`; see `substep` for each field)."""
+)
 
 
 @njit(cache=True, inline="always")
@@ -110,8 +131,27 @@ def _linear_part(z, m, slot, core, out, error, scratch):
 @njit(cache=True, inline="always")
 def _finish(z, m, a, core, out, error, scratch):
     """The rest of `substep` after `_linear_part`: the drift, the bounds, the saturation path (``error`` is read only)."""
-    (closed, opened, drift, w, gains, inputs, offsets, low, high, per_action, saturating,
-     closed_error, drift_error, opened_error, w_error, gain_error, offset_error, input_error, tiny) = core
+    (
+        closed,
+        opened,
+        drift,
+        w,
+        gains,
+        inputs,
+        offsets,
+        low,
+        high,
+        per_action,
+        saturating,
+        closed_error,
+        drift_error,
+        opened_error,
+        w_error,
+        gain_error,
+        offset_error,
+        input_error,
+        tiny,
+    ) = core
     n = z.shape[0]
     p = n // 2
     for j in range(p):

@@ -35,7 +35,14 @@ PAPER_BUDGET = 100
 
 
 def interval_robust_planner(
-    system, parameters, reward, controllers, *, gamma: float = PAPER_GAMMA, budget: int = PAPER_BUDGET, substeps: int = 1
+    system,
+    parameters,
+    reward,
+    controllers,
+    *,
+    gamma: float = PAPER_GAMMA,
+    budget: int = PAPER_BUDGET,
+    substeps: int = 1,
 ) -> RobustTreePlanner:
     """The robust planner on one interval model (surrogate objective (11)).
 
@@ -166,7 +173,14 @@ def nominal_planner(
 
 
 def oracle_planner(
-    system, theta_true, reward, controllers, *, gamma: float = PAPER_GAMMA, budget: int = PAPER_BUDGET, substeps: int = 1
+    system,
+    theta_true,
+    reward,
+    controllers,
+    *,
+    gamma: float = PAPER_GAMMA,
+    budget: int = PAPER_BUDGET,
+    substeps: int = 1,
 ) -> OptimisticPlanner:
     """OPD with the true parameters (w = 0): the oracle of the suboptimality study.
 

@@ -96,7 +96,13 @@ def search_kernel(params_type: type):
         _ = version  # ties numba's cache entry to the sources it calls into
         # the arrays are read once into locals: every read of a field of a tuple costs a reference count
         z, stack, actions, time = boxes.z, boxes.stack, boxes.actions, boxes.time
-        rewards, new_terminal, terminal, depth, counts = tree.rewards, tree.new_terminal, tree.terminal, tree.depth, tree.counts
+        rewards, new_terminal, terminal, depth, counts = (
+            tree.rewards,
+            tree.new_terminal,
+            tree.terminal,
+            tree.depth,
+            tree.counts,
+        )
         n_models, n_actions = rewards.shape
         substeps, n_box = stack.shape[0], stack.shape[3]
         capacity = tree.parent.shape[0]

@@ -277,7 +277,9 @@ class ControllerBank:
         for a, controller in enumerate(controllers):
             if isinstance(controller, OpenLoop):
                 if controller.u.shape != (ninputs,):
-                    raise DimensionError(f"controllers[{a}].u must have shape ({ninputs},), got shape {controller.u.shape}")
+                    raise DimensionError(
+                        f"controllers[{a}].u must have shape ({ninputs},), got shape {controller.u.shape}"
+                    )
                 self.offsets[a] = controller.u
             elif isinstance(controller, LinearFeedback):
                 if controller.K.shape != (ninputs, nstates):
@@ -289,7 +291,9 @@ class ControllerBank:
                 self.low[a] = controller.u_low
                 self.high[a] = controller.u_high
             else:  # neither kind: raises InputError naming the type given
-                check_instance(f"controllers[{a}]", controller, (OpenLoop, LinearFeedback), "OpenLoop or LinearFeedback")
+                check_instance(
+                    f"controllers[{a}]", controller, (OpenLoop, LinearFeedback), "OpenLoop or LinearFeedback"
+                )
         self.saturating = bool(np.any(np.isfinite(self.low)) or np.any(np.isfinite(self.high)))
         self.has_feedback = bool(np.any(self.gains != 0))
         for arr in (self.gains, self.offsets, self.low, self.high):

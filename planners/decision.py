@@ -113,8 +113,8 @@ class Decision:
             depth=int(tree.max_depth),
             sequence=tuple(actions[a] for a in path),
             sequence_indices=path,
-            action_lower=tuple(tree.lower[first:first + n_actions].tolist()),
-            action_upper=tuple(tree.upper[first:first + n_actions].tolist()),
+            action_lower=tuple(tree.lower[first : first + n_actions].tolist()),
+            action_upper=tuple(tree.upper[first : first + n_actions].tolist()),
             nodes=int(tree.size),
             solved=bool(solved),
         )

@@ -55,11 +55,18 @@ class NavigationScene:
     def __post_init__(self) -> None:
         object.__setattr__(self, "goal", as_finite_array("goal", self.goal, (2,)))
         centers, radii = _discs("obstacle_centers", self.obstacle_centers, "obstacle_radii", self.obstacle_radii)
-        positions, ped_radii = _discs("pedestrian_positions", self.pedestrian_positions, "pedestrian_radii", self.pedestrian_radii)
+        positions, ped_radii = _discs(
+            "pedestrian_positions", self.pedestrian_positions, "pedestrian_radii", self.pedestrian_radii
+        )
         velocities = _points("pedestrian_velocities", self.pedestrian_velocities)
         check_shape("pedestrian_velocities", velocities, (positions.shape[0], 2))
-        for name, value in (("obstacle_centers", centers), ("obstacle_radii", radii), ("pedestrian_positions", positions),
-                            ("pedestrian_velocities", velocities), ("pedestrian_radii", ped_radii)):
+        for name, value in (
+            ("obstacle_centers", centers),
+            ("obstacle_radii", radii),
+            ("pedestrian_positions", positions),
+            ("pedestrian_velocities", velocities),
+            ("pedestrian_radii", ped_radii),
+        ):
             object.__setattr__(self, name, value)
 
     @property
@@ -91,8 +98,10 @@ def planar_robot_model(system: UncertainLinearSystem, theta, substeps) -> tuple[
     """
     check_instance("system", system, UncertainLinearSystem)
     if system.nstates != 4 or system.ninputs != 2:
-        raise DimensionError(f"system must have 4 states and 2 inputs (a planar point mass, B of shape (4, 2)), "
-                             f"got {system.nstates} states and {system.ninputs} inputs (B of shape {system.B.shape})")
+        raise DimensionError(
+            f"system must have 4 states and 2 inputs (a planar point mass, B of shape (4, 2)), "
+            f"got {system.nstates} states and {system.ninputs} inputs (B of shape {system.B.shape})"
+        )
     as_count("substeps", substeps)
     theta = system.theta.center if theta is None else as_finite_array("theta", theta, (system.nparams,))
     A = system.A(theta)
@@ -181,8 +190,14 @@ class DWAParameters:
         as_count("samples_per_axis", self.samples_per_axis, minimum=2)
         for name in ("horizon", "brake_time", "max_speed", "clearance_cap", "grid_resolution"):
             as_positive_scalar(name, getattr(self, name))
-        for name in ("safety_margin", "pedestrian_margin", "progress_weight", "heading_weight",
-                     "clearance_weight", "velocity_weight"):
+        for name in (
+            "safety_margin",
+            "pedestrian_margin",
+            "progress_weight",
+            "heading_weight",
+            "clearance_weight",
+            "velocity_weight",
+        ):
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
 
     def to_dict(self) -> dict:
@@ -244,8 +259,16 @@ class DynamicWindowPlanner:
     _nav: NavigationFunction | None = None
     _nav_key: tuple[bytes, bytes, bytes] | None = None
 
-    def __init__(self, system: UncertainLinearSystem, *, theta=None, substeps: int = 5, robot_radius: float = 0.3,
-                 params: DWAParameters = DWAParameters(), control_bound: float = 1.0):
+    def __init__(
+        self,
+        system: UncertainLinearSystem,
+        *,
+        theta=None,
+        substeps: int = 5,
+        robot_radius: float = 0.3,
+        params: DWAParameters = DWAParameters(),
+        control_bound: float = 1.0,
+    ):
         check_instance("params", params, DWAParameters)
         self._A, self._dt = planar_robot_model(system, theta, substeps)
         self._B = system.B
@@ -329,7 +352,15 @@ class DynamicWindowPlanner:
         # Score along the held rollout.
         held_gaps = self._gaps(held[..., :2], held_times, scene)
         if held_gaps.shape[-1]:
-            clearance = (held_gaps - np.concatenate([np.full(n_static, footprint), np.full(held_gaps.shape[-1] - n_static, footprint + p.pedestrian_margin)])).min(axis=(-1, -2))
+            clearance = (
+                held_gaps
+                - np.concatenate(
+                    [
+                        np.full(n_static, footprint),
+                        np.full(held_gaps.shape[-1] - n_static, footprint + p.pedestrian_margin),
+                    ]
+                )
+            ).min(axis=(-1, -2))
         else:
             clearance = np.full(k, np.inf)
         end = held[:, -1]
@@ -369,9 +400,14 @@ class DynamicWindowPlanner:
         key = (scene.goal.tobytes(), scene.obstacle_centers.tobytes(), scene.obstacle_radii.tobytes())
         nav = self._nav
         if nav is None or self._nav_key != key or not nav.covers(points):
-            nav = NavigationFunction(scene.goal, scene.obstacle_centers, scene.obstacle_radii,
-                                     clearance=self.robot_radius + self.params.safety_margin, region=points,
-                                     resolution=self.params.grid_resolution)
+            nav = NavigationFunction(
+                scene.goal,
+                scene.obstacle_centers,
+                scene.obstacle_radii,
+                clearance=self.robot_radius + self.params.safety_margin,
+                region=points,
+                resolution=self.params.grid_resolution,
+            )
             self._nav, self._nav_key = nav, key
         return nav
 

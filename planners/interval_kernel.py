@@ -64,24 +64,40 @@ def _rounding_errors(
         closed_error = opened_error[:, None]
     else:  # A(v) - B K: the product B K (q terms) and the subtraction round too
         product_abs = np.einsum("mpq,aqr->mapr", abs_B, abs_K)
-        closed_error = safety * (formation[:, None] + summation_error_bound(q + 1) * (open_abs[:, None] + product_abs) + g * closed_abs)
+        closed_error = safety * (
+            formation[:, None] + summation_error_bound(q + 1) * (open_abs[:, None] + product_abs) + g * closed_abs
+        )
     # c_a = K x_ref + u_ff is computed in floating point for feedback controllers
     offset_error = np.zeros_like(bank.offsets)
     for a, controller in enumerate(bank.controllers):
         if isinstance(controller, LinearFeedback):
-            offset_error[a] = summation_error_bound(p + 2) * (np.abs(controller.K) @ np.abs(controller.x_ref) + np.abs(controller.u_ff))
+            offset_error[a] = summation_error_bound(p + 2) * (
+                np.abs(controller.K) @ np.abs(controller.x_ref) + np.abs(controller.u_ff)
+            )
     offset_error = safety * offset_error + tiny
     w_max = [np.maximum(np.abs(system.w.low), np.abs(system.w.high)) for system in systems]
-    w_rounding = np.stack([summation_error_bound(2 * system.ndisturbances + 1) * np.abs(system.D) @ wm for system, wm in zip(systems, w_max)])
+    w_rounding = np.stack(
+        [
+            summation_error_bound(2 * system.ndisturbances + 1) * np.abs(system.D) @ wm
+            for system, wm in zip(systems, w_max)
+        ]
+    )
     w_error = safety * (w_rounding + g * np.maximum(np.abs(w_z[:, :p]), np.abs(w_z[:, p:]))) + tiny
     drift_abs = np.maximum(np.abs(drift_z[..., :p]), np.abs(drift_z[..., p:]))  # (M, A, p)
     c_abs = np.abs(bank.offsets) + offset_error  # (A, q)
-    drift_error = safety * (
-        summation_error_bound(q + 1) * np.einsum("mpq,aq->map", abs_B, c_abs) + np.einsum("mpq,aq->map", abs_B, offset_error)
-        + w_rounding[:, None] + g * drift_abs
-    ) + tiny
+    drift_error = (
+        safety
+        * (
+            summation_error_bound(q + 1) * np.einsum("mpq,aq->map", abs_B, c_abs)
+            + np.einsum("mpq,aq->map", abs_B, offset_error)
+            + w_rounding[:, None]
+            + g * drift_abs
+        )
+        + tiny
+    )
     gain_error = safety * g * abs_K
     input_error = safety * g * abs_B
+
     def columns(rows):  # the kernels apply row-indexed bounds by columns
         return np.ascontiguousarray(np.swapaxes(rows, -1, -2), dtype=float)
 
@@ -89,8 +105,14 @@ def _rounding_errors(
         return np.ascontiguousarray(values, dtype=float)
 
     return (
-        columns(closed_error), constant(drift_error), columns(opened_error), constant(w_error), columns(gain_error),
-        constant(offset_error), columns(input_error), float(tiny),
+        columns(closed_error),
+        constant(drift_error),
+        columns(opened_error),
+        constant(w_error),
+        columns(gain_error),
+        constant(offset_error),
+        columns(input_error),
+        float(tiny),
     )
 
 
@@ -133,8 +155,10 @@ def build_interval_kernel(
     k = max(pred.nvertices for pred in predictors)
     # pad each hypothesis to k vertex matrices by repeating one (harmless under max)
     vertices = np.stack(
-        [np.concatenate([pred.vertex_matrices, np.repeat(pred.vertex_matrices[:1], k - pred.nvertices, axis=0)])
-         for pred in predictors]
+        [
+            np.concatenate([pred.vertex_matrices, np.repeat(pred.vertex_matrices[:1], k - pred.nvertices, axis=0)])
+            for pred in predictors
+        ]
     )  # (M, k, p, p), identity basis
     B = np.stack([system.B for system in systems])  # (M, p, q)
     per_action = bank.has_feedback
@@ -156,6 +180,16 @@ def build_interval_kernel(
     offsets, low, high = (np.array(a, dtype=float) for a in (bank.offsets, bank.low, bank.high))
     errors = _rounding_errors(systems, predictors, vertices, B, bank, closed_abs, drift_z, w_z)
     return IntervalKernel(
-        closed, opened, drift_z, w_z, _columns(bank.gains), _columns(B), offsets, low, high, bool(per_action),
-        bool(bank.saturating), *errors,
+        closed,
+        opened,
+        drift_z,
+        w_z,
+        _columns(bank.gains),
+        _columns(B),
+        offsets,
+        low,
+        high,
+        bool(per_action),
+        bool(bank.saturating),
+        *errors,
     )

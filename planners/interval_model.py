@@ -144,7 +144,9 @@ def _check_reward(reward, nstates: int):
         )
     needed = getattr(reward, "min_state_dim", None)
     if needed is not None and needed > nstates:
-        raise DimensionError(f"reward reads state coordinates up to index {needed - 1}, but the system has {nstates} states")
+        raise DimensionError(
+            f"reward reads state coordinates up to index {needed - 1}, but the system has {nstates} states"
+        )
     raw = getattr(reward, "box_minimum_raw", None)
     return raw if callable(raw) else minimum
 
@@ -199,7 +201,6 @@ class _SubstepTimes:
             if len(self._cache) < 4096:
                 self._cache[time] = value
         return value
-
 
 
 class IntervalGroup:
@@ -272,7 +273,9 @@ class IntervalGroup:
         try:
             self.times = _SubstepTimes(self.substeps)
         except (ValueError, MemoryError):  # numpy cannot allocate the sub-step offsets
-            raise InputError(f"substeps = {self.substeps} is too large: its sub-step arrays cannot be allocated") from None
+            raise InputError(
+                f"substeps = {self.substeps} is too large: its sub-step arrays cannot be allocated"
+            ) from None
         self.predictors = tuple(IntervalPredictor(system, parameters) for system, parameters in resolved)
         self.kernel = build_interval_kernel(self.systems, self.predictors, self.bank)
         self.actions = _ActionIndex(len(self.bank))
@@ -517,8 +520,13 @@ class IntervalModel:
             check_instance("group", group, IntervalGroup, "an IntervalGroup (see IntervalModel.linked)")
             _check_member(group, member, system, parameters, reward, controllers, substeps)
         for name, value in (
-            ("system", system), ("parameters", group.parameters[member]), ("reward", reward),
-            ("controllers", group.bank.controllers), ("substeps", group.substeps), ("group", group), ("member", member),
+            ("system", system),
+            ("parameters", group.parameters[member]),
+            ("reward", reward),
+            ("controllers", group.bank.controllers),
+            ("substeps", group.substeps),
+            ("group", group),
+            ("member", member),
         ):
             object.__setattr__(self, name, value)
 
@@ -702,7 +710,9 @@ class IntervalModel:
         if lo.shape != (p,) or hi.shape != (p,):
             raise DimensionError(f"lower and upper must have shape ({p},), got shapes {lo.shape} and {hi.shape}")
         if np.any(lo > hi):
-            raise EmptySetError(f"the initial box is empty: lower > upper at indices {np.flatnonzero(lo > hi).tolist()}")
+            raise EmptySetError(
+                f"the initial box is empty: lower > upper at indices {np.flatnonzero(lo > hi).tolist()}"
+            )
         lo, hi = lo.copy(), hi.copy()
         lo.setflags(write=False)
         hi.setflags(write=False)

@@ -44,8 +44,19 @@ class NavigationFunction:
         Cost shaping near discs (see the module docstring).
     """
 
-    def __init__(self, goal, centers, radii, *, clearance: float, region=None, resolution: float = 0.2,
-                 padding: float = 4.0, soft_clearance: float = 1.0, near_cost: float = 2.0):
+    def __init__(
+        self,
+        goal,
+        centers,
+        radii,
+        *,
+        clearance: float,
+        region=None,
+        resolution: float = 0.2,
+        padding: float = 4.0,
+        soft_clearance: float = 1.0,
+        near_cost: float = 2.0,
+    ):
         self.goal = as_finite_array("goal", goal, (2,))
         self.centers = as_finite_array("centers", centers).reshape(-1, 2) if np.size(centers) else np.zeros((0, 2))
         self.radii = as_finite_array("radii", radii).reshape(-1) if np.size(radii) else np.zeros(0)
@@ -66,7 +77,9 @@ class NavigationFunction:
         anchor = points[1] if points.shape[0] > 1 else None
         all_discs = self.centers, self.radii
         if all_discs[0].shape[0]:
-            reach = np.max(np.abs(all_discs[0][:, None, :] - points[None]).max(axis=1) + all_discs[1][:, None], initial=0.0)
+            reach = np.max(
+                np.abs(all_discs[0][:, None, :] - points[None]).max(axis=1) + all_discs[1][:, None], initial=0.0
+            )
         else:
             reach = 0.0
         full_padding = max(padding, float(reach) + self.clearance + 2 * self.resolution + 1.0)
@@ -84,7 +97,9 @@ class NavigationFunction:
         self.extent_high = self.origin + (np.array(self.shape) - 1) * self.resolution
         # Discs too far from the grid to block or shape any cell play no part.
         centers, radii = discs
-        gap = np.linalg.norm(np.maximum(self.origin - centers, 0.0) + np.maximum(centers - self.extent_high, 0.0), axis=1)
+        gap = np.linalg.norm(
+            np.maximum(self.origin - centers, 0.0) + np.maximum(centers - self.extent_high, 0.0), axis=1
+        )
         relevant = gap - radii <= self.clearance + soft
         self.centers, self.radii = centers[relevant], radii[relevant]
         gx = self.origin[0] + self.resolution * np.arange(self.shape[0])
@@ -97,7 +112,11 @@ class NavigationFunction:
         free = edge >= self.clearance
         goal_cell = self._cell(self.goal)
         free[goal_cell] = True  # the goal is always a target, even when it sits in a margin
-        shaping = 1.0 + near * np.clip((soft + self.clearance - edge) / max(soft, 1e-12), 0.0, 1.0) if soft > 0 else np.ones(self.shape)
+        shaping = (
+            1.0 + near * np.clip((soft + self.clearance - edge) / max(soft, 1e-12), 0.0, 1.0)
+            if soft > 0
+            else np.ones(self.shape)
+        )
         self.free = free
         self.values = self._dijkstra(free, shaping, goal_cell)
         finite = np.isfinite(self.values)
@@ -108,7 +127,7 @@ class NavigationFunction:
     def _reachable_near(self, point, window: int = 5) -> bool:
         """Whether some cell within ``window`` cells of ``point`` reaches the goal."""
         i, j = self._cell(point)
-        block = self.values[max(i - window, 0):i + window + 1, max(j - window, 0):j + window + 1]
+        block = self.values[max(i - window, 0) : i + window + 1, max(j - window, 0) : j + window + 1]
         return bool(np.isfinite(block).any())
 
     def _cell(self, point) -> tuple[int, int]:
@@ -127,7 +146,9 @@ class NavigationFunction:
             rows.append(index[src][ok])
             cols.append(index[dst][ok])
             weights.append(length * 0.5 * (shaping[src][ok] + shaping[dst][ok]))
-        graph = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(nx * ny,) * 2)
+        graph = coo_matrix(
+            (np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(nx * ny,) * 2
+        )
         # The graph is symmetric, so distances from the goal are distances to it.
         distances = dijkstra(graph.tocsr(), directed=True, indices=index[goal_cell])
         return distances.reshape(nx, ny)
@@ -149,8 +170,12 @@ class NavigationFunction:
         f = g - i0
         i, j = i0[..., 0], i0[..., 1]
         fx, fy = f[..., 0], f[..., 1]
-        return ((1 - fx) * (1 - fy) * field[i, j] + fx * (1 - fy) * field[i + 1, j]
-                + (1 - fx) * fy * field[i, j + 1] + fx * fy * field[i + 1, j + 1])
+        return (
+            (1 - fx) * (1 - fy) * field[i, j]
+            + fx * (1 - fy) * field[i + 1, j]
+            + (1 - fx) * fy * field[i, j + 1]
+            + fx * fy * field[i + 1, j + 1]
+        )
 
     def cost_to_go(self, points) -> np.ndarray:
         """Interpolated cost-to-go at points (blocked cells count as worse than any reachable one).
@@ -194,7 +219,7 @@ class NavigationFunction:
             # Start inside a margin: step to the best reachable neighbourhood first.
             window = 5
             i0, j0 = max(cell[0] - window, 0), max(cell[1] - window, 0)
-            block = self.values[i0:cell[0] + window + 1, j0:cell[1] + window + 1]
+            block = self.values[i0 : cell[0] + window + 1, j0 : cell[1] + window + 1]
             if not np.isfinite(block).any():
                 raise InputError("the goal cannot be reached from start on the navigation grid")
             k = np.unravel_index(np.argmin(block), block.shape)
@@ -203,8 +228,11 @@ class NavigationFunction:
         cells = [cell]
         limit = self.shape[0] * self.shape[1]
         while cell != goal_cell and len(cells) < limit:
-            candidates = [(cell[0] + dx, cell[1] + dy) for dx, dy in _MOVES
-                          if 0 <= cell[0] + dx < self.shape[0] and 0 <= cell[1] + dy < self.shape[1]]
+            candidates = [
+                (cell[0] + dx, cell[1] + dy)
+                for dx, dy in _MOVES
+                if 0 <= cell[0] + dx < self.shape[0] and 0 <= cell[1] + dy < self.shape[1]
+            ]
             nxt = min(candidates, key=lambda c: values[c])
             if values[nxt] >= values[cell]:
                 break

@@ -25,7 +25,11 @@ if TYPE_CHECKING:
     from .box_kernels import IntervalKernel
 
 __all__ = [
-    "TransitionModel", "VectorisedModel", "BatchedTransitions", "LinkedModel", "CompiledTransitions",
+    "TransitionModel",
+    "VectorisedModel",
+    "BatchedTransitions",
+    "LinkedModel",
+    "CompiledTransitions",
     "CompiledProblem",
 ]
 

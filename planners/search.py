@@ -53,9 +53,7 @@ class _Transitions:
 
     def __init__(self, index: int, model: Any, actions: tuple) -> None:
         if not (isinstance(model, TransitionModel) and callable(model.step)):
-            raise InputError(
-                f"models[{index}] has no callable step(state, action); got {type(model).__name__}"
-            )
+            raise InputError(f"models[{index}] has no callable step(state, action); got {type(model).__name__}")
         self.index = index
         self.model = model
         self.actions = actions
@@ -86,10 +84,7 @@ class _Transitions:
                 f"got {type(next_states).__name__}"
             )
         if len(next_states) != n:
-            raise DimensionError(
-                f"models[{self.index}].expand returned {len(next_states)} next states "
-                f"for {n} actions"
-            )
+            raise DimensionError(f"models[{self.index}].expand returned {len(next_states)} next states for {n} actions")
         if type(rewards) is not np.ndarray or rewards.dtype != np.float64:
             rewards = self._as_float_array(rewards)
         if rewards.shape != (n,):
@@ -103,21 +98,19 @@ class _Transitions:
                 f"models[{self.index}].expand terminals must have shape ({n},), got shape {terminals.shape}"
             )
         if terminals.dtype != bool:
-            raise InputError(
-                f"models[{self.index}].expand terminals must be a bool array, got dtype {terminals.dtype}"
-            )
+            raise InputError(f"models[{self.index}].expand terminals must be a bool array, got dtype {terminals.dtype}")
         return next_states, rewards, terminals
 
     def _as_float_array(self, rewards) -> np.ndarray:
         try:
             raw = np.asarray(rewards)
-            if raw.dtype.kind in "USbc" or (raw.dtype.kind == "O" and any(isinstance(r, _NOT_A_REWARD) for r in raw.flat)):
+            if raw.dtype.kind in "USbc" or (
+                raw.dtype.kind == "O" and any(isinstance(r, _NOT_A_REWARD) for r in raw.flat)
+            ):
                 raise TypeError
             return raw.astype(float, copy=False)
         except (TypeError, ValueError, OverflowError):
-            raise RewardRangeError(
-                f"models[{self.index}].expand returned non-numeric rewards {rewards!r}"
-            ) from None
+            raise RewardRangeError(f"models[{self.index}].expand returned non-numeric rewards {rewards!r}") from None
 
     def _one_by_one(self, state) -> tuple[Sequence, np.ndarray, np.ndarray]:
         n = self.n_actions
@@ -140,8 +133,7 @@ class _Transitions:
                 rewards[a] = float(reward)
             except (TypeError, ValueError, OverflowError):
                 raise RewardRangeError(
-                    f"models[{self.index}] returned a non-numeric reward {out[1]!r} for action "
-                    f"{action!r} (index {a})"
+                    f"models[{self.index}] returned a non-numeric reward {out[1]!r} for action {action!r} (index {a})"
                 ) from None
             if len(out) == 3:
                 terminals[a] = _as_flag(out[2], self.index, action, a)
@@ -181,8 +173,7 @@ def _as_flag(value, index: int, action, a: int) -> bool:
     if isinstance(value, numbers.Integral) and value in (0, 1):
         return bool(value)
     raise InputError(
-        f"models[{index}].step returned terminal={value!r} for action {action!r} (index {a}); "
-        "expected a bool"
+        f"models[{index}].step returned terminal={value!r} for action {action!r} (index {a}); expected a bool"
     )
 
 
@@ -245,8 +236,9 @@ class RobustTreePlanner:
     regret of the chosen first action is at most ``U_root - L_root``.
     """
 
-    def __init__(self, models: Sequence, actions: Sequence, *, gamma: float, budget: int, seed: int = 0,
-                 engine: str = "auto") -> None:
+    def __init__(
+        self, models: Sequence, actions: Sequence, *, gamma: float, budget: int, seed: int = 0, engine: str = "auto"
+    ) -> None:
         try:
             models = list(models)
         except TypeError:
@@ -359,13 +351,10 @@ class RobustTreePlanner:
             try:
                 states = list(state)
             except TypeError:
-                raise InputError(
-                    "with per_model=True, state must be a sequence of one state per model"
-                ) from None
+                raise InputError("with per_model=True, state must be a sequence of one state per model") from None
             if len(states) != n_models:
                 raise DimensionError(
-                    f"with per_model=True, state must hold {n_models} states (one per model), "
-                    f"got {len(states)}"
+                    f"with per_model=True, state must hold {n_models} states (one per model), got {len(states)}"
                 )
         else:
             states = [state] * n_models
@@ -433,7 +422,11 @@ class RobustTreePlanner:
     def _transitions_of(self, tree: TreeArrays, leaf: int, state_lists: list) -> None:
         """Write ``leaf``'s transitions into ``tree.rewards``/``new_terminal``; append the children's states."""
         group = self._group
-        if group is not None and not tree.any_terminated[leaf] and self._transitions_jointly(group, tree, leaf, state_lists):
+        if (
+            group is not None
+            and not tree.any_terminated[leaf]
+            and self._transitions_jointly(group, tree, leaf, state_lists)
+        ):
             return
         n_actions = len(self.actions)
         rewards, new_terminal = tree.rewards, tree.new_terminal
@@ -463,8 +456,12 @@ class RobustTreePlanner:
         next_states, rewards, terminals = group.expand_all(state, self.actions)
         shape = tree.rewards.shape
         if (
-            type(rewards) is not np.ndarray or rewards.dtype != np.float64 or rewards.shape != shape
-            or type(terminals) is not np.ndarray or terminals.dtype != bool or terminals.shape != shape
+            type(rewards) is not np.ndarray
+            or rewards.dtype != np.float64
+            or rewards.shape != shape
+            or type(terminals) is not np.ndarray
+            or terminals.dtype != bool
+            or terminals.shape != shape
             or len(next_states) != shape[1]
         ):
             return False
@@ -488,8 +485,9 @@ class RobustTreePlanner:
         tree = self._tree_arrays()
         boxes = self._boxes
         if boxes is None or boxes.z.shape[0] != tree.parent.shape[0] or boxes.stack.shape[0] != problem.substeps:
-            boxes = allocate_boxes(tree.parent.shape[0], self.n_models, len(self.actions), problem.root.shape[1],
-                                   problem.substeps)
+            boxes = allocate_boxes(
+                tree.parent.shape[0], self.n_models, len(self.actions), problem.root.shape[1], problem.substeps
+            )
         boxes = self._boxes = boxes._replace(root=problem.root, actions=problem.actions, time=int(problem.time))
         params_type: type = type(problem.params)
         kernel = search_kernel(params_type)

@@ -107,11 +107,26 @@ class TEBParameters:
     grid_resolution: float = 0.2
 
     def __post_init__(self) -> None:
-        for name in ("dt_ref", "dt_min", "dt_max", "max_speed", "time_weight", "velocity_weight",
-                     "input_weight", "obstacle_weight", "grid_resolution"):
+        for name in (
+            "dt_ref",
+            "dt_min",
+            "dt_max",
+            "max_speed",
+            "time_weight",
+            "velocity_weight",
+            "input_weight",
+            "obstacle_weight",
+            "grid_resolution",
+        ):
             as_positive_scalar(name, getattr(self, name))
-        for name in ("resize_hysteresis", "obstacle_margin", "pedestrian_margin", "detour_amplitude", "reinit_violation",
-                     "goal_jump"):
+        for name in (
+            "resize_hysteresis",
+            "obstacle_margin",
+            "pedestrian_margin",
+            "detour_amplitude",
+            "reinit_violation",
+            "goal_jump",
+        ):
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
         for name in ("min_poses", "max_poses", "max_iterations"):
             as_count(name, getattr(self, name))
@@ -145,15 +160,23 @@ class TEBPlan:
 
 
 # ------------------------------------------------------------------ the cost
-def band_cost(z: np.ndarray, start: np.ndarray, velocity: np.ndarray, goal: np.ndarray, n: int, friction: np.ndarray,
-              discs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], params: TEBParameters,
-              control_bound: float = 1.0) -> tuple[float, np.ndarray]:
+def band_cost(
+    z: np.ndarray,
+    start: np.ndarray,
+    velocity: np.ndarray,
+    goal: np.ndarray,
+    n: int,
+    friction: np.ndarray,
+    discs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    params: TEBParameters,
+    control_bound: float = 1.0,
+) -> tuple[float, np.ndarray]:
     """The band's cost and its gradient with respect to ``z = (X_1..X_{n-1} flattened, dT_0..dT_{n-1})``.
 
     ``discs = (centers (k, 2), velocities (k, 2), radii (k,), required clearance (k,))``.
     """
     inner = z[: 2 * (n - 1)].reshape(n - 1, 2)
-    dT = z[2 * (n - 1):]
+    dT = z[2 * (n - 1) :]
     X = np.concatenate([start[None], inner, goal[None]])
     seg = X[1:] - X[:-1]
     v = seg / dT[:, None]
@@ -199,13 +222,13 @@ def band_cost(z: np.ndarray, start: np.ndarray, velocity: np.ndarray, goal: np.n
         g_point = g_point_disc.sum(axis=1)
         g_time = -np.einsum("pki,ki->p", g_point_disc, disc_velocities)
         g_X[1:-1] += g_point[: n - 1]
-        g_X[:-1] += g_point[n - 1:] / 2
-        g_X[1:] += g_point[n - 1:] / 2
+        g_X[:-1] += g_point[n - 1 :] / 2
+        g_X[1:] += g_point[n - 1 :] / 2
         # times: T_i = sum_{k<i} dT_k for inner pose i; midpoint i: T_i + dT_i / 2
         g_T = np.zeros(n + 1)
         g_T[1:-1] += g_time[: n - 1]
-        g_T[:-1] += g_time[n - 1:]
-        g_dT += g_time[n - 1:] / 2
+        g_T[:-1] += g_time[n - 1 :]
+        g_dT += g_time[n - 1 :] / 2
         # d T_i / d dT_k = 1 for k < i
         g_dT += np.cumsum(g_T[::-1])[::-1][1:]
 
@@ -243,8 +266,16 @@ class TimedElasticBand:
     _nav: NavigationFunction | None = None
     _nav_key: tuple[bytes, bytes, bytes] | None = None
 
-    def __init__(self, system: UncertainLinearSystem, *, theta=None, substeps: int = 5, robot_radius: float = 0.3,
-                 params: TEBParameters = TEBParameters(), control_bound: float = 1.0):
+    def __init__(
+        self,
+        system: UncertainLinearSystem,
+        *,
+        theta=None,
+        substeps: int = 5,
+        robot_radius: float = 0.3,
+        params: TEBParameters = TEBParameters(),
+        control_bound: float = 1.0,
+    ):
         check_instance("params", params, TEBParameters)
         A, self._dt = planar_robot_model(system, theta, substeps)
         self._decay = np.diag(A)[2:].copy()  # per-axis velocity factor a = 1 - dt * xi
@@ -291,9 +322,14 @@ class TimedElasticBand:
         key = (scene.goal.tobytes(), scene.obstacle_centers.tobytes(), scene.obstacle_radii.tobytes())
         nav = self._nav
         if nav is None or self._nav_key != key or not nav.covers(start):
-            nav = NavigationFunction(scene.goal, scene.obstacle_centers, scene.obstacle_radii,
-                                     clearance=self.robot_radius + self.params.obstacle_margin, region=start[None],
-                                     resolution=self.params.grid_resolution)
+            nav = NavigationFunction(
+                scene.goal,
+                scene.obstacle_centers,
+                scene.obstacle_radii,
+                clearance=self.robot_radius + self.params.obstacle_margin,
+                region=start[None],
+                resolution=self.params.grid_resolution,
+            )
             self._nav, self._nav_key = nav, key
         try:
             return nav.path(start)
@@ -322,11 +358,11 @@ class TimedElasticBand:
             if dT[i] > p.dt_ref + p.resize_hysteresis and len(dT) < p.max_poses:
                 X.insert(i + 1, (X[i] + X[i + 1]) / 2)
                 half = dT[i] / 2
-                dT[i:i + 1] = [half, half]
+                dT[i : i + 1] = [half, half]
                 i += 2
             elif dT[i] < p.dt_ref - p.resize_hysteresis and len(dT) > p.min_poses and i + 1 < len(dT):
                 del X[i + 1]
-                dT[i:i + 2] = [dT[i] + dT[i + 1]]
+                dT[i : i + 2] = [dT[i] + dT[i + 1]]
                 i += 1
             else:
                 i += 1
@@ -335,10 +371,14 @@ class TimedElasticBand:
     def _discs(self, scene: NavigationScene):
         p = self.params
         n_static = scene.obstacle_centers.shape[0]
-        required = np.concatenate([
-            np.full(n_static, self.robot_radius + p.obstacle_margin),
-            np.full(scene.pedestrian_positions.shape[0], self.robot_radius + p.obstacle_margin + p.pedestrian_margin),
-        ])
+        required = np.concatenate(
+            [
+                np.full(n_static, self.robot_radius + p.obstacle_margin),
+                np.full(
+                    scene.pedestrian_positions.shape[0], self.robot_radius + p.obstacle_margin + p.pedestrian_margin
+                ),
+            ]
+        )
         return scene.centers, scene.velocities, scene.radii, required
 
     def _optimise(self, X, dT, velocity, discs):
@@ -347,15 +387,22 @@ class TimedElasticBand:
         start, goal = X[0], X[-1]
         z0 = np.concatenate([X[1:-1].ravel(), dT])
         bounds = [(None, None)] * (2 * (n - 1)) + [(p.dt_min, p.dt_max)] * n
-        result = minimize(band_cost, z0, args=(start, velocity, goal, n, self.friction, discs, p, self.control_bound),
-                          jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": p.max_iterations})
+        result = minimize(
+            band_cost,
+            z0,
+            args=(start, velocity, goal, n, self.friction, discs, p, self.control_bound),
+            jac=True,
+            method="L-BFGS-B",
+            bounds=bounds,
+            options={"maxiter": p.max_iterations},
+        )
         status = LBFGSB_STATUS.get(int(result.status))
         if status is None or not np.all(np.isfinite(result.x)) or not np.isfinite(result.fun):
             raise SolverFailure(f"L-BFGS-B failed on the band (status {result.status}: {result.message})")
         # Every named status gives a usable band: the penalties are soft and the band is
         # re-optimised at the next call, and L-BFGS-B returns its best iterate.
         X = np.concatenate([start[None], result.x[: 2 * (n - 1)].reshape(n - 1, 2), goal[None]])
-        dT = result.x[2 * (n - 1):]
+        dT = result.x[2 * (n - 1) :]
         return X, dT, float(result.fun), int(result.nit), status
 
     def _violation(self, X, dT, discs) -> float:
@@ -426,7 +473,11 @@ class TimedElasticBand:
                 trial = self._optimise(*self._fresh_band(start, scene.goal, bump, guide), velocity, discs)
                 if best is None or self._score(trial, discs) < self._score(best, discs):
                     best = trial
-                if bump == 0.0 and guide is not None and self._violation(trial[0], trial[1], discs) <= self.params.reinit_violation:
+                if (
+                    bump == 0.0
+                    and guide is not None
+                    and self._violation(trial[0], trial[1], discs) <= self.params.reinit_violation
+                ):
                     break  # the band along the global path is clear: no need for side bumps
         assert best is not None  # the fresh bands above run whenever no warm band did
         X, dT, cost, iterations, status = best

@@ -32,8 +32,24 @@ import numpy as np
 from numba import njit
 
 __all__ = [
-    "TreeArrays", "allocate", "grow", "discount_table", "reset", "select", "expand", "add_children", "backup",
-    "best_path", "start", "expand_and_select", "SIZE", "HEAP_SIZE", "N_EXPANDED", "MAX_DEPTH", "NO_LEAF", "REWARD_ERROR",
+    "TreeArrays",
+    "allocate",
+    "grow",
+    "discount_table",
+    "reset",
+    "select",
+    "expand",
+    "add_children",
+    "backup",
+    "best_path",
+    "start",
+    "expand_and_select",
+    "SIZE",
+    "HEAP_SIZE",
+    "N_EXPANDED",
+    "MAX_DEPTH",
+    "NO_LEAF",
+    "REWARD_ERROR",
 ]
 
 #: Indices into ``TreeArrays.counts``.
@@ -110,7 +126,7 @@ class TreeArrays(NamedTuple):
 
 def discount_table(gamma: float, n: int) -> np.ndarray:
     """``[gamma ** d for d < n]``, each power computed by Python (the values both engines use)."""
-    return np.array([gamma ** d for d in range(n)], dtype=float)
+    return np.array([gamma**d for d in range(n)], dtype=float)
 
 
 def allocate(capacity: int, n_models: int, n_actions: int, gamma: float, discounts: np.ndarray) -> TreeArrays:
@@ -148,8 +164,19 @@ def grow(tree: TreeArrays, capacity: int, discounts: np.ndarray) -> TreeArrays:
     n_models, n_actions = tree.rewards.shape
     grown = allocate(capacity, n_models, n_actions, tree.gamma, discounts)
     size = int(tree.counts[SIZE])
-    for name in ("returns", "terminal", "parent", "action", "depth", "first_child", "leaf_lower", "leaf_upper",
-                 "lower", "upper", "any_terminated"):
+    for name in (
+        "returns",
+        "terminal",
+        "parent",
+        "action",
+        "depth",
+        "first_child",
+        "leaf_lower",
+        "leaf_upper",
+        "lower",
+        "upper",
+        "any_terminated",
+    ):
         getattr(grown, name)[:size] = getattr(tree, name)[:size]
     grown.expanded[: tree.counts[N_EXPANDED]] = tree.expanded[: tree.counts[N_EXPANDED]]
     grown.heap[: tree.counts[HEAP_SIZE]] = tree.heap[: tree.counts[HEAP_SIZE]]

@@ -25,16 +25,35 @@ __all__ = ["CollisionParams", "GoalParams", "SpeedLaneParams", "collision_params
 
 CollisionParams = namedtuple(
     "CollisionParams",
-    ["position", "centers", "reach_sq", "moving_positions", "moving_velocities", "moving_position_spread",
-     "moving_velocity_spread", "moving_reach_sq", "dt", "time0"],
+    [
+        "position",
+        "centers",
+        "reach_sq",
+        "moving_positions",
+        "moving_velocities",
+        "moving_position_spread",
+        "moving_velocity_spread",
+        "moving_reach_sq",
+        "dt",
+        "time0",
+    ],
 )
 CollisionParams.__doc__ = """The arrays of a reward's collision term (see `collision_params`)."""
 GoalParams = namedtuple("GoalParams", ["collision", "goal"])
 GoalParams.__doc__ = """``kernel_params`` of `GoalReward`: its collision term and goal (2,)."""
 SpeedLaneParams = namedtuple(
     "SpeedLaneParams",
-    ["collision", "speed", "lateral", "target_speed", "speed_range", "speed_weight", "lane_weight", "lane_width",
-     "n_lanes"],
+    [
+        "collision",
+        "speed",
+        "lateral",
+        "target_speed",
+        "speed_range",
+        "speed_weight",
+        "lane_weight",
+        "lane_width",
+        "n_lanes",
+    ],
 )
 SpeedLaneParams.__doc__ = """``kernel_params`` of `SpeedLaneReward` (``lateral`` is -1 without a lane term)."""
 
@@ -89,8 +108,9 @@ def _collides(c, z, p, t):
             centre_y = c.moving_positions[j, 1] + c.moving_velocities[j, 1] * elapsed
             half_x = c.moving_position_spread[j, 0] + c.moving_velocity_spread[j, 0] * elapsed
             half_y = c.moving_position_spread[j, 1] + c.moving_velocity_spread[j, 1] * elapsed
-            gap_sq = box_gap_sq(low_x, low_y, high_x, high_y,
-                                centre_x - half_x, centre_y - half_y, centre_x + half_x, centre_y + half_y)
+            gap_sq = box_gap_sq(
+                low_x, low_y, high_x, high_y, centre_x - half_x, centre_y - half_y, centre_x + half_x, centre_y + half_y
+            )
             if gap_sq <= c.moving_reach_sq[j]:
                 return True
     return False

@@ -67,7 +67,10 @@ def lagrangian_bound(
         + np.sum(nu * slack)
         + np.sum(np.abs(dmu) @ (np.abs(data.w_center) + data.w_radius))
         + np.sum(np.abs(theta_term))
-        + np.sum(np.abs(np.einsum("npi,np->i", np.abs(data.E[idx]), np.abs(mu))) * np.maximum(np.abs(data.theta_low), np.abs(data.theta_high)))
+        + np.sum(
+            np.abs(np.einsum("npi,np->i", np.abs(data.E[idx]), np.abs(mu)))
+            * np.maximum(np.abs(data.theta_low), np.abs(data.theta_high))
+        )
     )
     return float(sum(terms)) - 4 * (mu.size + data.nparams + 10) * EPS * float(magnitude)
 

@@ -170,8 +170,11 @@ def solve_lp(data: HypothesisData, idx: np.ndarray, objective: np.ndarray, s_fix
         what = "margin LP" if free_s else "parameter-bound LP"
         raise SolverFailure(
             f"HiGHS failed on the {what} over {k} transitions: status {res.status} ({_reason(res.status)}): {res.message}"
-            + (" -- this LP is always feasible in exact arithmetic, so this is a numerical failure"
-               if res.status == LinprogStatus.INFEASIBLE else "")
+            + (
+                " -- this LP is always feasible in exact arithmetic, so this is a numerical failure"
+                if res.status == LinprogStatus.INFEASIBLE
+                else ""
+            )
         )
     x = np.asarray(res.x, dtype=float)
     y = np.maximum(-np.asarray(res.ineqlin.marginals, dtype=float), 0.0) * (kappa / np.tile(rho, 2))

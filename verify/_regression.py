@@ -45,7 +45,9 @@ def check_hypotheses(hypotheses) -> list[UncertainLinearSystem]:
     try:
         hyps = list(hypotheses)
     except TypeError:
-        raise InputError(f"hypotheses must be a sequence of UncertainLinearSystem, got {type(hypotheses).__name__}") from None
+        raise InputError(
+            f"hypotheses must be a sequence of UncertainLinearSystem, got {type(hypotheses).__name__}"
+        ) from None
     if not hyps:
         raise InputError("hypotheses must contain at least one UncertainLinearSystem, got an empty sequence")
     for m, h in enumerate(hyps):
@@ -271,7 +273,10 @@ class HypothesisData:
         self.E = np.einsum("ipq,nq->npi", st.phi, X)
         abs_x = np.abs(X)
         magnitude = (
-            np.abs(Xn) + abs_x @ st.abs_A0_T + np.abs(U) @ st.abs_B_T + abs_x @ st.abs_regression_T
+            np.abs(Xn)
+            + abs_x @ st.abs_A0_T
+            + np.abs(U) @ st.abs_B_T
+            + abs_x @ st.abs_regression_T
             + st.constant_magnitude
         )
         self.e = st.noise_bound + st.allowance * magnitude

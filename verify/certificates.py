@@ -119,7 +119,9 @@ class EliminationCertificate:
         noise = measurement_noise_bound(hypothesis, self.measurement_noise)
         data = HypothesisData(Structure(hypothesis, noise, self.rounding_allowance), X[t], U[t], Xn[t])
         local = np.arange(t.size)
-        return lagrangian_bound(data, local, self.multipliers_upper, self.multipliers_lower, np.zeros(data.nparams), None)
+        return lagrangian_bound(
+            data, local, self.multipliers_upper, self.multipliers_lower, np.zeros(data.nparams), None
+        )
 
     def recheck(self, hypothesis: UncertainLinearSystem, states: ArrayLike, controls: ArrayLike) -> float:
         """Recompute the lower bound from a trajectory.

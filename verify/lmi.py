@@ -615,7 +615,9 @@ def _lyapunov_candidate(form, vertices, T, T_inv, coordinates) -> _Candidate | N
     P = T_inv.T @ P_z @ T_inv
     if not np.all(np.isfinite(P)):
         return None
-    return _Candidate((P + P.T) / 2, None, coordinates, "Lyapunov equation", "not solved (Lyapunov equation)", False, None)
+    return _Candidate(
+        (P + P.T) / 2, None, coordinates, "Lyapunov equation", "not solved (Lyapunov equation)", False, None
+    )
 
 
 # --------------------------------------------------------------------------- the dual SDP
@@ -698,7 +700,9 @@ def _dual_certificate(form, vertices, T, T_inv, coordinates, margin, solver, log
         log.reasons.append(f"dual SDP ({coordinates} coordinates): solver status {status!r}")
         return None
     if not float(s_value) > 0:
-        log.reasons.append(f"dual SDP ({coordinates} coordinates): no strict dual certificate (slack {float(s_value):.3g})")
+        log.reasons.append(
+            f"dual SDP ({coordinates} coordinates): no strict dual certificate (slack {float(s_value):.3g})"
+        )
         return None
     exact_t = _Exact.of(T)
     exact_y = _exact_gram(np.asarray(Y.value))
@@ -850,7 +854,9 @@ def _disturbance_gain(form, vertices, D, P, Q0) -> float:
     return RHO_FACTOR * smallest[0] / float(np.linalg.eigvalsh(Q0)[0])
 
 
-def _q0_options(form: str, vertices: np.ndarray, D: np.ndarray, P: np.ndarray, Q_solver: np.ndarray | None) -> list[np.ndarray]:
+def _q0_options(
+    form: str, vertices: np.ndarray, D: np.ndarray, P: np.ndarray, Q_solver: np.ndarray | None
+) -> list[np.ndarray]:
     """Free Q0 to try for a Lyapunov matrix P, best first: the tuned ``q I``, then safer ones.
 
     ``cw^2 = rho lmax(P) / (lmin(P) lmin(Q0))``; for fixed P, a larger ``Q0`` raises the
@@ -871,7 +877,9 @@ def _q0_options(form: str, vertices: np.ndarray, D: np.ndarray, P: np.ndarray, Q
         options={"xatol": 1e-4},
     )
     options = [float(search.x) * q_max * np.eye(p)]
-    if Q_solver is not None and _disturbance_gain(form, vertices, D, P, Q_solver) < _disturbance_gain(form, vertices, D, P, options[0]):
+    if Q_solver is not None and _disturbance_gain(form, vertices, D, P, Q_solver) < _disturbance_gain(
+        form, vertices, D, P, options[0]
+    ):
         options.insert(0, Q_solver)
     return options + [q_max / 2 * np.eye(p), q_max / 8 * np.eye(p)]
 
@@ -1087,7 +1095,9 @@ def _decide(form, vertices, D_mat, q0, margin, solver) -> LMIResult:
             certified=certificate is not None,
             inaccurate=candidate.inaccurate if candidate is not None else (dual is None and log.inaccurate),
             solver=solver,
-            solver_status=candidate.solver_status if candidate is not None else (log.statuses[-1] if log.statuses else "none"),
+            solver_status=candidate.solver_status
+            if candidate is not None
+            else (log.statuses[-1] if log.statuses else "none"),
             solve_time=log.solve_time,
             max_eigenvalue=max_eig,
             eigenvalues_P=None if P is None else frozen_copy(np.linalg.eigvalsh(P)),

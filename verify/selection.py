@@ -460,8 +460,13 @@ class ModelSelector:
         data = HypothesisData(self._structures[m], self._X[:n], self._U[:n], self._Xn[:n])
         initial = np.union1d(self._active[m], [newest])
         verdict = _decide(
-            m, data, initial=initial, tolerance=self._tolerance, max_rounds=self._max_rounds,
-            allowance=self._allowance, noise=self._noise,
+            m,
+            data,
+            initial=initial,
+            tolerance=self._tolerance,
+            max_rounds=self._max_rounds,
+            allowance=self._allowance,
+            noise=self._noise,
         )
         self._solves += 1
         self._margins[m] = verdict.margin

@@ -28,8 +28,10 @@ def test_maximum_and_minimum_are_numpys(a, b):
 
 def _brute_force_gap_sq(lower, upper, other_lower, other_upper, n=13):
     """The smallest squared distance between two grids of the boxes (exact when the closest points are on them)."""
-    grid = [np.array(list(itertools.product(*[np.linspace(a, b, n) for a, b in zip(lo, hi)])))
-            for lo, hi in ((lower, upper), (other_lower, other_upper))]
+    grid = [
+        np.array(list(itertools.product(*[np.linspace(a, b, n) for a, b in zip(lo, hi)])))
+        for lo, hi in ((lower, upper), (other_lower, other_upper))
+    ]
     diff = grid[0][:, None, :] - grid[1][None, :, :]
     return np.min(np.einsum("...i,...i->...", diff, diff))
 

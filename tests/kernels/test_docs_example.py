@@ -19,6 +19,13 @@ def test_speed_limit_example_runs_as_printed(tmp_path):
     (tmp_path / "speed_limit_reward.py").write_text(module)
     (tmp_path / "usage.py").write_text(usage)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba_cache"), "PYTHONPATH": str(tmp_path)}
-    out = subprocess.run([sys.executable, str(tmp_path / "usage.py")], cwd=tmp_path, env=env, check=True,
-                         capture_output=True, text=True, timeout=600).stdout
+    out = subprocess.run(
+        [sys.executable, str(tmp_path / "usage.py")],
+        cwd=tmp_path,
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    ).stdout
     assert out.splitlines() == ["0.5 False", "True False"]

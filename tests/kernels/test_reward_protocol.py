@@ -34,7 +34,11 @@ def test_sources_digest_follows_file_contents(tmp_path):
 
 def test_minimum_sources_name_the_kernels_files_and_the_family_module():
     for params_type in (compiled_rewards.GoalParams, compiled_rewards.SpeedLaneParams):
-        assert minimum_sources(params_type) == [reward_protocol.__file__, box_primitives.__file__, compiled_rewards.__file__]
+        assert minimum_sources(params_type) == [
+            reward_protocol.__file__,
+            box_primitives.__file__,
+            compiled_rewards.__file__,
+        ]
 
 
 def test_registered_extra_sources_join_the_key_and_unknown_types_are_rejected(tmp_path):
@@ -51,7 +55,9 @@ def test_registered_extra_sources_join_the_key_and_unknown_types_are_rejected(tm
         patch.setitem(__import__("sys").modules, "user_rewards", module)
         assert minimum_sources(params_type)[2:] == [module.__file__, str(helper)]
     interactive = register_reward_params(namedtuple("InteractiveParams", ["limit"], module="__no_such_module__"))
-    with pytest.raises(TypeError, match="InteractiveParams is defined in module '__no_such_module__', which has no source file"):
+    with pytest.raises(
+        TypeError, match="InteractiveParams is defined in module '__no_such_module__', which has no source file"
+    ):
         minimum_sources(interactive)
 
 
@@ -72,7 +78,9 @@ def test_the_numpy_facing_loop_is_keyed_by_the_sources_it_calls():
 
 def test_box_minima_broadcasts_boxes_and_times():
     moving = MovingObstacles([[0.0, 0.0]], [[1.0, 0.0]], [0.3], velocity_uncertainty=0.2, dt=0.5)
-    reward = GoalReward([4.0, 4.0], obstacles=CircularObstacles([[2.0, 2.0]], [0.5]), moving_obstacles=moving, robot_radius=0.3)
+    reward = GoalReward(
+        [4.0, 4.0], obstacles=CircularObstacles([[2.0, 2.0]], [0.5]), moving_obstacles=moving, robot_radius=0.3
+    )
     rng = np.random.default_rng(1)
     lower = rng.uniform(-1, 3, (3, 4, 2))
     upper = lower.max(axis=0, keepdims=True) + rng.uniform(0, 1, (1, 4, 2))  # (1, 4, 2) broadcasts against lower

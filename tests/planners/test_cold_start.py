@@ -95,7 +95,9 @@ def test_the_search_kernel_announces_itself_before_any_call(recorder, empty_cach
 def test_the_reward_kernel_announces_itself(recorder, empty_cache):
     stack_rewards_kernel.__wrapped__(GoalParams)
     assert len(recorder.entries) == 1
-    assert recorder.entries[0][1].startswith("INFO compiling the interval model's pessimistic-reward kernel for GoalParams")
+    assert recorder.entries[0][1].startswith(
+        "INFO compiling the interval model's pessimistic-reward kernel for GoalParams"
+    )
 
 
 def test_a_cached_kernel_is_only_a_debug_record(recorder, monkeypatch, tmp_path):
@@ -132,8 +134,11 @@ def test_cached_kernels_close_over_plain_digests_only():
 
     kernels = [box_kernels.substep, box_kernels.propagate]
     for params_type in (GoalParams, SpeedLaneParams):
-        kernels += [compiled_search.search_kernel(params_type), stack_rewards_kernel(params_type),
-                    box_minima_kernel(params_type)]
+        kernels += [
+            compiled_search.search_kernel(params_type),
+            stack_rewards_kernel(params_type),
+            box_minima_kernel(params_type),
+        ]
     for kernel in kernels:
         cells = [cell.cell_contents for cell in kernel.py_func.__closure__ or ()]
         assert cells and all(type(value) is int for value in cells), (kernel.py_func.__qualname__, cells)

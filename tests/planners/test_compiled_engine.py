@@ -38,17 +38,32 @@ def random_reward(rng, kind, near):
     moving = None
     if kind in ("goal_moving", "speed_2"):
         moving = MovingObstacles(
-            near + rng.uniform(-2, 2, (2, 2)), rng.uniform(-1, 1, (2, 2)), [0.2, 0.3],
-            velocity_uncertainty=0.1, position_uncertainty=0.05, dt=0.1, time0=int(rng.integers(0, 3)),
+            near + rng.uniform(-2, 2, (2, 2)),
+            rng.uniform(-1, 1, (2, 2)),
+            [0.2, 0.3],
+            velocity_uncertainty=0.1,
+            position_uncertainty=0.05,
+            dt=0.1,
+            time0=int(rng.integers(0, 3)),
         )
     radius = float(rng.uniform(0, 0.3))
     if kind.startswith("goal"):
-        return GoalReward(near + rng.uniform(-4, 4, 2), obstacles=obstacles, moving_obstacles=moving, robot_radius=radius)
+        return GoalReward(
+            near + rng.uniform(-4, 4, 2), obstacles=obstacles, moving_obstacles=moving, robot_radius=radius
+        )
     speed = (2,) if kind == "speed_1" else (2, 3)
     return SpeedLaneReward(
-        float(rng.uniform(-1, 2)), float(rng.uniform(0.2, 2)), speed_indices=speed, lateral_index=1,
-        lane_width=float(rng.uniform(0.5, 2)), n_lanes=int(rng.integers(2, 4)), speed_weight=0.7, lane_weight=0.3,
-        obstacles=obstacles, moving_obstacles=moving, robot_radius=radius,
+        float(rng.uniform(-1, 2)),
+        float(rng.uniform(0.2, 2)),
+        speed_indices=speed,
+        lateral_index=1,
+        lane_width=float(rng.uniform(0.5, 2)),
+        n_lanes=int(rng.integers(2, 4)),
+        speed_weight=0.7,
+        lane_weight=0.3,
+        obstacles=obstacles,
+        moving_obstacles=moving,
+        robot_radius=radius,
     )
 
 
@@ -60,8 +75,9 @@ def both_engines(models, root, gamma, budget):
     return decisions, (tree_arrays(compiled), tree_arrays(python)), (compiled.tree, python.tree)
 
 
-@given(seeds, st.integers(1, 3), st.integers(1, 3), st.sampled_from(REWARD_KINDS), st.integers(1, 40),
-       st.floats(0.5, 0.95))
+@given(
+    seeds, st.integers(1, 3), st.integers(1, 3), st.sampled_from(REWARD_KINDS), st.integers(1, 40), st.floats(0.5, 0.95)
+)
 def test_compiled_engine_builds_the_python_engines_tree(seed, n_models, substeps, kind, budget, gamma):
     rng = np.random.default_rng(seed)
     system = random_system(rng, p=4)
@@ -83,11 +99,13 @@ def test_compiled_engine_covers_collisions_and_terminated_models():
         system = random_system(rng, p=4)
         hypotheses = [(system, None), (random_system(rng, p=4, q=system.ninputs), None)]
         centre = rng.uniform(-3, 3, 4)
-        models = IntervalModel.linked(hypotheses, random_reward(rng, "goal_moving", centre[:2]), random_controllers(rng, system))
+        models = IntervalModel.linked(
+            hypotheses, random_reward(rng, "goal_moving", centre[:2]), random_controllers(rng, system)
+        )
         root = models[0].initial_state(centre - 0.05, centre + 0.05)
         (fast, general), (fast_tree, general_tree), (tree, _) = both_engines(models, root, 0.9, 30)
         assert fast == general and fast_tree == general_tree
-        terminal = tree.terminal[:tree.size]
+        terminal = tree.terminal[: tree.size]
         terminal_trees += bool(terminal.any())
         partial += bool((terminal.any(axis=1) & ~terminal.all(axis=1)).any())
     assert terminal_trees >= 10 and partial >= 3, (terminal_trees, partial)
@@ -109,9 +127,14 @@ def test_numpy_rewards_on_the_python_engine_give_the_compiled_tree(seed, kind, s
     controllers = random_controllers(rng, system)
     compiled_models = IntervalModel.linked([(system, None)] * 2, reward, controllers, substeps=substeps)
     numpy_models = IntervalModel.linked([(system, None)] * 2, _NumpyReward(reward), controllers, substeps=substeps)
-    planners = [RobustTreePlanner(models, models[0].actions, gamma=0.85, budget=20) for models in (compiled_models, numpy_models)]
-    decisions = [planner.plan(models[0].initial_state(centre - 0.05, centre + 0.05))
-                 for planner, models in zip(planners, (compiled_models, numpy_models))]
+    planners = [
+        RobustTreePlanner(models, models[0].actions, gamma=0.85, budget=20)
+        for models in (compiled_models, numpy_models)
+    ]
+    decisions = [
+        planner.plan(models[0].initial_state(centre - 0.05, centre + 0.05))
+        for planner, models in zip(planners, (compiled_models, numpy_models))
+    ]
     assert [planner.engine_used for planner in planners] == ["compiled", "python"]
     assert decisions[0] == decisions[1]
     assert tree_arrays(planners[0]) == tree_arrays(planners[1])
@@ -138,7 +161,9 @@ def overflowing_models():
     A0[0, 1] = 0.0
     phi = np.zeros((1, 4, 4))
     phi[0, 2, 2] = 1.0
-    system = UncertainLinearSystem(A0, phi, np.eye(4)[:, :2], D=np.eye(4)[:, :1], w=Box([0.0], [0.0]), theta=Box([0.0], [0.1]))
+    system = UncertainLinearSystem(
+        A0, phi, np.eye(4)[:, :2], D=np.eye(4)[:, :1], w=Box([0.0], [0.0]), theta=Box([0.0], [0.1])
+    )
     reward = GoalReward([0.0, 0.0])
     return IntervalModel.linked([(system, None)], reward, [OpenLoop([0.0, 0.0]), OpenLoop([1.0, 0.0])])
 
@@ -149,7 +174,9 @@ def test_a_reward_outside_the_unit_interval_raises_the_same_error_on_both_engine
     messages = []
     for engine in ("compiled", "python"):
         planner = RobustTreePlanner(models, models[0].actions, gamma=0.9, budget=10, engine=engine)
-        with pytest.raises(RewardRangeError, match=r"models\[0\] returned reward nan for action 0 \(index 0\)") as error:
+        with pytest.raises(
+            RewardRangeError, match=r"models\[0\] returned reward nan for action 0 \(index 0\)"
+        ) as error:
             planner.plan(root)
         messages.append(str(error.value))
     assert messages[0] == messages[1]
@@ -165,11 +192,18 @@ def test_engine_validation():
     with pytest.raises(InputError, match="engine='compiled' needs the models of one IntervalModel.linked group"):
         RobustTreePlanner(models[::-1], models[0].actions, gamma=0.9, budget=5, engine="compiled")
     with pytest.raises(InputError, match="kernel_params"):
-        numpy_models = IntervalModel.linked([(system, None)], _NumpyReward(reward), [OpenLoop(np.zeros(system.ninputs))])
+        numpy_models = IntervalModel.linked(
+            [(system, None)], _NumpyReward(reward), [OpenLoop(np.zeros(system.ninputs))]
+        )
         RobustTreePlanner(numpy_models, (0,), gamma=0.9, budget=5, engine="compiled")
     with pytest.raises(InputError, match="engine='compiled' needs the models"):
-        RobustTreePlanner([PointModel(system, system.theta.center, reward, [OpenLoop(np.zeros(system.ninputs))])], (0,), gamma=0.9, budget=5,
-                          engine="compiled")
+        RobustTreePlanner(
+            [PointModel(system, system.theta.center, reward, [OpenLoop(np.zeros(system.ninputs))])],
+            (0,),
+            gamma=0.9,
+            budget=5,
+            engine="compiled",
+        )
     planner = RobustTreePlanner(models, models[0].actions, gamma=0.9, budget=5, engine="compiled")
     roots = [models[0].initial_state(np.zeros(4)), models[0].initial_state(np.ones(4))]
     with pytest.raises(InputError, match="one initial state shared by every model"):
@@ -189,7 +223,9 @@ def test_a_pickled_planner_plans_alike_in_another_process_state():
     rng = np.random.default_rng(5)
     system = random_system(rng, p=4)
     centre = rng.uniform(-3, 3, 4)
-    models = IntervalModel.linked([(system, None)] * 2, random_reward(rng, "speed_2", centre[:2]), random_controllers(rng, system))
+    models = IntervalModel.linked(
+        [(system, None)] * 2, random_reward(rng, "speed_2", centre[:2]), random_controllers(rng, system)
+    )
     planner = RobustTreePlanner(models, models[0].actions, gamma=0.9, budget=20)
     root = models[0].initial_state(centre - 0.05, centre + 0.05)
     decision = planner.plan(root)
@@ -211,7 +247,12 @@ def test_compiled_kernels_are_keyed_by_the_sources_they_call():
         assert compiled_rewards.__file__ in minimum_sources(params_type)
         assert box_primitives.__file__ in minimum_sources(params_type)
         assert sources_digest(box_kernels.__file__, *minimum_sources(params_type)) in closure_values(rewards)
-        search_sources = (compiled_search.__file__, tree_ops.__file__, box_kernels.__file__, *minimum_sources(params_type))
+        search_sources = (
+            compiled_search.__file__,
+            tree_ops.__file__,
+            box_kernels.__file__,
+            *minimum_sources(params_type),
+        )
         assert sources_digest(*search_sources) in closure_values(search)
     # the box transition inlines the box primitives: its kernels close over their digest too
     for kernel in (box_kernels.substep, box_kernels.propagate):
@@ -252,7 +293,9 @@ def test_kernel_params_without_a_registered_minimum_are_rejected():
     class Unregistered(_NumpyReward):
         kernel_params = namedtuple("SomethingElse", ["goal"])(np.zeros(2))
 
-    with pytest.raises(InputError, match="reward.kernel_params has type SomethingElse, for which no compiled box minimum"):
+    with pytest.raises(
+        InputError, match="reward.kernel_params has type SomethingElse, for which no compiled box minimum"
+    ):
         IntervalModel(system, None, Unregistered(GoalReward([0.0, 0.0])), [OpenLoop(np.zeros(system.ninputs))])
 
 
@@ -267,8 +310,11 @@ def test_budgets_beyond_the_first_arrays_grow_them_on_both_engines_without_alloc
     (fast, general), (fast_tree, general_tree), (tree, _) = both_engines(models, root, 0.99, 2500)
     assert fast == general and fast_tree == general_tree and tree.size == 5001 > 4096
     # a huge budget is not allocated up front: a search solved at once stays small
-    stuck = IntervalModel.linked([(system, None)], GoalReward([0.0, 0.0], obstacles=CircularObstacles([[0.0, 0.0]], [1.0])),
-                                 [OpenLoop(np.zeros(system.ninputs))] * 4)
+    stuck = IntervalModel.linked(
+        [(system, None)],
+        GoalReward([0.0, 0.0], obstacles=CircularObstacles([[0.0, 0.0]], [1.0])),
+        [OpenLoop(np.zeros(system.ninputs))] * 4,
+    )
     planner = RobustTreePlanner(stuck, stuck[0].actions, gamma=0.9, budget=10**7, engine="compiled")
     tracemalloc.start()
     try:

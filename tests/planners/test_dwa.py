@@ -18,8 +18,12 @@ finite = dict(allow_nan=False, allow_infinity=False)
 thetas = st.tuples(st.floats(0.2, 0.8, **finite), st.floats(0.2, 0.8, **finite))
 
 
-@given(theta=thetas, heading=st.floats(-np.pi, np.pi, **finite), distance=st.floats(14, 18, **finite),
-       seed=st.integers(0, 10_000))
+@given(
+    theta=thetas,
+    heading=st.floats(-np.pi, np.pi, **finite),
+    distance=st.floats(14, 18, **finite),
+    seed=st.integers(0, 10_000),
+)
 @settings(max_examples=10)
 def test_reaches_the_goal_in_an_empty_arena(theta, heading, distance, seed):
     start = np.array([10.0, 10.0]) - distance / 2 * np.array([np.cos(heading), np.sin(heading)])
@@ -60,11 +64,19 @@ def _independent_stopping_path(system, x, u, substeps, brake_steps):
 
 
 @given(
-    vx=st.floats(-2, 2, **finite), vy=st.floats(-2, 2, **finite),
-    obstacles=st.lists(st.tuples(st.floats(-4, 4, **finite), st.floats(-4, 4, **finite), st.floats(0.4, 1.2, **finite)),
-                       min_size=1, max_size=6),
-    pedestrian=st.tuples(st.floats(-5, 5, **finite), st.floats(-5, 5, **finite),
-                         st.floats(-1.5, 1.5, **finite), st.floats(-1.5, 1.5, **finite)),
+    vx=st.floats(-2, 2, **finite),
+    vy=st.floats(-2, 2, **finite),
+    obstacles=st.lists(
+        st.tuples(st.floats(-4, 4, **finite), st.floats(-4, 4, **finite), st.floats(0.4, 1.2, **finite)),
+        min_size=1,
+        max_size=6,
+    ),
+    pedestrian=st.tuples(
+        st.floats(-5, 5, **finite),
+        st.floats(-5, 5, **finite),
+        st.floats(-1.5, 1.5, **finite),
+        st.floats(-1.5, 1.5, **finite),
+    ),
     goal=st.tuples(st.floats(-10, 10, **finite), st.floats(-10, 10, **finite)),
 )
 @settings(max_examples=60)
@@ -118,21 +130,47 @@ def test_fallback_escapes_when_nothing_is_admissible():
     "make, error, message",
     [
         (lambda: NavigationScene([0.0]), DimensionError, r"goal must have shape \(2,\), got shape \(1,\)"),
-        (lambda: NavigationScene([0, 0], [[1, 1]], [1, 2]), DimensionError, r"obstacle_radii must have shape \(1,\), got shape \(2,\)"),
+        (
+            lambda: NavigationScene([0, 0], [[1, 1]], [1, 2]),
+            DimensionError,
+            r"obstacle_radii must have shape \(1,\), got shape \(2,\)",
+        ),
         (lambda: NavigationScene([0, 0], [[1, 1]], [-1.0]), InputError, "obstacle_radii must be > 0"),
         (lambda: NavigationScene([0, 0], [[1, 1]]), InputError, "obstacle_radii is required"),
-        (lambda: NavigationScene([0, 0], [[1, 1, 1]], [1.0]), DimensionError, r"obstacle_centers must have shape \(\*, 2\)"),
-        (lambda: NavigationScene([0, 0], None, None, [[1, 1]], [[0, 0], [0, 0]], [0.3]), DimensionError,
-         r"pedestrian_velocities must have shape \(1, 2\), got shape \(2, 2\)"),
+        (
+            lambda: NavigationScene([0, 0], [[1, 1, 1]], [1.0]),
+            DimensionError,
+            r"obstacle_centers must have shape \(\*, 2\)",
+        ),
+        (
+            lambda: NavigationScene([0, 0], None, None, [[1, 1]], [[0, 0], [0, 0]], [0.3]),
+            DimensionError,
+            r"pedestrian_velocities must have shape \(1, 2\), got shape \(2, 2\)",
+        ),
         (lambda: NavigationScene([np.nan, 0]), NonFiniteError, "goal contains NaN"),
         (lambda: DWAParameters(samples_per_axis=1), InputError, "samples_per_axis must be an integer >= 2"),
-        (lambda: DWAParameters(samples_per_axis=3.0), InputError, r"samples_per_axis must be an integer >= 2, got 3\.0"),
-        (lambda: DynamicWindowPlanner(robot_system(), substeps=2.5), InputError, r"substeps must be a positive integer, got 2\.5"),
-        (lambda: DynamicWindowPlanner(random_system(np.random.default_rng(0), p=3, q=2, d=1)), DimensionError,
-         r"system must have 4 states and 2 inputs .*got 3 states and 2 inputs \(B of shape \(3, 2\)\)"),
+        (
+            lambda: DWAParameters(samples_per_axis=3.0),
+            InputError,
+            r"samples_per_axis must be an integer >= 2, got 3\.0",
+        ),
+        (
+            lambda: DynamicWindowPlanner(robot_system(), substeps=2.5),
+            InputError,
+            r"substeps must be a positive integer, got 2\.5",
+        ),
+        (
+            lambda: DynamicWindowPlanner(random_system(np.random.default_rng(0), p=3, q=2, d=1)),
+            DimensionError,
+            r"system must have 4 states and 2 inputs .*got 3 states and 2 inputs \(B of shape \(3, 2\)\)",
+        ),
         (lambda: DWAParameters(horizon=0.0), InputError, "horizon must be > 0"),
         (lambda: DynamicWindowPlanner("system"), InputError, "system must be an UncertainLinearSystem"),
-        (lambda: DynamicWindowPlanner(robot_system(isotropic=True), theta=[0.5, 0.5]), DimensionError, r"theta must have shape \(1,\)"),
+        (
+            lambda: DynamicWindowPlanner(robot_system(isotropic=True), theta=[0.5, 0.5]),
+            DimensionError,
+            r"theta must have shape \(1,\)",
+        ),
         (lambda: DynamicWindowPlanner(robot_system(), substeps=0), InputError, "substeps must be a positive integer"),
         (lambda: DynamicWindowPlanner(robot_system(), params={}), InputError, "params must be a DWAParameters"),
     ],

@@ -28,12 +28,28 @@ def random_goal_reward(rng, with_moving):
     obstacles = CircularObstacles(rng.uniform(-3, 3, (n, 2)), rng.uniform(0.1, 1.0, n))
     moving = None
     if with_moving:
-        moving = MovingObstacles(rng.uniform(-3, 3, (2, 2)), rng.uniform(-1, 1, (2, 2)), [0.2, 0.3], velocity_uncertainty=0.1, dt=0.1)
-    return GoalReward(rng.uniform(-4, 4, 2), obstacles=obstacles, moving_obstacles=moving, robot_radius=float(rng.uniform(0, 0.4)))
+        moving = MovingObstacles(
+            rng.uniform(-3, 3, (2, 2)), rng.uniform(-1, 1, (2, 2)), [0.2, 0.3], velocity_uncertainty=0.1, dt=0.1
+        )
+    return GoalReward(
+        rng.uniform(-4, 4, 2), obstacles=obstacles, moving_obstacles=moving, robot_radius=float(rng.uniform(0, 0.4))
+    )
 
 
-TREE_FIELDS = ("returns", "terminal", "parent", "action", "depth", "first_child", "lower", "upper", "leaf_lower",
-               "leaf_upper", "expanded", "any_terminated")
+TREE_FIELDS = (
+    "returns",
+    "terminal",
+    "parent",
+    "action",
+    "depth",
+    "first_child",
+    "lower",
+    "upper",
+    "leaf_lower",
+    "leaf_upper",
+    "expanded",
+    "any_terminated",
+)
 
 
 def tree_arrays(planner):
@@ -88,7 +104,9 @@ def test_batched_box_minimum_equals_each_box_alone(seed, with_moving, spread, t)
     # boxes clustered around a point near an obstacle's reach
     centre = reward.obstacles.centers[0] + rng.normal(size=2) * (reward.obstacles.radii[0] + reward.robot_radius + 0.2)
     shape = (int(rng.integers(1, 4)), int(rng.integers(1, 5)))
-    lower = np.concatenate([centre + rng.uniform(-spread, spread, shape + (2,)), rng.uniform(-1, 1, shape + (2,))], axis=-1)
+    lower = np.concatenate(
+        [centre + rng.uniform(-spread, spread, shape + (2,)), rng.uniform(-1, 1, shape + (2,))], axis=-1
+    )
     upper = lower + rng.uniform(0, spread / 4, shape + (4,))
     minimum, collided = reward.box_minimum_raw(lower, upper, t)
     assert minimum.shape == collided.shape == shape and collided.dtype == bool

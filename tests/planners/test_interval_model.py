@@ -1,6 +1,5 @@
 """IntervalModel, PointModel, controllers and the comparison factories."""
 
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -37,8 +36,6 @@ class UnboundedReward:
 
     def box_minimum(self, lower, upper, t):
         return self.inner.box_minimum(lower, upper, t)
-
-
 
 
 # ------------------------------------------------------------------ inclusion
@@ -144,8 +141,10 @@ def test_expand_equals_repeated_step_and_rollout(seed, substeps):
         current, r, term = model.step(current, a)
         np.testing.assert_allclose(current.lower, lower[(n + 1) * substeps], **same)
         assert r == pytest.approx(roll_rewards[n], abs=1e-13) and term == roll_terminals[n]
-        sub_minima = [reward.box_minimum(lower[n * substeps + s], upper[n * substeps + s], 3 + n * substeps + s)[0]
-                      for s in range(1, substeps + 1)]
+        sub_minima = [
+            reward.box_minimum(lower[n * substeps + s], upper[n * substeps + s], 3 + n * substeps + s)[0]
+            for s in range(1, substeps + 1)
+        ]
         assert r == pytest.approx(min(sub_minima), abs=0)
 
 
@@ -241,7 +240,9 @@ def test_interval_model_validation():
         IntervalModel("plant", None, reward, ROBOT_ACTIONS)
     with pytest.raises(InputError, match="reward must have a callable box_minimum"):
         IntervalModel(system, None, object(), ROBOT_ACTIONS)
-    with pytest.raises(DimensionError, match="reward reads state coordinates up to index 5, but the system has 4 states"):
+    with pytest.raises(
+        DimensionError, match="reward reads state coordinates up to index 5, but the system has 4 states"
+    ):
         IntervalModel(system, None, GoalReward([1.0, 1.0], position_indices=(5, 0)), ROBOT_ACTIONS)
     with pytest.raises(InputError, match="substeps must be a positive integer, got 0"):
         IntervalModel(system, None, reward, ROBOT_ACTIONS, substeps=0)
@@ -328,7 +329,9 @@ def test_linked_models_equal_separate_models(seed, substeps):
     rng = np.random.default_rng(seed)
     hypotheses = _hypotheses(rng, int(rng.integers(2, 4)))
     controllers = systems.random_controllers(rng, hypotheses[0], n=3)
-    reward = GoalReward([2.0, 2.0], obstacles=CircularObstacles(rng.uniform(-3, 3, (5, 2)), np.full(5, 0.4)), robot_radius=0.2)
+    reward = GoalReward(
+        [2.0, 2.0], obstacles=CircularObstacles(rng.uniform(-3, 3, (5, 2)), np.full(5, 0.4)), robot_radius=0.2
+    )
     linked = IntervalModel.linked([(h, h.theta) for h in hypotheses], reward, controllers, substeps=substeps)
     separate = [IntervalModel(h, h.theta, reward, controllers, substeps=substeps) for h in hypotheses]
     assert [m.n_linked for m in linked] == [len(hypotheses)] * len(hypotheses) and separate[0].n_linked == 1
@@ -397,7 +400,10 @@ def test_controllers_to_dict_and_box_state():
     feedback = LinearFeedback(np.eye(2), [1.0, -1.0], u_low=-0.5)
     data = json.loads(json.dumps(feedback.to_dict(), allow_nan=False))
     assert data["u_low"] == [-0.5, -0.5] and data["u_high"] == [None, None] and data["kind"] == "linear_feedback"
-    assert json.loads(json.dumps(OpenLoop([1.0, 0.0]).to_dict(), allow_nan=False)) == {"kind": "open_loop", "u": [1.0, 0.0]}
+    assert json.loads(json.dumps(OpenLoop([1.0, 0.0]).to_dict(), allow_nan=False)) == {
+        "kind": "open_loop",
+        "u": [1.0, 0.0],
+    }
     state = BoxState(np.zeros(2), np.ones(2), 3)
     lower, upper, time = state
     np.testing.assert_array_equal(state.z, [0.0, 0.0, 1.0, 1.0])

@@ -37,17 +37,25 @@ def exact_trajectory(matrix, x0, steps):
 def assert_contains_exactly(lower, upper, trajectory):
     for n, x in enumerate(trajectory):
         for i, value in enumerate(x):
-            assert Fraction(lower[n, i]) <= value <= Fraction(upper[n, i]), (n, i, lower[n, i], float(value), upper[n, i])
+            assert Fraction(lower[n, i]) <= value <= Fraction(upper[n, i]), (
+                n,
+                i,
+                lower[n, i],
+                float(value),
+                upper[n, i],
+            )
 
 
 def system_with(A0):
     """``x+ = A0 x + u`` with no parameter effect and no disturbance (one dummy parameter)."""
-    return UncertainLinearSystem(A0, np.zeros((1, 2, 2)), np.eye(2), D=np.eye(2), w=Box([0.0, 0.0], [0.0, 0.0]),
-                                 theta=Box([0.0], [1.0]))
+    return UncertainLinearSystem(
+        A0, np.zeros((1, 2, 2)), np.eye(2), D=np.eye(2), w=Box([0.0, 0.0], [0.0, 0.0]), theta=Box([0.0], [1.0])
+    )
 
 
-points = st.lists(st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False, allow_subnormal=False), min_size=2,
-                  max_size=2)
+points = st.lists(
+    st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False, allow_subnormal=False), min_size=2, max_size=2
+)
 
 
 @given(points)

@@ -39,8 +39,11 @@ def test_band_cost_gradient_matches_finite_differences(seed, n, k):
     assert np.max(np.abs(grad - numeric)) <= 1e-4 * scale
 
 
-@given(theta=st.tuples(st.floats(0.2, 0.8, **finite), st.floats(0.2, 0.8, **finite)),
-       heading=st.floats(-np.pi, np.pi, **finite), seed=st.integers(0, 10_000))
+@given(
+    theta=st.tuples(st.floats(0.2, 0.8, **finite), st.floats(0.2, 0.8, **finite)),
+    heading=st.floats(-np.pi, np.pi, **finite),
+    seed=st.integers(0, 10_000),
+)
 @settings(max_examples=4)
 def test_reaches_the_goal_in_an_empty_arena(theta, heading, seed):
     direction = np.array([np.cos(heading), np.sin(heading)])
@@ -113,11 +116,22 @@ def test_pedestrian_moving_into_the_route_bends_the_band():
         (lambda: TEBParameters(min_poses=2.5), InputError, r"min_poses must be a positive integer, got 2\.5"),
         (lambda: TEBParameters(obstacle_weight=-1.0), InputError, "obstacle_weight must be > 0"),
         (lambda: TimedElasticBand(None), InputError, "system must be an UncertainLinearSystem"),
-        (lambda: TimedElasticBand(robot_system(), theta=[0.5]), DimensionError, r"theta must have shape \(2,\), got shape \(1,\)"),
+        (
+            lambda: TimedElasticBand(robot_system(), theta=[0.5]),
+            DimensionError,
+            r"theta must have shape \(2,\), got shape \(1,\)",
+        ),
         (lambda: TimedElasticBand(robot_system(), params=None), InputError, "params must be a TEBParameters"),
-        (lambda: TimedElasticBand(robot_system()).plan(np.zeros(3), NavigationScene([1.0, 1.0])), DimensionError,
-         r"state must have shape \(4,\), got shape \(3,\)"),
-        (lambda: TimedElasticBand(robot_system()).plan(np.zeros(4), [1.0, 1.0]), InputError, "scene must be a NavigationScene"),
+        (
+            lambda: TimedElasticBand(robot_system()).plan(np.zeros(3), NavigationScene([1.0, 1.0])),
+            DimensionError,
+            r"state must have shape \(4,\), got shape \(3,\)",
+        ),
+        (
+            lambda: TimedElasticBand(robot_system()).plan(np.zeros(4), [1.0, 1.0]),
+            InputError,
+            "scene must be a NavigationScene",
+        ),
     ],
 )
 def test_rejects_bad_input(make, error, message):

@@ -19,7 +19,6 @@ bound `Decision.lower` (checked), so the test says: the guaranteed value that th
 planner reports is never more than what any admissible realisation collects.
 """
 
-
 import numpy as np
 import pytest
 from hypothesis import given, settings

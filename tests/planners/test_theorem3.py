@@ -61,7 +61,7 @@ class Game:
             total, done = 0.0, False
             for n in range(len(path)):
                 r = 0.0 if done else model.rewards[path[: n + 1]]
-                total = total + (self.gamma ** n) * r
+                total = total + (self.gamma**n) * r
                 done = done or model.terminals[path[: n + 1]]
             out.append(total)
         return out
@@ -79,7 +79,7 @@ class Game:
 
     def internal_nodes(self) -> int:
         """Number of nodes of depth < H (an upper bound on useful expansions)."""
-        return sum(self.n_actions ** depth for depth in range(self.horizon))
+        return sum(self.n_actions**depth for depth in range(self.horizon))
 
 
 @st.composite
@@ -176,7 +176,7 @@ def test_gap_is_at_most_the_tail_below_the_deepest_expanded_node(game, fraction)
     deepest_expanded = max(int(tree.depth[i]) for i in tree.expanded)
     assert deepest_expanded == decision.depth - 1
     rounding = 4 * np.finfo(float).eps / (1.0 - game.gamma)
-    assert decision.upper - decision.lower <= game.gamma ** deepest_expanded / (1.0 - game.gamma) + rounding
+    assert decision.upper - decision.lower <= game.gamma**deepest_expanded / (1.0 - game.gamma) + rounding
 
 
 @given(game=games(), fraction=budgets())
@@ -191,7 +191,7 @@ def test_best_sequence_attains_the_root_lower_bound(game, fraction):
         total, done = 0.0, False
         for n in range(len(path)):
             r = 0.0 if done else model.rewards[path[: n + 1]]
-            total = total + (game.gamma ** n) * r
+            total = total + (game.gamma**n) * r
             done = done or model.terminals[path[: n + 1]]
         collected.append(total)
     assert min(collected) == decision.lower
@@ -211,7 +211,7 @@ def test_single_branch_of_ones_reference_values():
     decision = planner.plan(0)
     expected_lower = 0.0
     for n in range(budget):
-        expected_lower = expected_lower + gamma ** n * 1.0
+        expected_lower = expected_lower + gamma**n * 1.0
     assert decision.action == 1
     assert decision.depth == budget
     assert decision.sequence == (1,) * budget

@@ -141,8 +141,18 @@ def test_expand_protocol_and_step_build_identical_trees(problem, budget):
     batched_tree, batched_decision, batched_models = run(problem, budget, BatchedPathModel)
     assert decision.to_dict() == batched_decision.to_dict()
     assert tree.size == batched_tree.size
-    for name in ("parent", "action", "depth", "first_child", "returns", "terminal",
-                 "leaf_lower", "leaf_upper", "lower", "upper"):
+    for name in (
+        "parent",
+        "action",
+        "depth",
+        "first_child",
+        "returns",
+        "terminal",
+        "leaf_lower",
+        "leaf_upper",
+        "lower",
+        "upper",
+    ):
         assert np.array_equal(getattr(tree, name)[: tree.size], getattr(batched_tree, name)[: tree.size]), name
     assert tree.states == batched_tree.states
     # The batched protocol is used whenever it exists: no single steps at all.
@@ -154,8 +164,9 @@ def test_expand_protocol_and_step_build_identical_trees(problem, budget):
 def test_identical_models_reduce_to_optimistic_planning(problem, copies, budget):
     # min over M copies of one model is that model: the robust search is OPD.
     seeds, n_actions, horizon, p_terminal, gamma = problem
-    robust = RobustTreePlanner([PathModel(seeds[0], horizon, p_terminal) for _ in range(copies)],
-                               range(n_actions), gamma=gamma, budget=budget)
+    robust = RobustTreePlanner(
+        [PathModel(seeds[0], horizon, p_terminal) for _ in range(copies)], range(n_actions), gamma=gamma, budget=budget
+    )
     opd = OptimisticPlanner(PathModel(seeds[0], horizon, p_terminal), range(n_actions), gamma=gamma, budget=budget)
     assert robust.plan(()).to_dict() == opd.plan(()).to_dict()
     assert np.array_equal(robust.tree.parent, opd.tree.parent)
@@ -176,7 +187,7 @@ def test_optimistic_planner_b_values_are_the_corrected_eq12(problem, budget):
         total, done = 0.0, False
         for n in range(len(path)):
             reward, terminal = model.outcome(path[: n + 1])
-            total = total + gamma ** n * (0.0 if done else reward)
+            total = total + gamma**n * (0.0 if done else reward)
             done = done or terminal
         assert tree.returns[node, 0] == total
         assert tree.leaf_lower[node] == total
@@ -335,12 +346,16 @@ def test_model_without_step():
         RobustTreePlanner([good, object()], [0, 1], gamma=0.9, budget=1)
 
 
-@pytest.mark.parametrize("reward, shown", [(1.5, "1.5"), (-0.01, "-0.01"), (float("nan"), "nan"),
-                                           (float("inf"), "inf")])
+@pytest.mark.parametrize(
+    "reward, shown", [(1.5, "1.5"), (-0.01, "-0.01"), (float("nan"), "nan"), (float("inf"), "inf")]
+)
 def test_reward_outside_unit_interval_names_model_and_action(reward, shown):
     planner = RobustTreePlanner([good, Fixed((0, reward))], ["a", "b"], gamma=0.9, budget=1)
-    with pytest.raises(RewardRangeError, match=rf"models\[1\] returned reward {shown} for action 'a' \(index 0\); "
-                                               r"rewards must be finite and in \[0, 1\]"):
+    with pytest.raises(
+        RewardRangeError,
+        match=rf"models\[1\] returned reward {shown} for action 'a' \(index 0\); "
+        r"rewards must be finite and in \[0, 1\]",
+    ):
         planner.plan(0)
 
 
@@ -351,50 +366,87 @@ def test_reward_out_of_range_from_expand_names_model_and_action():
 
 
 def test_non_numeric_reward():
-    with pytest.raises(RewardRangeError, match=r"models\[0\] returned a non-numeric reward 'high' for action 7 \(index 0\)"):
+    with pytest.raises(
+        RewardRangeError, match=r"models\[0\] returned a non-numeric reward 'high' for action 7 \(index 0\)"
+    ):
         RobustTreePlanner([Fixed((0, "high"))], [7], gamma=0.9, budget=1).plan(0)
     bad = FixedBatch(([0], ["high"], np.array([False])))
     with pytest.raises(RewardRangeError, match=r"models\[0\].expand returned non-numeric rewards \['high'\]"):
         RobustTreePlanner([bad], [7], gamma=0.9, budget=1).plan(0)
 
 
-@pytest.mark.parametrize("outcome, text", [((0,), "a tuple of length 1"), ((0, 0.5, False, None), "a tuple of length 4"),
-                                           ([0, 0.5], "an object of type list"), (0.5, "an object of type float")])
+@pytest.mark.parametrize(
+    "outcome, text",
+    [
+        ((0,), "a tuple of length 1"),
+        ((0, 0.5, False, None), "a tuple of length 4"),
+        ([0, 0.5], "an object of type list"),
+        (0.5, "an object of type float"),
+    ],
+)
 def test_step_with_wrong_arity(outcome, text):
-    with pytest.raises(InputError, match=rf"models\[0\].step\(state, action\) must return \(next_state, reward\) or "
-                                         rf"\(next_state, reward, terminal\), got {text} for action 'x' \(index 0\)"):
+    with pytest.raises(
+        InputError,
+        match=rf"models\[0\].step\(state, action\) must return \(next_state, reward\) or "
+        rf"\(next_state, reward, terminal\), got {text} for action 'x' \(index 0\)",
+    ):
         RobustTreePlanner([Fixed(outcome)], ["x"], gamma=0.9, budget=1).plan(0)
 
 
 def test_step_with_non_boolean_terminal():
-    with pytest.raises(InputError, match=r"models\[0\].step returned terminal='yes' for action 'x' \(index 0\); expected a bool"):
+    with pytest.raises(
+        InputError, match=r"models\[0\].step returned terminal='yes' for action 'x' \(index 0\); expected a bool"
+    ):
         RobustTreePlanner([Fixed((0, 0.5, "yes"))], ["x"], gamma=0.9, budget=1).plan(0)
     # 0/1 integers and numpy booleans are accepted as flags.
     assert RobustTreePlanner([Fixed((0, 0.5, np.True_))], ["x"], gamma=0.9, budget=1).plan(0).solved is False
     assert RobustTreePlanner([Fixed((0, 0.5, 1))], ["x"], gamma=0.9, budget=3).plan(0).solved is True
 
 
-@pytest.mark.parametrize("outcome, error, text", [
-    (([0, 0], np.array([0.5, 0.5])), InputError,
-     r"models\[0\].expand\(state, actions\) must return a tuple \(next_states, rewards, terminals\), got a tuple of length 2"),
-    ((iter([0, 0]), np.array([0.5, 0.5]), np.array([False, False])), InputError,
-     r"models\[0\].expand next_states must be a sequence of 2 states, got list_iterator"),
-    (([0], np.array([0.5, 0.5]), np.array([False, False])), DimensionError,
-     r"models\[0\].expand returned 1 next states for 2 actions"),
-    (([0, 0], np.array([0.5]), np.array([False, False])), DimensionError,
-     r"models\[0\].expand rewards must have shape \(2,\), got shape \(1,\)"),
-    (([0, 0], np.array([0.5, 0.5]), np.array([[False, False]])), DimensionError,
-     r"models\[0\].expand terminals must have shape \(2,\), got shape \(1, 2\)"),
-    (([0, 0], np.array([0.5, 0.5]), np.array([0, 1])), InputError,
-     r"models\[0\].expand terminals must be a bool array, got dtype int"),
-])
+@pytest.mark.parametrize(
+    "outcome, error, text",
+    [
+        (
+            ([0, 0], np.array([0.5, 0.5])),
+            InputError,
+            r"models\[0\].expand\(state, actions\) must return a tuple \(next_states, rewards, terminals\), got a tuple of length 2",
+        ),
+        (
+            (iter([0, 0]), np.array([0.5, 0.5]), np.array([False, False])),
+            InputError,
+            r"models\[0\].expand next_states must be a sequence of 2 states, got list_iterator",
+        ),
+        (
+            ([0], np.array([0.5, 0.5]), np.array([False, False])),
+            DimensionError,
+            r"models\[0\].expand returned 1 next states for 2 actions",
+        ),
+        (
+            ([0, 0], np.array([0.5]), np.array([False, False])),
+            DimensionError,
+            r"models\[0\].expand rewards must have shape \(2,\), got shape \(1,\)",
+        ),
+        (
+            ([0, 0], np.array([0.5, 0.5]), np.array([[False, False]])),
+            DimensionError,
+            r"models\[0\].expand terminals must have shape \(2,\), got shape \(1, 2\)",
+        ),
+        (
+            ([0, 0], np.array([0.5, 0.5]), np.array([0, 1])),
+            InputError,
+            r"models\[0\].expand terminals must be a bool array, got dtype int",
+        ),
+    ],
+)
 def test_expand_protocol_violations(outcome, error, text):
     with pytest.raises(error, match=text):
         RobustTreePlanner([FixedBatch(outcome)], ["a", "b"], gamma=0.9, budget=1).plan(0)
 
 
-@pytest.mark.parametrize("name, value", [("budget", 7), ("gamma", 0.5), ("models", (good,)), ("actions", (0,)),
-                                         ("seed", 1), ("engine", "python")])
+@pytest.mark.parametrize(
+    "name, value",
+    [("budget", 7), ("gamma", 0.5), ("models", (good,)), ("actions", (0,)), ("seed", 1), ("engine", "python")],
+)
 def test_planner_settings_are_read_only(name, value):
     planner = RobustTreePlanner([good], [0, 1], gamma=0.9, budget=3)
     before = getattr(planner, name)

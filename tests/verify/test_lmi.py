@@ -340,9 +340,14 @@ def test_library_lmi_matrix_agrees_with_the_independent_one():
     P, Q0 = P @ P.T, Q0 + Q0.T  # symmetric, as certificates are
     for form in ("continuous", "discrete"):
         # equal up to the association order of the triple products
-        np.testing.assert_allclose(library_lmi_matrix(A, P, Q0, 0.7, D, form), lmi_matrix(form, A, D, P, Q0, 0.7), rtol=1e-14, atol=1e-14)
+        np.testing.assert_allclose(
+            library_lmi_matrix(A, P, Q0, 0.7, D, form), lmi_matrix(form, A, D, P, Q0, 0.7), rtol=1e-14, atol=1e-14
+        )
     np.testing.assert_allclose(
-        library_lmi_matrix(A, P, Q0, 0.7, None, "discrete"), lmi_matrix("discrete", A, np.eye(3), P, Q0, 0.7), rtol=1e-14, atol=1e-14
+        library_lmi_matrix(A, P, Q0, 0.7, None, "discrete"),
+        lmi_matrix("discrete", A, np.eye(3), P, Q0, 0.7),
+        rtol=1e-14,
+        atol=1e-14,
     )
     with pytest.raises(InputError, match=r"form must be one of \('continuous', 'discrete'\), got 'hybrid'"):
         library_lmi_matrix(A, P, Q0, 0.7, D, "hybrid")
@@ -425,7 +430,9 @@ def test_inaccurate_statuses_without_a_proof_are_inconclusive_and_flagged(monkey
     assert "no proof either way" in result.reason and status in result.reason
 
 
-@pytest.mark.parametrize("status", [cp.INFEASIBLE, cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE, cp.SOLVER_ERROR, cp.USER_LIMIT])
+@pytest.mark.parametrize(
+    "status", [cp.INFEASIBLE, cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE, cp.SOLVER_ERROR, cp.USER_LIMIT]
+)
 def test_other_statuses_are_reported_not_raised(monkeypatch, status):
     fake_status(monkeypatch, status)
     result = check_assumption4(UNSTABLE, form="discrete")
@@ -470,7 +477,11 @@ def test_failed_exact_recheck_is_inconclusive(monkeypatch):
         (np.ones((2, 2, 3)), DimensionError, r"got shape \(2, 2, 3\)"),
         (np.ones((0, 2, 2)), DimensionError, r"got shape \(0, 2, 2\)"),
         ([], DimensionError, "at least one matrix"),
-        ([np.eye(2), np.eye(3)], DimensionError, r"A's matrices must all have one shape \(p, p\), got shapes \[\(2, 2\), \(3, 3\)\]"),
+        (
+            [np.eye(2), np.eye(3)],
+            DimensionError,
+            r"A's matrices must all have one shape \(p, p\), got shapes \[\(2, 2\), \(3, 3\)\]",
+        ),
         ([[1.0, "x"], [0.0, 1.0]], InputError, "A must be a real numeric array"),
         (np.array([[1j, 0.0], [0.0, -1.0]]), InputError, "A must be a real numeric array"),
         (np.array([[np.nan, 0.0], [0.0, -1.0]]), NonFiniteError, "A contains NaN"),
@@ -542,7 +553,9 @@ def test_returned_certificate_is_the_one_with_smaller_constants():
         ):
             P, Q0, rho = lmi._certify("discrete", A[None], np.eye(3), None, candidate)
             top = np.linalg.eigvalsh(lmi_matrix("discrete", A, np.eye(3), P, Q0, rho))[-1]
-            other = dataclasses_replace(result, P=P, Q0=Q0, rho=rho, eigenvalues_P=np.linalg.eigvalsh(P), max_eigenvalue=top)
+            other = dataclasses_replace(
+                result, P=P, Q0=Q0, rho=rho, eigenvalues_P=np.linalg.eigvalsh(P), max_eigenvalue=top
+            )
             assert_certificate(other, A, np.eye(3), "discrete")
             assert sum(result.bound_constants()) <= sum(other.bound_constants()) * (1 + 1e-9)
 

@@ -29,7 +29,9 @@ def fractions(M) -> list[list[Fraction]]:
 
 
 def matmul(X, Y):
-    return [[sum((X[i][k] * Y[k][j] for k in range(len(Y))), Fraction(0)) for j in range(len(Y[0]))] for i in range(len(X))]
+    return [
+        [sum((X[i][k] * Y[k][j] for k in range(len(Y))), Fraction(0)) for j in range(len(Y[0]))] for i in range(len(X))
+    ]
 
 
 def transpose(X):

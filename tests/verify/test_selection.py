@@ -272,8 +272,11 @@ def test_scalar_box_of_two_transitions_and_streamed_elimination():
 
 def test_measurement_noise_bound_by_interval_arithmetic():
     system = UncertainLinearSystem(
-        [[0.5, -1.0], [0.0, 0.2]], [[[1.0, 0.0], [0.0, -2.0]]], np.zeros((2, 1)),
-        w=Box([-0.1, -0.1], [0.1, 0.1]), theta=Box([-1.0], [0.5]),
+        [[0.5, -1.0], [0.0, 0.2]],
+        [[[1.0, 0.0], [0.0, -2.0]]],
+        np.zeros((2, 1)),
+        w=Box([-0.1, -0.1], [0.1, 0.1]),
+        theta=Box([-1.0], [0.5]),
     )
     # A(theta) = [[0.5 + t, -1], [0, 0.2 - 2 t]], t in [-1, 0.5]: max |.| = [[1, 1], [0, 2.2]]
     bound = measurement_noise_bound(system, [0.1, 0.2])
@@ -330,7 +333,9 @@ def robot(anisotropic: bool, input_gain: float = 1.0) -> UncertainLinearSystem:
         theta = Box([0.0], [3.0])
     B = input_gain * np.vstack([np.zeros((2, 2)), np.eye(2)])
     D = np.vstack([np.zeros((2, 2)), np.eye(2)])
-    return UncertainLinearSystem.from_continuous(A, phi, B, D=D, w=Box.from_center(np.zeros(2), 0.1), theta=theta, dt=0.1)
+    return UncertainLinearSystem.from_continuous(
+        A, phi, B, D=D, w=Box.from_center(np.zeros(2), 0.1), theta=theta, dt=0.1
+    )
 
 
 def transitions_to_elimination(true_system, true_theta, hypotheses, n_max, seed):
@@ -378,12 +383,17 @@ def test_error_messages():
         eliminate_models(system, states, controls)
     with pytest.raises(InputError, match=r"hypotheses\[1\] must be an UncertainLinearSystem"):
         eliminate_models([system, "model"], states, controls)
-    other = UncertainLinearSystem(np.eye(2), np.zeros((1, 2, 2)), np.zeros((2, 1)), w=Box.from_center(np.zeros(2), 0.1), theta=Box([0.0], [1.0]))
+    other = UncertainLinearSystem(
+        np.eye(2), np.zeros((1, 2, 2)), np.zeros((2, 1)), w=Box.from_center(np.zeros(2), 0.1), theta=Box([0.0], [1.0])
+    )
     with pytest.raises(DimensionError, match=r"hypotheses\[1\] has \(nstates, ninputs\) = \(2, 1\).*\(1, 1\)"):
         eliminate_models([system, other], states, controls)
     with pytest.raises(DimensionError, match=r"states must have shape \(\*, 1\), got shape \(6, 2\)"):
         eliminate_models([system], np.zeros((6, 2)), controls)
-    with pytest.raises(DimensionError, match=r"controls must have shape \(N, q\) = \(5, 1\) for states of shape \(6, 1\), got shape \(4, 1\)"):
+    with pytest.raises(
+        DimensionError,
+        match=r"controls must have shape \(N, q\) = \(5, 1\) for states of shape \(6, 1\), got shape \(4, 1\)",
+    ):
         eliminate_models([system], states, np.zeros((4, 1)))
     with pytest.raises(DimensionError, match=r"states must be 2-dimensional, got shape \(6,\)"):
         eliminate_models([system], np.zeros(6), controls)
@@ -430,7 +440,11 @@ def test_no_transition_keeps_everything_and_gives_the_prior():
 
 def test_highs_statuses_are_named():
     assert [(s.name, int(s)) for s in _highs.LinprogStatus] == [
-        ("OPTIMAL", 0), ("ITERATION_LIMIT", 1), ("INFEASIBLE", 2), ("UNBOUNDED", 3), ("NUMERICAL_DIFFICULTIES", 4)
+        ("OPTIMAL", 0),
+        ("ITERATION_LIMIT", 1),
+        ("INFEASIBLE", 2),
+        ("UNBOUNDED", 3),
+        ("NUMERICAL_DIFFICULTIES", 4),
     ]
     assert _highs.LinprogStatus.NUMERICAL_DIFFICULTIES.reason == "numerical difficulties"
 
@@ -440,7 +454,10 @@ class _FakeResult:
         self.status, self.message = status, f"fake status {status}"
 
 
-@pytest.mark.parametrize("status, reason", [(1, "iteration limit"), (2, "infeasible.*numerical failure"), (3, "unbounded"), (4, "numerical difficulties")])
+@pytest.mark.parametrize(
+    "status, reason",
+    [(1, "iteration limit"), (2, "infeasible.*numerical failure"), (3, "unbounded"), (4, "numerical difficulties")],
+)
 def test_every_highs_status_but_optimal_is_a_solver_failure(monkeypatch, status, reason):
     monkeypatch.setattr(_highs, "linprog", lambda *args, **kwargs: _FakeResult(status))
     with pytest.raises(SolverFailure, match=rf"status {status} \({reason}"):
@@ -553,7 +570,9 @@ def test_states_of_order_1e17_are_a_normal_problem():
     A0 = np.array([[1.5, 0.1], [0.0, 1.4]])
     phi = np.zeros((1, 2, 2))
     phi[0, 0, 0] = 0.1
-    unstable = UncertainLinearSystem(A0, phi, np.array([[0.0], [1.0]]), w=Box.from_center(np.zeros(2), 0.1), theta=Box([0.0], [1.0]))
+    unstable = UncertainLinearSystem(
+        A0, phi, np.array([[0.0], [1.0]]), w=Box.from_center(np.zeros(2), 0.1), theta=Box([0.0], [1.0])
+    )
     states, controls = simulate(unstable, np.array([0.5]), 95, np.random.default_rng(0))
     assert np.max(np.abs(states)) > 1e17
     result = eliminate_models([unstable], states, controls)  # was a HiGHS "model error"

@@ -101,7 +101,13 @@ def test_bound_holds_for_forward_euler_plants_at_any_dt(p, dt, seed):
     A_c = -a * np.eye(p) + E - theta[0] * phi[0]  # A(theta) = -a I + E
     D = rng.standard_normal((p, 2))
     system = UncertainLinearSystem.from_continuous(
-        A_c, phi, np.ones((p, 1)), D=D, w=Box.from_center(np.zeros(2), rng.uniform(0.01, 1, 2)), theta=Box(theta, theta), dt=dt
+        A_c,
+        phi,
+        np.ones((p, 1)),
+        D=D,
+        w=Box.from_center(np.zeros(2), rng.uniform(0.01, 1, 2)),
+        theta=Box(theta, theta),
+        dt=dt,
     )
     A_N = system.A(theta)
     certificate = check_assumption4(np.abs(A_N), form="discrete", D=np.abs(system.D))
