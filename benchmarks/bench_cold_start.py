@@ -30,6 +30,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import time
 
 HERE = pathlib.Path(__file__).parent
 RESULTS = pathlib.Path(os.environ.get("BENCH_RESULTS", HERE / "results"))
@@ -91,6 +92,30 @@ def run_child(cache: str) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+HELP_REPEATS = 5
+HELP_GOAL_SECONDS = 0.5
+
+
+def time_command(argv: list[str]) -> float:
+    """Wall seconds of one fresh process running ``argv`` (it must exit 0)."""
+    started = time.perf_counter()
+    subprocess.run(argv, check=True, capture_output=True)
+    return time.perf_counter() - started
+
+
+def help_times() -> dict:
+    """``minimaxplan --help`` in fresh processes, and a bare interpreter start as the reference."""
+    script = pathlib.Path(sys.executable).with_name("minimaxplan")
+    command = (
+        [str(script)]
+        if script.exists()
+        else [sys.executable, "-c", "from minimaxplan.analysis.cli import main; main()"]
+    )
+    help_runs = [time_command([*command, "--help"]) for _ in range(HELP_REPEATS)]
+    bare_runs = [time_command([sys.executable, "-c", "pass"]) for _ in range(HELP_REPEATS)]
+    return {"help_s": statistics.median(help_runs), "interpreter_s": statistics.median(bare_runs)}
+
+
 def main() -> dict:
     cold, warm = [], []
     for _ in range(REPEATS):
@@ -107,6 +132,7 @@ def main() -> dict:
         "warm": {key: median(warm, key) for key in keys},
         "runs": {"cold": cold, "warm": warm},
         "goal_s": GOAL_SECONDS,
+        "help": help_times(),
         "repeats": REPEATS,
         "machine": f"{platform.machine()} {platform.python_implementation()} {platform.python_version()}, "
         f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}",
@@ -133,6 +159,14 @@ def main() -> dict:
         lines.append(f"| {labels[key]} | {result['cold'][key]:.2f} | {result['warm'][key]:.2f} |")
     verdict = "met" if cold_total < GOAL_SECONDS else "NOT met"
     lines += ["", f"Goal: under {GOAL_SECONDS:.0f} s cold to the first Decision: {verdict} ({cold_total:.1f} s).", ""]
+    helped = result["help"]
+    help_verdict = "met" if helped["help_s"] < HELP_GOAL_SECONDS else "NOT met"
+    lines += [
+        f"`minimaxplan --help` in a fresh process: {helped['help_s']:.3f} s (median of {HELP_REPEATS}; a bare "
+        f"interpreter start, the reference, {helped['interpreter_s']:.3f} s); goal under {HELP_GOAL_SECONDS} s: "
+        f"{help_verdict}. It imports neither numpy, cvxpy nor numba (tests/analysis/test_cli_errors.py).",
+        "",
+    ]
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "cold_start.md").write_text("\n".join(lines))
     (RESULTS / "cold_start.json").write_text(json.dumps(result, indent=2) + "\n")
