@@ -9,9 +9,9 @@ its own P; the conflicting vertices of the whole box are named; with ``--out`` a
 parameter dimension d <= 2 a PNG of the map is written beside the report.
 
 Exit codes: 0 if Assumption 4 holds with a re-checked certificate for every model
-checked; 1 if it does not for some model (infeasible, inconclusive, or a feasible
-solve whose certificate fails the numpy re-check); 2 on an error (bad arguments, an
-unreadable or malformed file, a solver failure), with a message on stderr.
+checked; 1 if it does not for some model (infeasible on a re-checked dual certificate,
+or inconclusive); 2 on an error (bad arguments, an unreadable or malformed file), with a
+message on stderr.
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="check Assumption 4 (an LMI) for a model file and write a report",
         description="Check Assumption 4 (the LMI of the paper, continuous or discrete form) for every "
         "model of a TOML model file, on the nominal matrix or on every vertex of the parameter box, "
-        "and write a Markdown (or JSON) report with the certificate and its numpy re-check.",
+        "and write a Markdown (or JSON) report with the certificate and its exact re-check.",
         epilog="Exit codes: 0 Assumption 4 holds (certified) for every model; 1 it does not for some "
         "model (infeasible, inconclusive or not certified); 2 error. Format: docs/model-format.md.",
     )

@@ -807,7 +807,7 @@ def lmi_matrix(A: ArrayLike, P: ArrayLike, Q0: ArrayLike, rho: float, D: ArrayLi
     Continuous form (Assumption 4, with the disturbance matrix D):
     ``[[A^T P + P A + Q0, P D], [D^T P, -rho I]]``. Discrete form, for
     ``e+ = A e + D w``: ``[[A^T P A - P + Q0, A^T P D], [D^T P A, D^T P D - rho I]]``
-    (the original, non-linear form, which the numpy re-check of `check_assumption4` uses).
+    (the original, non-linear form, which `check_assumption4` re-checks in exact arithmetic).
     """
     form = as_choice("form", form, FORMS)
     A, P, Q0 = (np.asarray(m, dtype=float) for m in (A, P, Q0))

@@ -12,7 +12,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from minimaxplan.verify import LMIResult, check_assumption4
@@ -230,3 +230,39 @@ def test_no_verdict_without_its_proof(case):
         assert result.P is None and result.dual is None and result.reason
     # and the proofs agree with the truth (neither is ever wrong)
     assert result.status != ("infeasible" if stable else "feasible")
+
+
+# ----------------------------------------------------------------- invariance, as a property
+
+
+@st.composite
+def invariance_cases(draw):
+    form, A, _, stable = draw(random_cases())
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    p = A.shape[0]
+    S = np.diag(10.0 ** rng.uniform(-2.0, 2.0, p))  # a change of units of the state
+    G = rng.standard_normal((p, p))
+    Q0 = G @ G.T + 10.0 ** rng.uniform(-3.0, 0.0) * np.eye(p)  # any Q0 > 0
+    return form, A, stable, S, Q0
+
+
+@settings(max_examples=25)
+@given(invariance_cases())
+def test_a_conclusive_verdict_is_the_same_in_other_units_and_with_any_given_q0(case):
+    """DESIGN: verdicts do not depend on the coordinates, and a given Q0 > 0 gives the same
+    verdict as a free one (each verdict on its own re-checked proof)."""
+    form, A, stable, S, Q0 = case
+    free = check_assumption4(A, form=form)
+    if free.status == "inconclusive":
+        return
+    assert free.status == ("feasible" if stable else "infeasible")
+    scaled_A = np.linalg.solve(S, A @ S)
+    for result, matrix in (
+        (check_assumption4(scaled_A, form=form), scaled_A),
+        (check_assumption4(A, form=form, Q0=Q0), A),
+    ):
+        assert result.status == free.status, result.reason
+        if stable:
+            assert_exact_certificate(result, matrix, form)
+        else:
+            assert_dual(result, matrix, form)
