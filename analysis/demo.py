@@ -67,8 +67,6 @@ def run(seed: int = 0, steps: int = 200, horizon: int = 20) -> dict:
     from minimaxplan.scenarios import robot_hypotheses
     from minimaxplan.verify import check_assumption4, eliminate_models, feasible_parameter_box
 
-    from .model_file import disturbance_input
-
     seed = as_count("seed", seed, minimum=0)
     steps = as_count("steps", steps)
     horizon = as_count("horizon", horizon)
@@ -92,7 +90,7 @@ def run(seed: int = 0, steps: int = 200, horizon: int = 20) -> dict:
     selection = eliminate_models(list(hypotheses.values()), states, controls)
     box = feasible_parameter_box(truth, states, controls)
     velocity_block = truth.A(box.center)[2:, 2:]
-    lmi = check_assumption4(velocity_block, form="discrete", D=disturbance_input(truth)[2:, :])
+    lmi = check_assumption4(velocity_block, form="discrete", D=truth.D[2:, :])
     plan = np.tile([1.0, -1.0], (horizon, 1))
     tube = predict_tube(truth, Box.from_center(states[-1], 0.0), plan, parameters=box)
     elapsed = time.perf_counter() - started

@@ -34,7 +34,6 @@ __all__ = [
     "format_model_file",
     "DISCRETE",
     "CONTINUOUS",
-    "disturbance_input",
 ]
 
 DISCRETE = "discrete"
@@ -124,7 +123,7 @@ class ModelHypothesis:
         """
         system = self.system_for(form)
         points = system.theta.vertices() if vertices else system.theta.center[None, :]
-        return system.A(points), np.array(disturbance_input(system))
+        return system.A(points), np.array(system.D)
 
     def to_dict(self) -> dict:
         out = {"name": self.name, "time": self.time, "dt": self.dt, "system": self.system.to_dict()}
@@ -169,25 +168,6 @@ class ModelFile:
 
 
 # ----------------------------------------------------------------- reading models
-def disturbance_input(system: UncertainLinearSystem) -> np.ndarray:
-    """The disturbance input matrix D of ``system``, shape (p, r).
-
-    Parameters
-    ----------
-    system : UncertainLinearSystem
-        A constructed system (its ``D`` is the identity when none was given).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``system.D``, narrowed from the optional type of the constructor argument.
-    """
-    D = system.D
-    if D is None:  # unreachable: UncertainLinearSystem.__post_init__ stores the identity
-        raise InputError("system.D is unset")
-    return D
-
-
 def load_model_file(path) -> ModelFile:
     """Read a TOML model file (format: ``docs/model-format.md``).
 
@@ -423,7 +403,7 @@ def _model_lines(h: ModelHypothesis) -> list[str]:
         f"{state_key} = {_toml_value(system.A0)}",
         f"phi = {_toml_value(system.phi)}",
         f"B = {_toml_value(system.B)}",
-        f"D = {_toml_value(disturbance_input(system))}",
+        f"D = {_toml_value(system.D)}",
         f"w = {{ low = {_toml_value(system.w.low)}, high = {_toml_value(system.w.high)} }}",
         f"theta = {{ low = {_toml_value(system.theta.low)}, high = {_toml_value(system.theta.high)} }}",
     ]

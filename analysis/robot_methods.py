@@ -52,7 +52,6 @@ from minimaxplan.scenarios import RobotWorld
 from minimaxplan.verify.selection import ModelSelector, feasible_parameter_box
 
 from .episode import LoopConfig
-from .model_file import disturbance_input
 from .registry import EpisodeFailure, Method, Policy, Transition, UnsupportedScenario, register_method
 from .robot_scenario import RobotScenario, assumption4_report, excitation_data
 
@@ -87,7 +86,7 @@ def planning_system(system: UncertainLinearSystem, control_error: float) -> Unce
 
     ``x+ = A(theta) x + B (u + e) + D w = A(theta) x + B u + [D B] (w, e)``.
     """
-    D = np.hstack([disturbance_input(system), system.B])
+    D = np.hstack([system.D, system.B])
     w = Box(
         np.concatenate([system.w.low, np.full(system.ninputs, -control_error)]),
         np.concatenate([system.w.high, np.full(system.ninputs, control_error)]),

@@ -24,7 +24,6 @@ from minimaxplan.scenarios.worlds import WORLD_KINDS
 from minimaxplan.verify.lmi import check_assumption4
 
 from .episode import LoopConfig
-from .model_file import disturbance_input
 from .registry import Scenario, register_scenario
 
 __all__ = ["RobotScenario", "assumption4_report", "excitation_data"]
@@ -106,10 +105,8 @@ def assumption4_report(system: UncertainLinearSystem, parameters: Box) -> dict:
     a common certificate over the box's vertices is sought.
     """
     vertices = parameters.vertices()
-    full = check_assumption4([system.A(v) for v in vertices], form="discrete", D=disturbance_input(system))
-    velocity = check_assumption4(
-        [system.A(v)[2:, 2:] for v in vertices], form="discrete", D=disturbance_input(system)[2:]
-    )
+    full = check_assumption4([system.A(v) for v in vertices], form="discrete", D=system.D)
+    velocity = check_assumption4([system.A(v)[2:, 2:] for v in vertices], form="discrete", D=system.D[2:])
     return {
         "full_model": full.status,
         "full_model_note": "integrators: infeasible is expected and Theorem 2 does not apply",

@@ -116,14 +116,6 @@ def _rounding_errors(
     )
 
 
-def _disturbance_matrix(system: UncertainLinearSystem) -> np.ndarray:
-    """``system.D``, which `UncertainLinearSystem` always sets (to the identity when given None)."""
-    D = system.D
-    if D is None:  # unreachable for a constructed system; narrows the field's declared Optional type
-        raise TypeError("UncertainLinearSystem.D is unset")
-    return D
-
-
 def build_interval_kernel(
     systems: Sequence[UncertainLinearSystem], predictors: Sequence[IntervalPredictor], bank: ControllerBank
 ) -> IntervalKernel:
@@ -171,7 +163,7 @@ def build_interval_kernel(
     else:
         closed = np.ascontiguousarray(opened[:, None])  # (M, 1, k, 2p, 2p)
         closed_abs = None
-    w = [interval_matvec(_disturbance_matrix(system), system.w.low, system.w.high) for system in systems]
+    w = [interval_matvec(system.D, system.w.low, system.w.high) for system in systems]
     w_lo = np.stack([lo for lo, _ in w])
     w_hi = np.stack([hi for _, hi in w])
     w_z = np.concatenate([-w_lo, w_hi], axis=-1)  # (M, 2p)
