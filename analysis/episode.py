@@ -5,6 +5,12 @@ period, sub-step by sub-step, the world stepping and the method observing each
 transition -> measure ... until the world is done, the method gives up
 (`EpisodeFailure`) or ``LoopConfig.max_decisions`` is reached.
 
+The guarantee is checked here, at run time: after every sub-step of every executed
+decision of a `PredictingPolicy`, each true state of the `GroundTruthWorld` must lie in
+the box predicted for it (exact float comparison). The record counts ``boxes_checked``
+and ``boxes_missed`` and keeps, in ``extra["runtime_check"]``, the counts per kind and
+where each miss happened.
+
 The scenario and the method come from the registries (`minimaxplan.analysis.registry`);
 a job sent to a worker process carries both factories (`EpisodeJob`), so that every
 episode is a pure function of ``(scenario, method, seed, config)`` wherever it runs.
@@ -13,17 +19,41 @@ episode is a pure function of ``(scenario, method, seed, config)`` wherever it r
 from __future__ import annotations
 
 import time as wallclock
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
-from minimaxplan.models import InputError
+from minimaxplan.models import DimensionError, InputError
 from minimaxplan.models.validation import as_choice, as_count, as_discount, as_positive_scalar, check_instance
 
-from .registry import EpisodeFailure, Factory, Transition, method_factory, resolve, scenario_factory
+from .registry import (
+    EpisodeFailure,
+    Factory,
+    GroundTruthWorld,
+    PredictingPolicy,
+    Transition,
+    box_kind,
+    method_factory,
+    resolve,
+    scenario_factory,
+)
 
-__all__ = ["LoopConfig", "DEFAULT_CONFIG", "EpisodeRecord", "EpisodeJob", "make_job", "run_job", "run_episode"]
+__all__ = [
+    "LoopConfig",
+    "DEFAULT_CONFIG",
+    "EpisodeRecord",
+    "EpisodeJob",
+    "BoxCheck",
+    "MAX_RECORDED_MISSES",
+    "make_job",
+    "run_job",
+    "run_episode",
+]
+
+#: Misses recorded in detail per episode (all of them are counted).
+MAX_RECORDED_MISSES = 100
 
 
 #: The values of `LoopConfig.measurement` (the measurement models of the robot worlds,
@@ -108,6 +138,11 @@ class EpisodeRecord:
     ``trajectory`` holds the robot's true position after every sub-step (row 0 the
     start). ``extra`` holds the method's `Method.report` (the robust method's
     ``plans`` and per-decision ``decisions``) and the world's setup (``world``).
+    ``boxes_checked`` and ``boxes_missed`` count the predicted boxes checked against the
+    true states after the sub-steps of the executed decisions, and the misses (`BoxCheck`;
+    0 and 0 for a method that predicts nothing); ``extra["runtime_check"]`` holds the
+    same per kind and the misses' details (`BoxCheck.to_dict`; absent when no policy of
+    the episode predicted boxes).
     ``trace`` is what the plots and the animation read (`minimaxplan.analysis.plots`):
     ``dt`` (s), the true ``states`` and the pedestrians' true positions (m, robot
     worlds) after every sub-step, and the sub-step index of every decision
@@ -123,6 +158,8 @@ class EpisodeRecord:
     discounted_return: float
     decisions: int
     wall_time_s: float
+    boxes_checked: int = 0
+    boxes_missed: int = 0
     trajectory: tuple = field(default=(), repr=False)
     extra: dict = field(default_factory=dict, repr=False)
     trace: dict = field(default_factory=dict, repr=False)
@@ -160,6 +197,109 @@ class EpisodeJob:
     def key(self) -> tuple[str, str, int]:
         """``(scenario, method, seed)``: what identifies the job's record."""
         return (self.scenario, self.method, self.seed)
+
+
+class BoxCheck:
+    """The run-time check of one episode: true states against the policies' predicted boxes.
+
+    `run_job` calls `check` after every sub-step of every decision of a
+    `PredictingPolicy`. A box ``(lower, upper)`` predicted for ``name`` is *checked*
+    when the world's true state of ``name`` is read against it, and *missed* unless
+    ``lower <= state <= upper`` in every coordinate, compared exactly in floating point
+    (no tolerance: sound boxes are rounded outward; a NaN anywhere is a miss).
+
+    Attributes
+    ----------
+    active : bool
+        Whether `check` was called (some decision's policy predicted boxes).
+    checked, missed : int
+        Boxes checked and missed so far.
+    by_kind : dict
+        ``kind -> {"checked": n, "missed": n}`` (`box_kind` of the names).
+    misses : list of dict
+        The first `MAX_RECORDED_MISSES` misses: ``decision`` (0-based), ``substep``
+        (1-based), ``time`` (s, the world's, after the sub-step), ``name``, ``excess``
+        (the largest distance by which a coordinate is outside its interval, in the
+        state's units; NaN if a value is NaN), ``coordinates`` (those outside) and the
+        ``state``, ``lower`` and ``upper`` compared.
+    """
+
+    def __init__(self) -> None:
+        self.active = False
+        self.checked = 0
+        self.missed = 0
+        self.by_kind: dict[str, dict[str, int]] = {}
+        self.misses: list[dict] = []
+
+    def check(
+        self, boxes: Mapping[str, tuple[Any, Any]], truth: Mapping[str, Any], *, decision: int, substep: int, time: float
+    ) -> None:
+        """Check every box of ``boxes`` against the state of the same name in ``truth``.
+
+        Parameters
+        ----------
+        boxes : Mapping of str to (array_like, array_like)
+            ``name -> (lower, upper)`` as `PredictingPolicy.predicted_boxes` returns it.
+        truth : Mapping of str to array_like
+            ``name -> state`` as `GroundTruthWorld.true_states` returns it.
+        decision, substep : int
+            Where in the episode (recorded with a miss).
+        time : float
+            The world's time after the sub-step, s (recorded with a miss).
+
+        Raises
+        ------
+        InputError
+            If a box is predicted for a name the world does not know.
+        DimensionError
+            If a box's corners and the true state differ in shape.
+        """
+        self.active = True
+        for name, (lower, upper) in boxes.items():
+            if name not in truth:
+                raise InputError(
+                    f"the policy predicted a box for {name!r}, but the world's true_states() has no such name "
+                    f"(it has {sorted(truth)})"
+                )
+            state = np.asarray(truth[name], dtype=float)
+            lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+            if lo.shape != state.shape or hi.shape != state.shape:
+                raise DimensionError(
+                    f"the box predicted for {name!r} has corners of shapes {lo.shape} and {hi.shape}, "
+                    f"but its true state has shape {state.shape}"
+                )
+            counts = self.by_kind.setdefault(box_kind(name), {"checked": 0, "missed": 0})
+            self.checked += 1
+            counts["checked"] += 1
+            if bool(np.all(lo <= state) and np.all(state <= hi)):
+                continue
+            self.missed += 1
+            counts["missed"] += 1
+            if len(self.misses) < MAX_RECORDED_MISSES:
+                outside = np.maximum(lo - state, state - hi)
+                bad = ~((lo <= state) & (state <= hi))
+                self.misses.append(
+                    {
+                        "decision": int(decision),
+                        "substep": int(substep),
+                        "time": float(time),
+                        "name": name,
+                        "excess": float(np.max(outside)) if not np.isnan(outside).any() else float("nan"),
+                        "coordinates": np.flatnonzero(bad).tolist(),
+                        "state": state.tolist(),
+                        "lower": lo.tolist(),
+                        "upper": hi.tolist(),
+                    }
+                )
+
+    def to_dict(self) -> dict:
+        """``boxes_checked``, ``boxes_missed``, ``by_kind`` and ``misses``, as plain data."""
+        return {
+            "boxes_checked": self.checked,
+            "boxes_missed": self.missed,
+            "by_kind": {kind: dict(counts) for kind, counts in sorted(self.by_kind.items())},
+            "misses": list(self.misses),
+        }
 
 
 class _Trace:
@@ -207,6 +347,7 @@ def run_job(job: EpisodeJob) -> EpisodeRecord:
     rewards: list[float] = []
     positions = [np.array(world.position, dtype=float)]
     trace = _Trace(world)
+    boxes = BoxCheck()
     outcome = None
     while not world.done:
         if job.config.max_decisions is not None and len(rewards) >= job.config.max_decisions:
@@ -218,10 +359,24 @@ def run_job(job: EpisodeJob) -> EpisodeRecord:
             outcome = failure.outcome  # a failure of the episode, not an error of the run
             break
         trace.decided(world)
+        predicting = isinstance(policy, PredictingPolicy)
+        if predicting and not isinstance(world, GroundTruthWorld):
+            raise InputError(
+                f"the policy of method {job.method!r} predicts boxes, but the world of scenario {job.scenario!r} "
+                f"({type(world).__name__}) has no true_states() to check them against"
+            )
         worst = 1.0
-        for _ in range(world.substeps):
+        for substep in range(1, world.substeps + 1):
             u = policy.control(x)
             world.apply(u)
+            if predicting:
+                boxes.check(
+                    policy.predicted_boxes(substep),
+                    world.true_states(),
+                    decision=len(rewards),
+                    substep=substep,
+                    time=float(world.time),
+                )
             positions.append(np.array(world.position, dtype=float))
             trace.stepped(world)
             worst = min(worst, world.reward())
@@ -242,8 +397,14 @@ def run_job(job: EpisodeJob) -> EpisodeRecord:
         discounted_return=discounted,
         decisions=len(rewards),
         wall_time_s=wallclock.perf_counter() - started,
+        boxes_checked=boxes.checked,
+        boxes_missed=boxes.missed,
         trajectory=tuple(map(tuple, np.round(positions, 4).tolist())),
-        extra={**method.report(), "world": world.to_dict()},
+        extra={
+            **method.report(),
+            "world": world.to_dict(),
+            **({"runtime_check": boxes.to_dict()} if boxes.active else {}),
+        },
         trace=trace.to_dict(world),
     )
 

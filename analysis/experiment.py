@@ -110,8 +110,10 @@ def summarise(records: Iterable[EpisodeRecord]) -> list[dict]:
         Per (scenario, method): ``episodes``, ``failures``, ``failure_ci95`` (exact
         Clopper-Pearson 95% interval), ``outcomes`` (counts), ``mean_time_s``,
         ``median_time_s`` and ``max_time_s`` (seconds, over the episodes that reached
-        the goal, as in the paper's Table 3; NaN if none did) and ``mean_return``
-        (over all episodes).
+        the goal, as in the paper's Table 3; NaN if none did), ``mean_return``
+        (over all episodes), and ``boxes_checked`` and ``boxes_missed``: the run-time
+        check's counts summed over the episodes (`minimaxplan.analysis.episode.BoxCheck`;
+        0 for a method that predicts nothing).
     """
     groups: dict[tuple[str, str], list[EpisodeRecord]] = {}
     for record in records:
@@ -136,6 +138,8 @@ def summarise(records: Iterable[EpisodeRecord]) -> list[dict]:
                 "median_time_s": float(np.median(times)) if times.size else math.nan,
                 "max_time_s": float(times.max()) if times.size else math.nan,
                 "mean_return": float(np.mean([r.discounted_return for r in group])),
+                "boxes_checked": int(sum(r.boxes_checked for r in group)),
+                "boxes_missed": int(sum(r.boxes_missed for r in group)),
             }
         )
     return summary
@@ -270,18 +274,28 @@ def _fmt(x: float, digits: int = 1) -> str:
     return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
 
 
+def _boxes(summary: dict) -> str:
+    checked = summary["boxes_checked"]
+    return f"{summary['boxes_missed']}/{checked}" if checked else "-"
+
+
 def markdown_table(summary: Sequence[dict]) -> str:
-    """The summary laid out like the paper's Table 3."""
+    """The summary laid out like the paper's Table 3, with the run-time check's counts.
+
+    The last column is ``boxes_missed / boxes_checked`` ("-" for a method that predicts
+    no box).
+    """
     lines = [
-        "| scenario | method | failures / episodes | failure 95% CI | mean time (s) | median time (s) | max time (s) | mean return |",
-        "|---|---|---|---|---|---|---|---|",
+        "| scenario | method | failures / episodes | failure 95% CI | mean time (s) | median time (s) | max time (s) "
+        "| mean return | boxes missed / checked |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for s in summary:
         low, high = s["failure_ci95"]
         lines.append(
             f"| {s['scenario']} | {s['method']} | {s['failures']}/{s['episodes']} | "
             f"[{low:.3f}, {high:.3f}] | {_fmt(s['mean_time_s'])} | {_fmt(s['median_time_s'])} | "
-            f"{_fmt(s['max_time_s'])} | {s['mean_return']:.3f} |"
+            f"{_fmt(s['max_time_s'])} | {s['mean_return']:.3f} | {_boxes(s)} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -13,6 +13,12 @@ The episode loop (`minimaxplan.analysis.episode.run_episode`) is written once fo
 scenario and uses only the interfaces below: `Scenario`, the `World` it makes, `Method`
 and the `Policy` a method returns at each decision. ``docs/extending.md`` pins them.
 
+The guarantee is checked at run time through two more protocols: a `PredictingPolicy`
+says which box it predicted for every named thing after each sub-step of its decision
+(``{"robot": (lower, upper), "pedestrian 2": (lower, upper)}``), a `GroundTruthWorld`
+gives the true states under the same names, and the loop counts the boxes checked and
+missed (`box_kind` groups the names).
+
 Factories travel with each job to the worker processes (a local pool or Dask): a factory
 is a picklable callable (a module-level function or class, a `functools.partial` of one)
 or a string ``"package.module:qualname"`` resolved where it is called.
@@ -28,7 +34,7 @@ import abc
 import importlib
 import pickle
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any, Generic, NamedTuple, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
@@ -40,6 +46,9 @@ __all__ = [
     "World",
     "Method",
     "Policy",
+    "PredictingPolicy",
+    "GroundTruthWorld",
+    "box_kind",
     "Transition",
     "UnknownScenario",
     "UnknownMethod",
@@ -185,6 +194,79 @@ class Policy(Protocol):
         """
 
 
+@runtime_checkable
+class PredictingPolicy(Policy, Protocol):
+    """A `Policy` that also says where it predicted everything to be during its decision.
+
+    The episode loop checks, after every sub-step of the decision, that each true state
+    (`GroundTruthWorld.true_states`) lies in the box predicted for it under the same
+    name, by exact float comparison (no tolerance: a sound predictor rounds its boxes
+    outward), and counts the boxes checked and missed in the episode's record.
+
+    Notes
+    -----
+    This is the run-time form of the inclusion property (7) and of Theorem 1's premise:
+    the true trajectory stays in the interval prediction. A miss is a bug, never a
+    number to tune.
+    """
+
+    def predicted_boxes(self, substep: int) -> Mapping[str, tuple[np.ndarray, np.ndarray]]:
+        """The boxes predicted for the states after sub-step ``substep`` of this decision.
+
+        Parameters
+        ----------
+        substep : int
+            1 for the state after the first sub-step of the decision, up to the world's
+            ``substeps``.
+
+        Returns
+        -------
+        Mapping of str to (numpy.ndarray, numpy.ndarray)
+            ``name -> (lower, upper)``, each corner of the shape of the true state of
+            ``name``. A name is a kind, optionally followed by a space and an
+            identifier (`box_kind`): ``"robot"``, ``"pedestrian 2"``, ``"vehicle 7"``.
+            Only what the method claims to contain the truth is listed (an empty
+            mapping checks nothing).
+        """
+
+
+@runtime_checkable
+class GroundTruthWorld(World, Protocol):
+    """A `World` that tells the episode loop the true states of what it simulates.
+
+    Read by the loop only, to check the boxes of a `PredictingPolicy`; never shown to a
+    method. Reading it must draw no random number and change nothing.
+    """
+
+    def true_states(self) -> Mapping[str, np.ndarray]:
+        """The true state of everything a method may predict, now, by name.
+
+        Returns
+        -------
+        Mapping of str to numpy.ndarray
+            ``name -> state`` (1-D arrays), under the names a `PredictingPolicy` uses
+            (e.g. ``"robot"``: the robot's state, ``"pedestrian 0"``: a pedestrian's
+            position).
+        """
+
+
+def box_kind(name: str) -> str:
+    """The kind of a predicted box's name: the name up to its first space.
+
+    Parameters
+    ----------
+    name : str
+        E.g. ``"robot"`` or ``"pedestrian 2"``.
+
+    Returns
+    -------
+    str
+        E.g. ``"robot"`` or ``"pedestrian"``: the key under which the loop also counts
+        the boxes checked and missed per kind.
+    """
+    return name.split(" ", 1)[0]
+
+
 #: The world type of a scenario and of the methods that drive it (bound: `World`).
 WorldT = TypeVar("WorldT", bound=World)
 
@@ -228,10 +310,13 @@ class Method(abc.ABC, Generic[WorldT]):
         x = world.measure()
         while not world.done:
             policy = method.decide(x)                       # may raise EpisodeFailure
-            for each of world.substeps sub-steps:
-                u = policy.control(x); world.apply(u); x_next = world.measure()
+            for each of world.substeps sub-steps k = 1, 2, ...:
+                u = policy.control(x); world.apply(u)
+                if policy is a PredictingPolicy: check policy.predicted_boxes(k)
+                    against world.true_states()
+                x_next = world.measure()
                 method.observe(Transition(x, u, x_next)); x = x_next
-        record.extra = {**method.report(), "world": world.to_dict()}
+        record.extra = {**method.report(), "world": world.to_dict(), "runtime_check": ...}
     """
 
     @abc.abstractmethod

@@ -10,7 +10,10 @@ robust
     inflation for the bounded measurement noise), the LP `feasible_parameter_box` of
     every survivor as its parameter polytope, and `RobustTreePlanner` over one
     `IntervalModel` per survivor (K = 100, gamma = 0.9). The Assumption 4 report is
-    made once per episode (see `assumption4_report`).
+    made once per episode (see `assumption4_report`). Its policies are
+    `PredictingPolicy`s: after every sub-step of the executed action, the episode loop
+    checks the true robot state and the pedestrians' true positions against the boxes
+    the planner predicted for them (`RobustMethod.executed_boxes`).
 nominal
     Certainty equivalence: OPD on the least-squares friction estimate (w = 0), the
     pedestrians at their announced velocities.
@@ -47,12 +50,14 @@ from minimaxplan.models import Box, ConfidenceEllipsoidEstimator, NoConsistentMo
 from minimaxplan.planners.comparison import multi_model_robust_planner, nominal_planner, root_state
 from minimaxplan.planners.controllers import LinearFeedback
 from minimaxplan.planners.dwa import DynamicWindowPlanner
+from minimaxplan.planners.interval_model import BoxState
+from minimaxplan.planners.search import RobustTreePlanner
 from minimaxplan.planners.teb import TimedElasticBand
-from minimaxplan.scenarios import RobotWorld
+from minimaxplan.scenarios import MovingObstacles, RobotWorld
 from minimaxplan.verify.selection import ModelSelector, feasible_parameter_box
 
 from .episode import LoopConfig
-from .registry import EpisodeFailure, Method, Policy, Transition, UnsupportedScenario, register_method
+from .registry import EpisodeFailure, Method, Policy, PredictingPolicy, Transition, UnsupportedScenario, register_method
 from .robot_scenario import RobotScenario, assumption4_report, excitation_data
 
 __all__ = [
@@ -222,6 +227,24 @@ class _Saturated:
         return np.clip(self.policy.control(measurement), -self.bound, self.bound)
 
 
+class _Predicted:
+    """A policy and the boxes predicted for the sub-steps of its decision (a `PredictingPolicy`).
+
+    ``boxes[k - 1]`` maps each name to the box ``(lower, upper)`` predicted after
+    sub-step k; the control is the wrapped policy's, unchanged.
+    """
+
+    def __init__(self, policy: Policy, boxes: list[dict[str, tuple[np.ndarray, np.ndarray]]]):
+        self.policy = policy
+        self.boxes = boxes
+
+    def control(self, measurement: np.ndarray) -> np.ndarray:
+        return self.policy.control(measurement)
+
+    def predicted_boxes(self, substep: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        return self.boxes[substep - 1]
+
+
 class RobotMethod(Method[RobotWorld]):
     """What every robot method shares: the velocity controllers and the global path's waypoint.
 
@@ -300,9 +323,10 @@ class RobustMethod(RobotMethod):
         pairs = [(self.planning[i], box) for i, box in survivors]
         if self.lmi is None:
             self.lmi = assumption4_report(world.system, pairs[0][1])
+        objective = self.scenario.objective(world, waypoint, uncertain=True)
         planner = multi_model_robust_planner(
             pairs,
-            self.scenario.objective(world, waypoint, uncertain=True),
+            objective,
             self.controllers,
             gamma=config.gamma,
             budget=config.budget,
@@ -313,7 +337,56 @@ class RobustMethod(RobotMethod):
         lower, upper, _, _ = planner.models[0].rollout(root, decision.sequence)
         self.plans.append((t, lower[:, :2].tolist(), upper[:, :2].tolist()))
         self.decisions.append(self._decision_trace(t, lower, upper, survivors, decision.action))
+        self._predicted = self.executed_boxes(planner, root, decision.action, objective.moving_obstacles)
         return self.controllers[decision.action]
+
+    def decide(self, measurement: np.ndarray) -> PredictingPolicy:
+        """`RobotMethod.decide`, with the boxes predicted for the executed action's sub-steps."""
+        policy = super().decide(measurement)
+        return _Predicted(policy, self._predicted)
+
+    def executed_boxes(
+        self, planner: RobustTreePlanner, root: BoxState, action: int, pedestrians: MovingObstacles
+    ) -> list[dict[str, tuple[np.ndarray, np.ndarray]]]:
+        """What the planner predicted after each sub-step of the executed ``action``.
+
+        Parameters
+        ----------
+        planner : RobustTreePlanner
+            This decision's planner (one linked `IntervalModel` per surviving hypothesis).
+        root : BoxState
+            Its root: the measurement box at the decision's sub-step index t.
+        action : int
+            The executed action.
+        pedestrians : MovingObstacles
+            The pedestrians' prediction the planner's reward used (``time0 = t``).
+
+        Returns
+        -------
+        list of dict
+            Entry k - 1 (k = 1..substeps) maps ``"robot"`` to the hull over the surviving
+            hypotheses of their boxes after sub-step k (`IntervalModel.rollout`, rounded
+            outward), and ``"pedestrian j"`` to pedestrian j's centre box at sub-step
+            t + k (`MovingObstacles.boxes`).
+
+        Notes
+        -----
+        The true hypothesis is never eliminated (the LP test is sound), so the true state
+        lies in its own box, hence in the hull (inclusion property (7) with the LP
+        parameter box). The pedestrians' boxes hold their true positions because their
+        velocities stay within the announced ones +- the velocity uncertainty.
+        """
+        S = self.params.substeps
+        rollouts = [model.rollout(root, [action]) for model in planner.models]
+        lower = np.min([r[0][1:] for r in rollouts], axis=0)
+        upper = np.max([r[1][1:] for r in rollouts], axis=0)
+        boxes: list[dict[str, tuple[np.ndarray, np.ndarray]]] = [{"robot": (lower[k], upper[k])} for k in range(S)]
+        if len(pedestrians):
+            ped_lower, ped_upper = pedestrians.boxes(root.time + np.arange(1, S + 1))
+            for k in range(S):
+                for j in range(len(pedestrians)):
+                    boxes[k][f"pedestrian {j}"] = (ped_lower[k, j], ped_upper[k, j])
+        return boxes
 
     def _decision_trace(self, t: int, lower: np.ndarray, upper: np.ndarray, survivors, action: int) -> dict:
         """What the animation shows of a decision: the executed plan's position boxes, the

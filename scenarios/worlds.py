@@ -351,6 +351,22 @@ class RobotWorld:
             time0=self.step_index,
         )
 
+    def true_states(self) -> dict[str, np.ndarray]:
+        """The true states for the episode loop's run-time check (`GroundTruthWorld`).
+
+        Never shown to a method; reading them draws no random number.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            ``"robot"``: the state (px, py, vx, vy), shape (4,); ``"pedestrian j"``:
+            pedestrian j's position, shape (2,), for j = 0..m-1 (copies).
+        """
+        truth = {"robot": self.state.copy()}
+        for j, position in enumerate(self.crowd.positions):
+            truth[f"pedestrian {j}"] = position.copy()
+        return truth
+
     def measure(self) -> np.ndarray:
         """The state with measurement noise: uniform ``|v_i| <= measurement_noise``
         (inside the guarantees) or Gaussian with ``gaussian_measurement_std`` (outside)."""
