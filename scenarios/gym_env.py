@@ -1,4 +1,4 @@
-"""Gymnasium interface to the robot navigation worlds (the ``gym`` extra).
+"""Gymnasium interfaces to the robot navigation and the driving worlds (the ``gym`` extra).
 
 `RobotNavigationEnv` wraps `minimaxplan.scenarios.worlds.RobotWorld`:
 
@@ -18,6 +18,23 @@
 * ``terminated`` on goal or collision, ``truncated`` at the 60 s time limit;
   ``info`` holds ``outcome``, ``time``, ``true_theta``.
 
+`RoadDrivingEnv` wraps `minimaxplan.scenarios.road_world.RoadWorld` (highway or
+T-junction):
+
+* action: ``Box(-1, 1, (2,), float32)``, the ego's control ``(acceleration, steering)``
+  normalised as in highway-env's continuous actions: ``(a_1 a_bound, a_2 max_steering)``
+  (6 m/s^2 and pi/3 rad by default), held for one decision period (``substeps`` = 5
+  sub-steps of 0.1 s);
+* observation: a flat ``Box`` (float32) of ``[measured ego (x, y, v, psi) (4),
+  nearest OBSERVED_VEHICLES vehicles: (dx, dy, v, psi, present) * 8]``, the world's
+  noisy `Observation`: positions of the others relative to the measured ego position,
+  nearest first, headings wrapped to [-pi, pi), absent entries zeros with
+  ``present = 0``;
+* reward: the mean over the held sub-steps of `road_reward` in [0, 1] (0 once the ego
+  collided or left the road);
+* ``terminated`` on goal, collision or leaving the road, ``truncated`` at the time
+  limit; ``info`` holds ``outcome``, ``time`` and the observed vehicles' ``ids``.
+
 ``reset(seed=s)`` builds the world of seed ``s``; without a seed, the env draws the
 next world seed from its own generator (seeded by the first seeded reset).
 Importing this module needs gymnasium; the rest of ``minimaxplan.scenarios`` does not.
@@ -36,12 +53,14 @@ except ImportError as exc:  # pragma: no cover - exercised only without the extr
 from minimaxplan.models.errors import InputError
 from minimaxplan.models.validation import as_choice, check_instance
 
+from .road_world import ROAD_WORLD_KINDS, HighwayScenario, RoadWorld, TJunctionScenario
 from .robot import DEFAULT_ROBOT, RobotParameters
 from .worlds import MEASUREMENT_MODELS, PEDESTRIAN_COUNT, WORLD_KINDS, RobotWorld
 
-__all__ = ["RobotNavigationEnv", "ENV_ID"]
+__all__ = ["RobotNavigationEnv", "RoadDrivingEnv", "road_reward", "ENV_ID", "ROAD_ENV_ID"]
 
 ENV_ID = "minimaxplan/RobotNavigation-v0"
+ROAD_ENV_ID = "minimaxplan/RoadDriving-v0"
 #: Obstacles reported in the observation (the nearest ones).
 OBSERVED_OBSTACLES = 8
 OBSERVED_PEDESTRIANS = PEDESTRIAN_COUNT[1]
@@ -172,9 +191,186 @@ class RobotNavigationEnv(gym.Env):
         return self._observation(), float(np.mean(rewards)), terminated, truncated, self._info()
 
 
+#: Other vehicles reported in the observation (the nearest ones).
+OBSERVED_VEHICLES = 8
+#: Bound of every road observation entry: the lanes lie within 2 km of the origin and
+#: speeds are clipped to ``max_speed`` (40 m/s); headings are wrapped.
+ROAD_OBSERVATION_BOUND = 1.0e4
+#: The highway reward's speed scale v_max, m/s (DRIVING.md).
+HIGHWAY_SPEED_SCALE = 30.0
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
+
+
+def road_reward(world: RoadWorld, start: np.ndarray) -> float:
+    """The true reward in [0, 1] of the ego's current state in a road world.
+
+    0 once the ego collided or left the road. Otherwise, on the highway,
+    ``(1 + 0.4 min(v / v_max, 1) + 0.1 lane / (lanes - 1)) / 1.5`` with ``v_max = 30``
+    m/s and ``lane = clip(floor(y / lane_width + 1/2), 0, lanes - 1)`` (a higher index
+    is the preferred lane, the paper's l_c / (l_s - 1)); at the T-junction the progress
+    ``1 - min(d / d_0, 1)``, d the distance from the ego's centre to the goal point
+    (``west_out`` at arc length ``goal_s``) and d_0 that distance at the start.
+
+    Parameters
+    ----------
+    world : RoadWorld
+        A world with an ego.
+    start : numpy.ndarray
+        The ego's start position, shape (2,) (the T-junction's d_0 is measured from it).
+
+    Returns
+    -------
+    float
+        The reward, in [0, 1].
+    """
+    if world.outcome in ("collision", "off_road"):
+        return 0.0
+    x, y, v, _ = world.ego_state
+    scenario = world.scenario
+    if isinstance(scenario, HighwayScenario):
+        lanes = scenario.geometry.lane_count
+        lane_term = 0.0
+        if lanes > 1:
+            lane = min(max(np.floor(y / scenario.geometry.lane_width + 0.5), 0.0), lanes - 1.0)
+            lane_term = lane / (lanes - 1)
+        return float((1.0 + 0.4 * min(v / HIGHWAY_SPEED_SCALE, 1.0) + 0.1 * lane_term) / 1.5)
+    goal = world.road.position_at(world.goal_lanes[0], world.goal_s)
+    reach = max(float(np.linalg.norm(goal - start)), 1e-9)
+    return float(1.0 - min(float(np.linalg.norm(goal - np.array([x, y]))) / reach, 1.0))
+
+
+class RoadDrivingEnv(gym.Env):
+    """The ego among uncertain traffic on the highway or at the T-junction (see the module docstring).
+
+    Parameters
+    ----------
+    kind
+        "highway" or "tjunction".
+    scenario
+        A `HighwayScenario` or `TJunctionScenario` overriding the kind's constants.
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, kind: str = "highway", *, scenario: HighwayScenario | TJunctionScenario | None = None):
+        as_choice("kind", kind, ROAD_WORLD_KINDS)
+        expected = HighwayScenario if kind == "highway" else TJunctionScenario
+        scenario = expected() if scenario is None else scenario
+        check_instance("scenario", scenario, expected)
+        self.kind = kind
+        self.scenario = scenario
+        self._bounds = np.array([scenario.ego_acceleration_bound, scenario.vehicle.max_steering])
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        size = 4 + 5 * OBSERVED_VEHICLES
+        self.observation_space = spaces.Box(
+            -ROAD_OBSERVATION_BOUND, ROAD_OBSERVATION_BOUND, shape=(size,), dtype=np.float32
+        )
+        self.world: RoadWorld | None = None
+        self._start = np.zeros(2)
+        self._ids = np.zeros(0, dtype=int)
+
+    def _current_world(self) -> RoadWorld:
+        if self.world is None:
+            raise InputError("call reset() before step()")
+        return self.world
+
+    def _observation(self) -> np.ndarray:
+        seen = self._current_world().measure()
+        ego = np.array(seen.ego, dtype=float)
+        ego[3] = _wrap(ego[3])
+        rel = seen.vehicles[:, :2] - ego[:2]
+        order = np.argsort(np.linalg.norm(rel, axis=1), kind="stable")[:OBSERVED_VEHICLES]
+        vehicles = np.zeros((OBSERVED_VEHICLES, 5))
+        vehicles[: order.size] = np.column_stack(
+            [rel[order], seen.vehicles[order, 2], _wrap(seen.vehicles[order, 3]), np.ones(order.size)]
+        )
+        self._ids = np.asarray(seen.ids)[order]
+        obs = np.concatenate([ego, vehicles.ravel()])
+        return np.clip(obs, -ROAD_OBSERVATION_BOUND, ROAD_OBSERVATION_BOUND).astype(np.float32)
+
+    def _info(self) -> dict:
+        world = self._current_world()
+        return {"outcome": world.outcome, "time": world.time, "ids": self._ids.copy()}
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """Start a new episode (gymnasium API).
+
+        Parameters
+        ----------
+        seed : int, optional
+            World seed of the new episode (>= 0); without it, the next seed of the
+            env's own generator (seeded by the first seeded reset).
+        options : dict, optional
+            Unused (gymnasium API).
+
+        Returns
+        -------
+        observation : numpy.ndarray
+            float32, shape ``observation_space.shape``.
+        info : dict
+            ``outcome``, ``time`` (s) and the observed vehicles' agent ``ids``.
+        """
+        super().reset(seed=seed)
+        world_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
+        self.world = RoadWorld(self.kind, world_seed, scenario=self.scenario)
+        self._start = self.world.ego_state[:2]
+        return self._observation(), self._info()
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """Hold ``action`` for one decision period (gymnasium API).
+
+        Parameters
+        ----------
+        action : array_like
+            ``(acceleration, steering)`` normalised to [-1, 1], shape (2,): the control is
+            ``action * (a_bound, max_steering)``.
+
+        Returns
+        -------
+        observation : numpy.ndarray
+            float32, shape ``observation_space.shape``.
+        reward : float
+            Mean `road_reward` over the sub-steps, in [0, 1].
+        terminated : bool
+            The ego reached the goal, collided or left the road.
+        truncated : bool
+            The time limit ran out.
+        info : dict
+            ``outcome``, ``time`` (s) and the observed vehicles' agent ``ids``.
+
+        Raises
+        ------
+        InputError
+            If `reset` was not called, or ``action`` is malformed or out of bounds.
+        """
+        world = self._current_world()
+        u = np.asarray(action, dtype=float)
+        if u.shape != (2,):
+            raise InputError(f"action must have shape (2,), got shape {u.shape}")
+        if np.any(np.abs(u) > 1.0) or not np.all(np.isfinite(u)):
+            raise InputError(f"action must lie in [-1, 1]^2, got {u.tolist()}")
+        # the scaled control may exceed its bound by one rounding: clip only that.
+        u = np.clip(u * self._bounds, -self._bounds, self._bounds)
+        rewards = []
+        for _ in range(int(self.scenario.substeps)):
+            world.apply(u)
+            rewards.append(road_reward(world, self._start))
+            if world.done:
+                break
+        outcome = world.outcome
+        terminated = outcome in ("goal", "collision", "off_road")
+        truncated = outcome == "timeout"
+        return self._observation(), float(np.mean(rewards)), terminated, truncated, self._info()
+
+
 def _register() -> None:
     if ENV_ID not in gym.registry:
         gym.register(ENV_ID, entry_point="minimaxplan.scenarios.gym_env:RobotNavigationEnv")
+    if ROAD_ENV_ID not in gym.registry:
+        gym.register(ROAD_ENV_ID, entry_point="minimaxplan.scenarios.gym_env:RoadDrivingEnv")
 
 
 _register()
