@@ -255,6 +255,7 @@ class BoxCheck:
             If a box's corners and the true state differ in shape.
         """
         self.active = True
+        compared = []  # every box validated before any is counted
         for name, (lower, upper) in boxes.items():
             if name not in truth:
                 raise InputError(
@@ -268,6 +269,8 @@ class BoxCheck:
                     f"the box predicted for {name!r} has corners of shapes {lo.shape} and {hi.shape}, "
                     f"but its true state has shape {state.shape}"
                 )
+            compared.append((name, state, lo, hi))
+        for name, state, lo, hi in compared:
             counts = self.by_kind.setdefault(box_kind(name), {"checked": 0, "missed": 0})
             self.checked += 1
             counts["checked"] += 1

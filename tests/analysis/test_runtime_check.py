@@ -64,7 +64,9 @@ def test_nan_is_a_miss_and_errors_name_the_box():
         check.check({"robot": box}, {"vehicle 7": np.zeros(2)}, decision=0, substep=1, time=0.0)
     with pytest.raises(DimensionError, match=r"'robot' has corners of shapes \(2,\) and \(2,\), but its true state has shape \(4,\)"):
         check.check({"robot": box}, {"robot": np.zeros(4)}, decision=0, substep=1, time=0.0)
-    assert check.checked == 1  # the failed calls counted nothing
+    with pytest.raises(InputError, match="predicted a box for 'ghost'"):
+        check.check({"vehicle 7": box, "ghost": box}, {"vehicle 7": np.zeros(2)}, decision=0, substep=1, time=0.0)
+    assert check.checked == 1  # the failed calls counted nothing, not even their valid boxes
     assert box_kind("robot") == "robot" and box_kind("pedestrian 12") == "pedestrian"
 
 
