@@ -8,7 +8,7 @@ STAMP_BASE  := $(VENV)/.installed-dev
 STAMP_BENCH := $(VENV)/.installed-bench
 STAMP_DOCS  := $(VENV)/.installed-docs
 
-.PHONY: demo test lint docs bench clean
+.PHONY: demo test lint docs notebooks bench clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -48,6 +48,10 @@ docs: $(STAMP_DOCS)
 	rm -rf docs/_build
 	$(PY) -m sphinx -b html -W --keep-going -q docs docs/_build/html
 	@echo "docs: docs/_build/html/index.html"
+
+# Re-execute the notebooks in place and store their outputs (what make docs renders).
+notebooks: $(STAMP_BASE)
+	$(PY) docs/execute_notebooks.py
 
 bench: $(STAMP_BENCH)
 	$(PY) benchmarks/run_all.py
