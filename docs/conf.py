@@ -45,6 +45,7 @@ html_theme_options = {"description": "Robust motion planning under model uncerta
 
 # Notebooks: render what is stored in them, never execute at build time.
 nb_execution_mode = "off"
+nb_render_markdown_format = "myst"  # Markdown outputs (the reports) with their tables
 myst_enable_extensions = ["dollarmath", "colon_fence"]
 myst_heading_anchors = 3
 

@@ -63,10 +63,8 @@ def _commands(blocks):
     return commands
 
 
-@pytest.fixture(scope="module")
-def guide_run(tmp_path_factory):
-    """Write the guide's files, run its Python session, then its commands; return the folder."""
-    folder = tmp_path_factory.mktemp("guide")
+def _run_guide(folder: pathlib.Path) -> dict:
+    """Write the guide's files in ``folder``, run its Python session, then its commands."""
     blocks = guide_blocks()
     files, session = _files_and_session(blocks)
     for name, text in files.items():
@@ -100,20 +98,21 @@ def test_the_guide_has_what_the_task_names():
     assert "register_reward_params" in files["motor_reward.py"]
 
 
-def test_every_python_block_prints_what_the_guide_shows(guide_run):
+def test_the_guide_runs_as_printed(tmp_path):
+    # One test, one run: the session compiles the reward kernel (20-30 s), and pytest-xdist
+    # would run a module fixture once per worker.
+    guide_run = _run_guide(tmp_path)
     outputs, session = guide_run["outputs"], guide_run["session"]
     assert len(outputs) == len(session) >= 5
     for n, ((code, expected), printed) in enumerate(zip(session, outputs)):
         assert printed.splitlines() == expected, f"guide block {n}:\n{code}"
-
-
-def test_every_command_exits_and_prints_as_shown(guide_run):
     assert len(guide_run["commands"]) == 3
     for command, expected, done in guide_run["commands"]:
         assert done.stdout.splitlines() == expected, (command, done.stdout, done.stderr)
     folder = guide_run["folder"]
     for report in ("selection.md", "open_loop.md", "closed_loop.md"):
         assert (folder / report).read_text(encoding="utf-8").startswith("# ")
+    _check_what_the_reports_say(folder)
 
 
 def _json(folder, *args):
@@ -128,8 +127,8 @@ def _json(folder, *args):
     return json.loads(done.stdout)
 
 
-def test_the_reports_say_what_the_guide_says(guide_run):
-    folder = guide_run["folder"]
+def _check_what_the_reports_say(folder: pathlib.Path) -> None:
+    # the prose of sections 3 and 4, on the reports' JSON form
     selection = _json(folder, "select", "motor.toml", "motor_data.npz")
     assert selection["survivors"] == ["viscous friction", "friction and spring"]
     assert selection["eliminated"] == ["weak motor"]
