@@ -15,12 +15,23 @@ import inspect
 import pathlib
 import pkgutil
 import shutil
+import sys
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10: the package's own dependency
+    import tomli as tomllib
 
 import minimaxplan
 
 DOCS = pathlib.Path(__file__).resolve().parent
 ROOT = DOCS.parent
-SUBPACKAGES = ["models", "kernels", "verify", "planners", "scenarios", "analysis"]
+#: The installed subpackages, as pyproject.toml lists them (a new one gets its pages too).
+SUBPACKAGES = [
+    name.split(".", 1)[1]
+    for name in tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]["packages"]
+    if name.startswith("minimaxplan.")
+]
 
 project = "minimaxplan"
 author = "the minimaxplan authors"
@@ -95,7 +106,15 @@ def _write_api_pages() -> None:
     if api.exists():
         shutil.rmtree(api)
     api.mkdir()
-    index = [_title("API reference"), ".. toctree::", "   :maxdepth: 1", ""]
+    index = [
+        _title("API reference"),
+        ".. automodule:: minimaxplan",
+        "   :no-members:",
+        "",
+        ".. toctree::",
+        "   :maxdepth: 1",
+        "",
+    ]
     for sub in SUBPACKAGES:
         name = f"minimaxplan.{sub}"
         package = importlib.import_module(name)
