@@ -317,7 +317,7 @@ class IntervalPredictor:
     forming ``A(v_k)``, of the basis change and of the mismatch between the computed
     T and T^-1); n includes the final additions, so the rounded results are still
     outward. The cost is one more small matrix product per step; the margins are of
-    order eps relative to |x|.
+    order eps relative to ``|x|``.
     """
 
     def __init__(self, system: UncertainLinearSystem, parameters=None, *, basis=None) -> None:
@@ -389,7 +389,7 @@ class IntervalPredictor:
             )
             abs_matrices = np.max(np.abs(matrices), axis=0)
         self.vertex_matrices = frozen_copy(matrices)
-        #: Elementwise bound on |vertex_matrices[v] - (the exact matrix they round)|, one for all v
+        #: Elementwise bound on ``|vertex_matrices[v] - (the exact matrix they round)|``, one for all v
         #: (forming A(v), and the basis change when there is one).
         self.vertex_matrix_error = frozen_copy(matrix_error)
         k = matrices.shape[0]

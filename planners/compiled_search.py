@@ -1,4 +1,4 @@
-"""The compiled engine: the whole robust search for linked `IntervalModel`s in one numba kernel.
+"""The compiled engine: the whole robust search for linked `IntervalModel` models in one numba kernel.
 
 `RobustTreePlanner` runs this engine when its models are one linked group following
 `minimaxplan.planners.protocols.CompiledTransitions` (an `IntervalModel.linked`

@@ -40,7 +40,7 @@ class Decision:
         Root upper bound ``U`` (eq. (17) with the discounted b-value of eq. (16)):
         no action sequence gets more than ``upper`` under its worst model.
         ``upper`` bounds the objective *as the models define it*: for
-        `IntervalModel`s, whose rewards are pessimistic minima over predicted boxes,
+        `IntervalModel` models, whose rewards are pessimistic minima over predicted boxes,
         it bounds the surrogate objective of eq. (11), which is itself a lower bound
         of the true robust value (10); it is not an upper bound of that true value.
     expansions

@@ -19,7 +19,7 @@ in compiled code, and lets `RobustTreePlanner` run its compiled engine
 
 The box arithmetic is compiled (`minimaxplan.planners.box_kernels`, its matrices
 built by `minimaxplan.planners.interval_kernel`); the hypotheses of one planner are
-stepped together by an `IntervalGroup`, which this module wraps as `BoxState`s.
+stepped together by an `IntervalGroup`, which this module wraps as `BoxState` objects.
 """
 
 from __future__ import annotations
@@ -588,7 +588,7 @@ class IntervalModel:
 
     @property
     def n_actions(self) -> int:
-        """The number of actions |A| (one per controller)."""
+        """The number of actions ``|A|`` (one per controller)."""
         return len(self.bank)
 
     @property

@@ -82,7 +82,7 @@ class PointModel:
 
     @property
     def n_actions(self) -> int:
-        """The number of actions |A| (one per controller)."""
+        """The number of actions ``|A|`` (one per controller)."""
         return len(self.bank)
 
     @property

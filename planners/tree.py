@@ -42,7 +42,7 @@ class SearchTree:
     size
         Number of nodes.
     n_models, n_actions
-        M and |A|.
+        M and ``|A|``.
     gamma
         The discount factor.
     parent, action, depth, first_child
