@@ -29,14 +29,17 @@ def test_there_are_notebooks_to_run():
     assert NOTEBOOKS, f"no notebooks found in {ROOT / 'notebooks'}"
 
 
+def _printed(cells) -> list[str]:
+    return ["".join(o.get("text", "") for o in c["outputs"] if o.get("output_type") == "stream") for c in cells]
+
+
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
-def test_notebook_is_committed_without_outputs(path):
+def test_notebook_is_committed_with_its_outputs(path):
+    # make docs renders the stored outputs and executes nothing: every code cell carries
+    # them, from one run in order (`make notebooks` stores them).
     notebook = json.loads(path.read_text(encoding="utf-8"))
-    for cell in notebook["cells"]:
-        if cell["cell_type"] == "code":
-            assert cell.get("outputs") == [] and cell.get("execution_count") is None, (
-                f"{path.name}: commit notebooks with cleared outputs (CI executes them)"
-            )
+    counts = [cell.get("execution_count") for cell in notebook["cells"] if cell["cell_type"] == "code"]
+    assert counts == list(range(1, len(counts) + 1)), f"{path.name}: run `make notebooks` and commit the outputs"
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
@@ -49,6 +52,7 @@ def test_notebook_executes(path, monkeypatch):
     # the interpreter's folder first on PATH for any other launcher.
     monkeypatch.setenv("PATH", str(pathlib.Path(sys.executable).parent), prepend=":")
     notebook = nbformat.read(path, as_version=4)
+    stored = _printed([cell for cell in notebook.cells if cell.cell_type == "code"])
     client = NotebookClient(
         notebook,
         timeout=TIMEOUT_PER_CELL,
@@ -58,6 +62,7 @@ def test_notebook_executes(path, monkeypatch):
     client.execute()  # raises CellExecutionError, naming the cell, if any cell fails
     executed = [cell for cell in notebook.cells if cell.cell_type == "code"]
     assert executed and all(cell.execution_count is not None for cell in executed)
+    assert _printed(executed) == stored, f"{path.name}: the stored outputs are stale: run `make notebooks`"
     printed = "".join(
         output.get("text", "") for cell in executed for output in cell.outputs if output.get("output_type") == "stream"
     )
