@@ -345,6 +345,15 @@ def test_old_call_is_bit_identical_to_h_copies(seed, p, d, dt, kind, basis):
         np.testing.assert_array_equal(other.basis, predictor.basis)
 
 
+@given(seed=st.integers(0, 2**32 - 1), k=st.integers(1, 9), n=st.integers(1, 9))
+def test_unique_rows_is_numpy_unique(seed, k, n):
+    # The vertex matrices' order and selection must stay numpy.unique's (the old call's bits).
+    rng = np.random.default_rng(seed)
+    rows = rng.choice([-1.0, -0.0, 0.0, 0.5, 2.0], size=(k, n)) if rng.integers(2) else rng.normal(size=(k, n))
+    rows[rng.uniform(size=k) < 0.3] = rows[0]
+    assert prediction._unique_rows(rows).tobytes() == np.unique(rows, axis=0).tobytes()
+
+
 def test_auto_basis_is_chosen_once_from_the_union_of_the_steps():
     # Far from nonnegative, real eigenvalues: "auto" adopts a basis, the same for every step,
     # chosen from the union of the steps' vertices (and the hull of the disturbance boxes).
