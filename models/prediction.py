@@ -787,11 +787,49 @@ def _step_parameters(system: UncertainLinearSystem, parameters, steps: int) -> l
         else:
             vertices = as_finite_array(name, entry, ndim=2)
             if vertices.shape[0] == 0:
-                raise DimensionError(f"{name} must have shape (k, {system.nparams}) with k >= 1, got shape {vertices.shape}")
+                raise DimensionError(
+                    f"{name} must have shape (k, {system.nparams}) with k >= 1, got shape {vertices.shape}"
+                )
             check_shape(name, vertices, (None, system.nparams))
             entry = VertexPolytope(vertices)
         checked.append(entry)
     return checked
+
+
+def _distinct_sets(system: UncertainLinearSystem, sets: list) -> tuple[list, list[int]]:
+    """The distinct sets' vertex matrices (each computed once) and the index of each step's set.
+
+    Sets are the same when they are the same object or have the same vertex matrices.
+    """
+    distinct: list[tuple[np.ndarray, np.ndarray]] = []
+    by_identity: dict[int, int] = {}
+    by_content: dict[tuple, int] = {}
+    set_of_step = []
+    for entry in sets:
+        index = by_identity.get(id(entry))
+        if index is None:
+            matrices, formation_error = _distinct_vertex_matrices(system, entry)
+            key = (matrices.shape, matrices.tobytes(), formation_error.tobytes())
+            index = by_content.setdefault(key, len(distinct))
+            if index == len(distinct):
+                distinct.append((matrices, formation_error))
+            by_identity[id(entry)] = index
+        set_of_step.append(index)
+    return distinct, set_of_step
+
+
+def _distinct_shifts(frame: _Frame, w_lower: np.ndarray, w_upper: np.ndarray) -> tuple[list[int], list]:
+    """Each step's index into the shifts of the distinct disturbance boxes (each from fresh 1-D copies)."""
+    by_box: dict[bytes, int] = {}
+    box_of_step, shifts = [], []
+    for lo, hi in zip(w_lower, w_upper):
+        key = lo.tobytes() + hi.tobytes()
+        index = by_box.get(key)
+        if index is None:
+            index = by_box[key] = len(shifts)
+            shifts.append(frame.shifts(np.array(lo), np.array(hi)))
+        box_of_step.append(index)
+    return box_of_step, shifts
 
 
 def predict_tube(
@@ -903,46 +941,24 @@ def predict_tube(
         )
     basis = _checked_basis(basis, system.nstates)
 
-    if per_step:  # the distinct sets' vertex matrices, each computed once, and each step's set
-        distinct: list[tuple[np.ndarray, np.ndarray]] = []
-        by_identity: dict[int, int] = {}
-        by_content: dict[tuple, int] = {}
-        set_of_step = []
-        for entry in sets:
-            index = by_identity.get(id(entry))
-            if index is None:
-                matrices, formation_error = _distinct_vertex_matrices(system, entry)
-                key = (matrices.shape, matrices.tobytes(), formation_error.tobytes())
-                index = by_content.setdefault(key, len(distinct))
-                if index == len(distinct):
-                    distinct.append((matrices, formation_error))
-                by_identity[id(entry)] = index
-            set_of_step.append(index)
+    if per_step:
+        distinct, set_of_step = _distinct_sets(system, sets)
     # The basis, once for the whole tube.
     if len(distinct) == 1:
         union = distinct[0][0]
     else:
         p = system.nstates
-        union = np.unique(np.concatenate([m for m, _ in distinct]).reshape(-1, p * p), axis=0).reshape(-1, p, p)
+        union = _unique_rows(np.concatenate([m for m, _ in distinct]).reshape(-1, p * p)).reshape(-1, p, p)
     if w_lower is None or steps == 0:
         hull = system.w
     else:
         hull = Box(w_lower.min(axis=0), w_upper.max(axis=0))
     frame = _Frame(system, basis, union, hull)
     vertex_steps = [frame.vertex_step(matrices, formation_error) for matrices, formation_error in distinct]
-    # Disturbance shifts, once per distinct box (each from fresh 1-D copies of its bounds).
     if w_lower is None or steps == 0:
         box_of_step, shifts = [0] * steps, [frame.shifts(system.w.low, system.w.high)]
     else:
-        by_box: dict[bytes, int] = {}
-        box_of_step, shifts = [], []
-        for n in range(steps):
-            key = w_lower[n].tobytes() + w_upper[n].tobytes()
-            index = by_box.get(key)
-            if index is None:
-                index = by_box[key] = len(shifts)
-                shifts.append(frame.shifts(np.array(w_lower[n]), np.array(w_upper[n])))
-            box_of_step.append(index)
+        box_of_step, shifts = _distinct_shifts(frame, w_lower, w_upper)
     predictors: dict[tuple[int, int], IntervalPredictor] = {}
     first = IntervalPredictor._from_parts(frame, vertex_steps[0], shifts[0])
     predictors[0, 0] = first

@@ -48,7 +48,8 @@ def points_in(rng, parameter_set, n):
     extreme = rng.integers(2, size=n).astype(bool)
     if isinstance(parameter_set, Box):
         corners = parameter_set.vertices()[rng.integers(2**parameter_set.dim, size=n)]
-        return np.where(extreme[:, None], corners, rng.uniform(parameter_set.low, parameter_set.high, size=corners.shape))
+        inside = rng.uniform(parameter_set.low, parameter_set.high, size=corners.shape)
+        return np.where(extreme[:, None], corners, inside)
     if isinstance(parameter_set, np.ndarray):
         vertices = parameter_set
         inside = rng.dirichlet(np.ones(len(vertices)), size=n) @ vertices
@@ -95,6 +96,11 @@ def simulate_switching(system, x0s, thetas, inputs, disturbances):
     return np.stack(states, axis=1)
 
 
+def exact_entry(A0, phi, theta, i, j):
+    """``A(theta)[i, j] = A0[i, j] + sum_m theta[m] phi[m, i, j]``, exactly."""
+    return Fraction(A0[i][j]) + sum((Fraction(t) * Fraction(phi[m][i][j]) for m, t in enumerate(theta)), Fraction(0))
+
+
 def exact_trajectory(system, x0, thetas, inputs, disturbances):
     """The same recursion in rational arithmetic: every float input taken exactly."""
     A0, phi = system.A0.tolist(), system.phi.tolist()
@@ -103,11 +109,7 @@ def exact_trajectory(system, x0, thetas, inputs, disturbances):
     x = [Fraction(v) for v in x0]
     out = [x]
     for theta, u, w in zip(thetas, inputs, disturbances):
-        t = [Fraction(v) for v in theta]
-        A = [
-            [Fraction(A0[i][j]) + sum((t[m] * Fraction(phi[m][i][j]) for m in range(len(t))), Fraction(0)) for j in range(p)]
-            for i in range(p)
-        ]
+        A = [[exact_entry(A0, phi, theta, i, j) for j in range(p)] for i in range(p)]
         x = [
             sum((A[i][j] * x[j] for j in range(p)), Fraction(0))
             + sum((Fraction(B[i][j]) * Fraction(u[j]) for j in range(len(u))), Fraction(0))
@@ -491,7 +493,8 @@ def test_bad_arguments_are_rejected_before_any_work(small_system, monkeypatch, l
 def test_predictor_rejects_bad_disturbances(small_system):
     with pytest.raises(InputError, match="disturbances must be a Box, got tuple"):
         IntervalPredictor(small_system, disturbances=(np.zeros(2), np.ones(2)))
-    with pytest.raises(DimensionError, match=r"disturbances must have dimension 2 \(columns of D, shape \(2, 2\)\), got 1"):
+    message = r"disturbances must have dimension 2 \(columns of D, shape \(2, 2\)\), got 1"
+    with pytest.raises(DimensionError, match=message):
         IntervalPredictor(small_system).with_sets(disturbances=Box([0.0], [1.0]))
     with pytest.raises(DimensionError, match=r"parameters must have dimension 1 .*got vertices of shape \(4, 2\)"):
         IntervalPredictor(small_system).with_sets(Box(np.zeros(2), np.ones(2)))
@@ -503,5 +506,6 @@ def test_old_forms_keep_their_meaning(small_system):
     tube = predict_tube(small_system, X0, pair, pair)
     np.testing.assert_array_equal(tube.lower, predict_tube(small_system, X0, np.array(pair), np.array(pair)).lower)
     assert tube.horizon == 2
-    assert predict_tube(small_system, X0, np.zeros((0, 1)), disturbances=(np.zeros((0, 2)), np.zeros((0, 2)))).horizon == 0
+    empty = (np.zeros((0, 2)), np.zeros((0, 2)))
+    assert predict_tube(small_system, X0, np.zeros((0, 1)), disturbances=empty).horizon == 0
     assert predict_tube(small_system, X0, [Box([0.0], [1.0])], [VertexPolytope([[0.0]])]).horizon == 1
