@@ -201,15 +201,8 @@ def bicycle_step_into(states, acceleration, steering, dt, length, max_speed, out
 
 @njit(cache=True, inline="always")
 def _wrap_to_pi(angle):
-    """``np.mod(angle + pi, 2 pi) - pi`` with numpy's floating modulo (fmod, then the sign of the divisor)."""
-    two_pi = 2.0 * math.pi
-    r = math.fmod(angle + math.pi, two_pi)
-    if r != 0.0:
-        if r < 0.0:
-            r += two_pi
-    else:
-        r = 0.0
-    return r - math.pi
+    """``np.mod(angle + pi, 2 pi) - pi``: numba's float ``%`` is Python's, the modulo numpy computes."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @njit(cache=True, inline="always")
