@@ -173,7 +173,13 @@ def bicycle_step_one(x, y, v, psi, acceleration, steering, dt, half_length, max_
     return x_next, y_next, speed, psi_next
 
 
-@njit(cache=True)
+#: The Python-facing kernels are compiled without numba's reference counting (they allocate nothing): every
+#: read of an array field of the controller's namedtuples would otherwise cost an atomic increment and
+#: decrement (measured: 7x slower rollouts).
+_NO_REFCOUNTS = {"cache": True, "_nrt": False}
+
+
+@njit(**_NO_REFCOUNTS)
 def bicycle_step_into(states, acceleration, steering, dt, length, max_speed, out):
     """`bicycle_step_one` for every row: ``out[i]`` from ``states[i]`` (n, 4), ``acceleration[i]``, ``steering[i]``.
 
@@ -336,7 +342,7 @@ def ego_control_one(controller, x, y, v, psi, level, lane):
     return accel, steer, lane
 
 
-@njit(cache=True)
+@njit(**_NO_REFCOUNTS)
 def _ego_control(controller, state, level, lane):
     return ego_control_one(controller, state[0], state[1], state[2], state[3], level, lane)
 
@@ -368,7 +374,7 @@ def ego_control(controller, state, level: int, lane: int) -> tuple[np.ndarray, i
     return np.array([accel, steer]), int(lane_after)
 
 
-@njit(cache=True)
+@njit(**_NO_REFCOUNTS)
 def ego_rollout(controller, state, level, lane, substeps, out_states, out_controls):
     """Run the ego's controller and bicycle for ``substeps`` sub-steps from ``state`` (4,).
 

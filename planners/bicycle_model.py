@@ -21,23 +21,30 @@ of them collides.
 from __future__ import annotations
 
 import functools
+import hashlib
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
+from numba import njit
 
 from ..kernels import bicycle as bicycle_kernels
 from ..kernels.bicycle import EgoController, LaneGeometry, apply_action, bicycle_step_one, ego_control_one
 from ..kernels.box_primitives import minimum
 from ..kernels.reward_protocol import (
     box_reward_minimum,
-    compile_per_params_type,
     has_compiled_minimum,
     minimum_sources,
     sources_digest,
 )
-from ..models.errors import DimensionError, InputError
-from ..models.validation import as_count, as_finite_array, as_positive_scalar, check_instance
+from ..models.errors import DimensionError, InputError, RewardRangeError
+from ..models.validation import as_count, as_discount, as_finite_array, as_positive_scalar, check_instance
+from . import tree_ops
+from .decision import Decision
+from .tree import SearchTree
+
+# Module globals, not closure cells (numba keys a cached closure by its cells' pickles; see compiled_search).
+from .tree_ops import N_EXPANDED, SIZE, expand, reset, select
 
 __all__ = [
     "HIGHWAY_ACTIONS",
@@ -47,6 +54,7 @@ __all__ = [
     "BicycleState",
     "BicycleModel",
     "ego_controller",
+    "compiled_plan",
 ]
 
 #: The highway's actions (the paper's) as (name, speed-level change, lane change: +1 left, -1 right).
@@ -163,16 +171,29 @@ class BicycleState(NamedTuple):
     time: int
 
 
+def _compile_without_refcounts(function, params_type: type):
+    """``njit(cache=True, _nrt=False)`` with an on-disk index per params type (as `compile_per_params_type`).
+
+    The kernels read the controller's and the reward's namedtuples in their inner
+    loops; with numba's reference counting every such read costs an atomic increment
+    and decrement (measured: 7x slower). They allocate nothing (the caller passes the
+    scratch arrays), so they run without it, like `minimaxplan.planners.tree_ops`.
+    """
+    tag = hashlib.sha256(f"{params_type.__module__}.{params_type.__qualname__}".encode()).hexdigest()[:12]
+    function.__qualname__ = f"{function.__qualname__}_{tag}"
+    return njit(cache=True, _nrt=False)(function)
+
+
 @functools.cache
 def _expand_kernel(params_type: type):
     """The compiled expansion of every action of a node, for rewards of ``params_type``."""
     version = sources_digest(__file__, bicycle_kernels.__file__, *minimum_sources(params_type))
 
     def expand_actions(
-        controller, params, x0, level, lane, time, speed_changes, lane_changes, substeps, out_x, out_meta, rewards, terminals
+        controller, params, x0, level, lane, time, speed_changes, lane_changes, substeps, z, out_x, out_meta, rewards,
+        terminals,
     ):
         _ = version  # ties numba's cache entry to the sources it calls into
-        z = np.empty(8)
         half = controller.length / 2
         for a in range(speed_changes.shape[0]):
             lv, ln = apply_action(controller, level, lane, speed_changes[a], lane_changes[a])
@@ -193,7 +214,7 @@ def _expand_kernel(params_type: type):
             rewards[a] = worst
             terminals[a] = hit
 
-    return compile_per_params_type(expand_actions, params_type, what="the ego model's expansion (bicycle, controllers, reward)")
+    return _compile_without_refcounts(expand_actions, params_type)
 
 
 class BicycleModel:
@@ -256,6 +277,23 @@ class BicycleModel:
         self._params = params
         self._kernel = _expand_kernel(type(params))
         self._index_cache: tuple[Any, np.ndarray] | None = None
+        self._scratch = np.empty(8)  # one box [-x | x] for the reward (the kernels allocate nothing)
+
+    def _search(self, budget: int, tree, nodes: np.ndarray, time: int):
+        """Run `compiled_plan`'s kernel on ``tree`` and ``nodes`` (the arrays of one search)."""
+        kernel = _search_kernel(type(self._params))
+        return kernel(
+            budget,
+            tree,
+            nodes,
+            self._scratch,
+            self.controller,
+            self._params,
+            self._speed_changes,
+            self._lane_changes,
+            self.substeps,
+            time,
+        )
 
     @property
     def n_actions(self) -> int:
@@ -332,6 +370,7 @@ class BicycleModel:
             self._speed_changes[index],
             self._lane_changes[index],
             self.substeps,
+            self._scratch,
             out_x,
             meta,
             rewards,
@@ -418,3 +457,138 @@ class BicycleModel:
         if lane >= self.controller.lanes.kinds.shape[0]:
             raise InputError(f"lane must be a lane index < {self.controller.lanes.kinds.shape[0]}, got {lane}")
         return BicycleState(x, level, lane, as_count("time", time, minimum=0))
+
+
+#: `compiled_plan`'s kernel status: budget spent, or stopped because the root's bounds met.
+_DONE, _SOLVED = 0, 1
+
+
+@functools.cache
+def _search_kernel(params_type: type):
+    """The whole robust search over one `BicycleModel` in one compiled call, for rewards of ``params_type``."""
+    version = sources_digest(__file__, tree_ops.__file__, bicycle_kernels.__file__, *minimum_sources(params_type))
+
+    def run_ego_search(budget, tree, nodes, z, controller, params, speed_changes, lane_changes, substeps, time0):
+        """Expand ``tree`` from ``nodes[0]`` (x, y, v, psi, level, lane) for ``budget`` expansions.
+
+        Returns ``(status, bad)`` as `minimaxplan.planners.compiled_search`'s kernel
+        (the arrays hold the whole budget's tree, so they never fill up).
+        """
+        _ = version  # ties numba's cache entry to the sources it calls into
+        rewards, new_terminal, terminal, depth, counts = (
+            tree.rewards,
+            tree.new_terminal,
+            tree.terminal,
+            tree.depth,
+            tree.counts,
+        )
+        n_actions = rewards.shape[1]
+        half = controller.length / 2
+        dt, max_speed = controller.dt, controller.max_speed
+        reset(tree)
+        while counts[N_EXPANDED] < budget:
+            leaf = select(tree)
+            if leaf < 0:
+                return _SOLVED, -1
+            first = counts[SIZE]
+            if not terminal[leaf, 0]:
+                time = time0 + depth[leaf] * substeps
+                level, lane = int(nodes[leaf, 4]), int(nodes[leaf, 5])
+                for a in range(n_actions):
+                    lv, ln = apply_action(controller, level, lane, speed_changes[a], lane_changes[a])
+                    x, y, v, psi = nodes[leaf, 0], nodes[leaf, 1], nodes[leaf, 2], nodes[leaf, 3]
+                    worst = 1.0
+                    hit = False
+                    for k in range(substeps):
+                        accel, steer, ln = ego_control_one(controller, x, y, v, psi, lv, ln)
+                        x, y, v, psi = bicycle_step_one(x, y, v, psi, accel, steer, dt, half, max_speed)
+                        z[0], z[1], z[2], z[3] = -x, -y, -v, -psi
+                        z[4], z[5], z[6], z[7] = x, y, v, psi
+                        value, collided = box_reward_minimum(params, z, 4, float(time + k + 1))
+                        worst = minimum(worst, value)
+                        hit = hit or collided
+                    child = first + a
+                    nodes[child, 0], nodes[child, 1], nodes[child, 2], nodes[child, 3] = x, y, v, psi
+                    nodes[child, 4], nodes[child, 5] = lv, ln
+                    rewards[0, a] = worst
+                    new_terminal[0, a] = hit
+            else:  # terminated: not stepped again (`expand` zeroes the rewards)
+                for a in range(n_actions):
+                    for j in range(6):
+                        nodes[first + a, j] = nodes[leaf, j]
+            bad = expand(tree, leaf)
+            if bad >= 0:
+                return _DONE, bad
+        return _DONE, -1
+
+    return _compile_without_refcounts(run_ego_search, params_type)
+
+
+def compiled_plan(model: BicycleModel, state: BicycleState, *, gamma: float, budget: int) -> tuple[Decision, SearchTree]:
+    """`RobustTreePlanner` ``([model], model.actions, ...)``'s search, compiled whole, for one `BicycleModel`.
+
+    The same tree operations (`minimaxplan.planners.tree_ops`) and the same
+    transitions as the Python engine with ``model.expand``, in one compiled call: the
+    same tree and the same `Decision`, bit for bit (tested), without a Python round
+    trip per expansion.
+
+    Parameters
+    ----------
+    model : BicycleModel
+        The ego model (its reward holds the obstacle table).
+    state : BicycleState
+        The root state.
+    gamma : float
+        Discount factor in (0, 1).
+    budget : int
+        Expansions K >= 1.
+
+    Returns
+    -------
+    decision : Decision
+        As `RobustTreePlanner.plan` returns it.
+    tree : SearchTree
+        The search tree (its states are `BicycleState`s).
+
+    Raises
+    ------
+    InputError
+        If ``model`` is not a `BicycleModel` or ``state`` not a `BicycleState`.
+    RewardRangeError
+        If the reward returned a value outside [0, 1].
+
+    Notes
+    -----
+    Hooking it into `RobustTreePlanner` (its ``engine="compiled"``) needs the planner to
+    dispatch its compiled search on the model's kind; until then this is the ego
+    model's compiled engine.
+    """
+    check_instance("model", model, BicycleModel)
+    check_instance("state", state, BicycleState)
+    gamma = as_discount("gamma", gamma)
+    budget = as_count("budget", budget)
+    n_actions = model.n_actions
+    capacity = 1 + budget * n_actions
+    tree = tree_ops.allocate(capacity, 1, n_actions, gamma, tree_ops.discount_table(gamma, budget + 2))
+    nodes = np.empty((capacity, 6))
+    nodes[0, :4] = state.x
+    nodes[0, 4], nodes[0, 5] = state.level, state.lane
+    status, bad = model._search(budget, tree, nodes, state.time)
+    if bad >= 0:
+        a = int(bad)
+        raise RewardRangeError(
+            f"the ego model returned reward {float(tree.rewards[0, a])!r} for action {a}; rewards must be in [0, 1]"
+        )
+    size = int(tree.counts[SIZE])
+
+    def states() -> list:
+        depth = tree.depth[:size]
+        column = [state]
+        for i in range(1, size):
+            x = nodes[i, :4].copy()
+            x.setflags(write=False)
+            column.append(BicycleState(x, int(nodes[i, 4]), int(nodes[i, 5]), state.time + int(depth[i]) * model.substeps))
+        return [column]
+
+    search_tree = SearchTree(tree, states)
+    return Decision.from_tree(search_tree, model.actions, solved=status == _SOLVED), search_tree

@@ -13,6 +13,7 @@ from minimaxplan.planners.bicycle_model import (
     TJUNCTION_TARGET_SPEEDS,
     BicycleModel,
     BicycleState,
+    compiled_plan,
     ego_controller,
 )
 from minimaxplan.planners.protocols import VectorisedModel
@@ -141,3 +142,24 @@ def test_malformed_arguments_are_rejected():
         model.initial_state(state.x, level=0, lane=9)
     with pytest.raises(InputError, match="target_speeds"):
         ego_controller(lane_geometry(world.road), [25.0, 20.0])
+
+
+@pytest.mark.parametrize("kind", ["highway", "tjunction"])
+def test_the_compiled_search_builds_the_python_engines_tree(kind):
+    world, controller, model, state = _ego_setup(kind)
+    if kind == "highway":
+        x = state.x
+        table = _stopped_vehicle_ahead(float(x[1]), float(x[0]) + 45.0)
+        table[:, 1] = [x[0] + 10.0, x[1] + 2.0, x[0] + 16.0, x[1] + 6.0]  # a box in the lane to the left
+        model = model.with_reward(DrivingReward.highway(table, 0, world.road))
+    for budget in (1, 7, 100):
+        planner = RobustTreePlanner([model], model.actions, gamma=0.9, budget=budget, engine="python")
+        expected = planner.plan(state)
+        decision, tree = compiled_plan(model, state, gamma=0.9, budget=budget)
+        assert decision == expected
+        for name in ("parent", "action", "returns", "lower", "upper", "leaf_upper", "terminal"):
+            assert np.array_equal(getattr(tree, name), getattr(planner.tree, name)), name
+        for mine, theirs in zip(tree.states[0], planner.tree.states[0]):
+            assert np.array_equal(mine.x, theirs.x) and mine[1:] == theirs[1:]
+    with pytest.raises(InputError, match="state"):
+        compiled_plan(model, (state.x, 1, 1, 0), gamma=0.9, budget=10)
