@@ -279,22 +279,6 @@ class BicycleModel:
         self._index_cache: tuple[Any, np.ndarray] | None = None
         self._scratch = np.empty(8)  # one box [-x | x] for the reward (the kernels allocate nothing)
 
-    def _search(self, budget: int, tree, nodes: np.ndarray, time: int):
-        """Run `compiled_plan`'s kernel on ``tree`` and ``nodes`` (the arrays of one search)."""
-        kernel = _search_kernel(type(self._params))
-        return kernel(
-            budget,
-            tree,
-            nodes,
-            self._scratch,
-            self.controller,
-            self._params,
-            self._speed_changes,
-            self._lane_changes,
-            self.substeps,
-            time,
-        )
-
     @property
     def n_actions(self) -> int:
         """The number of actions."""
@@ -465,14 +449,15 @@ _DONE, _SOLVED = 0, 1
 
 @functools.cache
 def _search_kernel(params_type: type):
-    """The whole robust search over one `BicycleModel` in one compiled call, for rewards of ``params_type``."""
+    """The whole robust search over M `BicycleModel`s in one compiled call, for rewards of ``params_type``."""
     version = sources_digest(__file__, tree_ops.__file__, bicycle_kernels.__file__, *minimum_sources(params_type))
 
     def run_ego_search(budget, tree, nodes, z, controller, params, speed_changes, lane_changes, substeps, time0):
         """Expand ``tree`` from ``nodes[0]`` (x, y, v, psi, level, lane) for ``budget`` expansions.
 
-        Returns ``(status, bad)`` as `minimaxplan.planners.compiled_search`'s kernel
-        (the arrays hold the whole budget's tree, so they never fill up).
+        ``params`` holds the M models' reward parameters (one ego, M rewards). Returns
+        ``(status, bad)`` as `minimaxplan.planners.compiled_search`'s kernel (the arrays
+        hold the whole budget's tree, so they never fill up).
         """
         _ = version  # ties numba's cache entry to the sources it calls into
         rewards, new_terminal, terminal, depth, counts = (
@@ -482,7 +467,7 @@ def _search_kernel(params_type: type):
             tree.depth,
             tree.counts,
         )
-        n_actions = rewards.shape[1]
+        n_models, n_actions = rewards.shape
         half = controller.length / 2
         dt, max_speed = controller.dt, controller.max_speed
         reset(tree)
@@ -491,28 +476,32 @@ def _search_kernel(params_type: type):
             if leaf < 0:
                 return _SOLVED, -1
             first = counts[SIZE]
-            if not terminal[leaf, 0]:
+            alive = False
+            for m in range(n_models):
+                if not terminal[leaf, m]:
+                    alive = True
+            if alive:
                 time = time0 + depth[leaf] * substeps
                 level, lane = int(nodes[leaf, 4]), int(nodes[leaf, 5])
                 for a in range(n_actions):
                     lv, ln = apply_action(controller, level, lane, speed_changes[a], lane_changes[a])
                     x, y, v, psi = nodes[leaf, 0], nodes[leaf, 1], nodes[leaf, 2], nodes[leaf, 3]
-                    worst = 1.0
-                    hit = False
+                    for m in range(n_models):
+                        rewards[m, a] = 1.0
+                        new_terminal[m, a] = False
                     for k in range(substeps):
                         accel, steer, ln = ego_control_one(controller, x, y, v, psi, lv, ln)
                         x, y, v, psi = bicycle_step_one(x, y, v, psi, accel, steer, dt, half, max_speed)
                         z[0], z[1], z[2], z[3] = -x, -y, -v, -psi
                         z[4], z[5], z[6], z[7] = x, y, v, psi
-                        value, collided = box_reward_minimum(params, z, 4, float(time + k + 1))
-                        worst = minimum(worst, value)
-                        hit = hit or collided
+                        for m in range(n_models):
+                            value, collided = box_reward_minimum(params[m], z, 4, float(time + k + 1))
+                            rewards[m, a] = minimum(rewards[m, a], value)
+                            new_terminal[m, a] = new_terminal[m, a] or collided
                     child = first + a
                     nodes[child, 0], nodes[child, 1], nodes[child, 2], nodes[child, 3] = x, y, v, psi
                     nodes[child, 4], nodes[child, 5] = lv, ln
-                    rewards[0, a] = worst
-                    new_terminal[0, a] = hit
-            else:  # terminated: not stepped again (`expand` zeroes the rewards)
+            else:  # every model terminated: nothing is stepped (`expand` zeroes the rewards)
                 for a in range(n_actions):
                     for j in range(6):
                         nodes[first + a, j] = nodes[leaf, j]
@@ -524,20 +513,23 @@ def _search_kernel(params_type: type):
     return _compile_without_refcounts(run_ego_search, params_type)
 
 
-def compiled_plan(model: BicycleModel, state: BicycleState, *, gamma: float, budget: int) -> tuple[Decision, SearchTree]:
-    """`RobustTreePlanner` ``([model], model.actions, ...)``'s search, compiled whole, for one `BicycleModel`.
+def compiled_plan(models, state: BicycleState, *, gamma: float, budget: int) -> tuple[Decision, SearchTree]:
+    """`RobustTreePlanner` ``(models, actions, ...)``'s search, compiled whole, for `BicycleModel`s of one ego.
 
     The same tree operations (`minimaxplan.planners.tree_ops`) and the same
-    transitions as the Python engine with ``model.expand``, in one compiled call: the
-    same tree and the same `Decision`, bit for bit (tested), without a Python round
-    trip per expansion.
+    transitions as the Python engine with the models' ``expand``, in one compiled
+    call: the same tree and the same `Decision`, bit for bit (tested), without a
+    Python round trip per expansion. With M models (scene-wide hypotheses, each its
+    own reward, the same ego), the ego is stepped once per action and each reward
+    evaluated on it.
 
     Parameters
     ----------
-    model : BicycleModel
-        The ego model (its reward holds the obstacle table).
+    models : BicycleModel or sequence of BicycleModel
+        The ego models: one controller object, one action table, one number of
+        sub-steps; rewards whose ``kernel_params`` have one type.
     state : BicycleState
-        The root state.
+        The root state, shared by every model.
     gamma : float
         Discount factor in (0, 1).
     budget : int
@@ -548,47 +540,81 @@ def compiled_plan(model: BicycleModel, state: BicycleState, *, gamma: float, bud
     decision : Decision
         As `RobustTreePlanner.plan` returns it.
     tree : SearchTree
-        The search tree (its states are `BicycleState`s).
+        The search tree (its states are `BicycleState`s; a terminated model keeps its
+        terminal state on the rest of the branch, as in the Python engine).
 
     Raises
     ------
     InputError
-        If ``model`` is not a `BicycleModel` or ``state`` not a `BicycleState`.
+        If a model is not a `BicycleModel`, the models differ in their controller,
+        actions, sub-steps or reward type, or ``state`` is not a `BicycleState`.
     RewardRangeError
-        If the reward returned a value outside [0, 1].
+        If a reward returned a value outside [0, 1].
 
     Notes
     -----
     Hooking it into `RobustTreePlanner` (its ``engine="compiled"``) needs the planner to
-    dispatch its compiled search on the model's kind; until then this is the ego
-    model's compiled engine.
+    dispatch its compiled search on the models' kind; until then this is the ego
+    models' compiled engine.
     """
-    check_instance("model", model, BicycleModel)
+    group = [models] if isinstance(models, BicycleModel) else list(models)
+    if not group:
+        raise InputError("models must be a BicycleModel or a non-empty sequence of them")
+    for m, model in enumerate(group):
+        check_instance(f"models[{m}]", model, BicycleModel)
+    first = group[0]
+    for model in group[1:]:
+        if (
+            model.controller is not first.controller
+            or model.substeps != first.substeps
+            or not np.array_equal(model._speed_changes, first._speed_changes)
+            or not np.array_equal(model._lane_changes, first._lane_changes)
+            or type(model._params) is not type(first._params)
+        ):
+            raise InputError("models must share one controller, action table, sub-steps and reward type")
     check_instance("state", state, BicycleState)
     gamma = as_discount("gamma", gamma)
     budget = as_count("budget", budget)
-    n_actions = model.n_actions
+    n_models, n_actions = len(group), first.n_actions
     capacity = 1 + budget * n_actions
-    tree = tree_ops.allocate(capacity, 1, n_actions, gamma, tree_ops.discount_table(gamma, budget + 2))
+    tree = tree_ops.allocate(capacity, n_models, n_actions, gamma, tree_ops.discount_table(gamma, budget + 2))
     nodes = np.empty((capacity, 6))
     nodes[0, :4] = state.x
     nodes[0, 4], nodes[0, 5] = state.level, state.lane
-    status, bad = model._search(budget, tree, nodes, state.time)
+    kernel = _search_kernel(type(first._params))
+    status, bad = kernel(
+        budget,
+        tree,
+        nodes,
+        first._scratch,
+        first.controller,
+        tuple(model._params for model in group),
+        first._speed_changes,
+        first._lane_changes,
+        first.substeps,
+        state.time,
+    )
     if bad >= 0:
-        a = int(bad)
+        a, m = divmod(int(bad), n_models)
         raise RewardRangeError(
-            f"the ego model returned reward {float(tree.rewards[0, a])!r} for action {a}; rewards must be in [0, 1]"
+            f"models[{m}] returned reward {float(tree.rewards[m, a])!r} for action {a}; rewards must be in [0, 1]"
         )
     size = int(tree.counts[SIZE])
 
     def states() -> list:
-        depth = tree.depth[:size]
-        column = [state]
+        depth, parent, terminal = tree.depth[:size], tree.parent[:size], tree.terminal
+        joint: list = [state]
         for i in range(1, size):
             x = nodes[i, :4].copy()
             x.setflags(write=False)
-            column.append(BicycleState(x, int(nodes[i, 4]), int(nodes[i, 5]), state.time + int(depth[i]) * model.substeps))
-        return [column]
+            joint.append(BicycleState(x, int(nodes[i, 4]), int(nodes[i, 5]), state.time + int(depth[i]) * first.substeps))
+        columns = []
+        for m in range(n_models):
+            column = [state] + [None] * (size - 1)
+            for i in range(1, size):
+                column[i] = column[parent[i]] if terminal[parent[i], m] else joint[i]
+            columns.append(column)
+        return columns
 
     search_tree = SearchTree(tree, states)
-    return Decision.from_tree(search_tree, model.actions, solved=status == _SOLVED), search_tree
+    return Decision.from_tree(search_tree, first.actions, solved=status == _SOLVED), search_tree

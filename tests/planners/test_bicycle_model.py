@@ -163,3 +163,29 @@ def test_the_compiled_search_builds_the_python_engines_tree(kind):
             assert np.array_equal(mine.x, theirs.x) and mine[1:] == theirs[1:]
     with pytest.raises(InputError, match="state"):
         compiled_plan(model, (state.x, 1, 1, 0), gamma=0.9, budget=10)
+
+
+def test_the_compiled_search_over_scene_hypotheses_is_the_python_engines():
+    """M models: one ego, M obstacle tables (scene-wide hypotheses); one of them blocks the ego's lane."""
+    world, controller, model, state = _ego_setup("highway")
+    x = state.x
+    free = np.tile(EMPTY, (51, 2, 1))
+    blocked = _stopped_vehicle_ahead(float(x[1]), float(x[0]) + 40.0)
+    side = blocked.copy()
+    side[:, 1] = [x[0] - 30.0, x[1] + 2.5, x[0] + 60.0, x[1] + 6.0]  # the lane to the left is taken
+    models = [model.with_reward(DrivingReward.highway(table, 0, world.road)) for table in (free, blocked, side)]
+    for budget in (3, 60):
+        planner = RobustTreePlanner(models, models[0].actions, gamma=0.9, budget=budget)
+        expected = planner.plan(state)
+        decision, tree = compiled_plan(models, state, gamma=0.9, budget=budget)
+        assert decision == expected
+        for name in ("returns", "terminal", "lower", "upper", "parent"):
+            assert np.array_equal(getattr(tree, name), getattr(planner.tree, name)), name
+        if budget == 60:  # some models terminated on some branches, not all
+            assert tree.terminal.any() and not tree.terminal[:, 0].all()
+        for m in range(3):
+            for mine, theirs in zip(tree.states[m], planner.tree.states[m]):
+                assert np.array_equal(mine.x, theirs.x) and mine[1:] == theirs[1:]
+    other = ego_controller(lane_geometry(world.road), HIGHWAY_TARGET_SPEEDS)
+    with pytest.raises(InputError, match="share one controller"):
+        compiled_plan([models[0], BicycleModel(other, models[1].reward, HIGHWAY_ACTIONS)], state, gamma=0.9, budget=5)
