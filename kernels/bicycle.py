@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from collections import namedtuple
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -176,7 +177,7 @@ def bicycle_step_one(x, y, v, psi, acceleration, steering, dt, half_length, max_
 #: The Python-facing kernels are compiled without numba's reference counting (they allocate nothing): every
 #: read of an array field of the controller's namedtuples would otherwise cost an atomic increment and
 #: decrement (measured: 7x slower rollouts).
-_NO_REFCOUNTS = {"cache": True, "_nrt": False}
+_NO_REFCOUNTS: dict[str, Any] = {"cache": True, "_nrt": False}
 
 
 @njit(**_NO_REFCOUNTS)

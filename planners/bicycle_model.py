@@ -171,6 +171,10 @@ class BicycleState(NamedTuple):
     time: int
 
 
+#: numba options of the ego kernels: cached on disk, no reference counting (see `_compile_without_refcounts`).
+_NO_REFCOUNTS: dict[str, Any] = {"cache": True, "_nrt": False}
+
+
 def _compile_without_refcounts(function, params_type: type):
     """``njit(cache=True, _nrt=False)`` with an on-disk index per params type (as `compile_per_params_type`).
 
@@ -181,7 +185,7 @@ def _compile_without_refcounts(function, params_type: type):
     """
     tag = hashlib.sha256(f"{params_type.__module__}.{params_type.__qualname__}".encode()).hexdigest()[:12]
     function.__qualname__ = f"{function.__qualname__}_{tag}"
-    return njit(cache=True, _nrt=False)(function)
+    return njit(**_NO_REFCOUNTS)(function)
 
 
 @functools.cache
@@ -275,7 +279,8 @@ class BicycleModel:
         self._speed_changes = np.array([ds for _, ds, _ in table], dtype=np.int64)
         self._lane_changes = np.array([dl for _, _, dl in table], dtype=np.int64)
         self._params = params
-        self._kernel = _expand_kernel(type(params))
+        params_type: type = type(params)  # mypy infers type[Any], which it does not treat as Hashable
+        self._kernel = _expand_kernel(params_type)
         self._index_cache: tuple[Any, np.ndarray] | None = None
         self._scratch = np.empty(8)  # one box [-x | x] for the reward (the kernels allocate nothing)
 
@@ -581,7 +586,8 @@ def compiled_plan(models, state: BicycleState, *, gamma: float, budget: int) -> 
     nodes = np.empty((capacity, 6))
     nodes[0, :4] = state.x
     nodes[0, 4], nodes[0, 5] = state.level, state.lane
-    kernel = _search_kernel(type(first._params))
+    params_type: type = type(first._params)  # mypy infers type[Any], which it does not treat as Hashable
+    kernel = _search_kernel(params_type)
     status, bad = kernel(
         budget,
         tree,
