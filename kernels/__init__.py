@@ -13,12 +13,20 @@ that neither imports the other:
   kernels that call it (`sources_digest`, `minimum_sources`, `compile_per_params_type`); the `BoxReward` and
   `CompiledBoxReward` protocols a planner model reads.
 
+* `minimaxplan.kernels.bicycle`: the kinematic bicycle and the driving ego's
+  controllers, compiled once for the world and the planner (`LaneGeometry`,
+  `EgoController`, `ego_control`);
+* `minimaxplan.kernels.driving_reward`: the driving reward's compiled box minimum
+  (`DrivingParams`).
+
 A user's reward family gets an exact box minimum and a compiled kernel by exposing a
 registered ``kernel_params`` namedtuple and an overload of `box_reward_minimum`; see
 `minimaxplan.kernels.reward_protocol` and ``docs/rewards.md``.
 """
 
+from .bicycle import EgoController, LaneGeometry, ego_control
 from .box_primitives import box_gap_sq, box_gaps_sq, maximum, minimum
+from .driving_reward import DrivingParams
 from .reward_protocol import (
     BoxReward,
     CompiledBoxReward,
@@ -34,6 +42,10 @@ from .reward_protocol import (
 
 __all__ = [
     "BoxReward",
+    "DrivingParams",
+    "EgoController",
+    "LaneGeometry",
+    "ego_control",
     "CompiledBoxReward",
     "box_gap_sq",
     "box_gaps_sq",

@@ -4,7 +4,8 @@
   discount), returning a `Decision` with root lower/upper value bounds (Theorem 3);
 * `IntervalModel` (a box-valued planner model whose reward is the pessimistic surrogate
   of Theorem 1) and `PointModel` (nominal/oracle), driven by low-level controllers
-  (`OpenLoop`, `LinearFeedback`);
+  (`OpenLoop`, `LinearFeedback`); `BicycleModel`, the driving ego as a point model
+  (compiled bicycle and controllers, `ego_controller`, over a compiled reward);
 * factories for the paper's comparison (`interval_robust_planner`,
   `multi_model_robust_planner`, `nominal_planner`, `oracle_planner`);
 * the baselines `DynamicWindowPlanner` (DWA) and `TimedElasticBand` (TEB), and the grid
@@ -14,6 +15,16 @@ Planners see models only through ``step(state, action)`` (optionally ``expand``)
 get obstacles as data; they never import `minimaxplan.scenarios`.
 """
 
+from .bicycle_model import (
+    HIGHWAY_ACTIONS,
+    HIGHWAY_TARGET_SPEEDS,
+    TJUNCTION_ACTIONS,
+    TJUNCTION_TARGET_SPEEDS,
+    BicycleModel,
+    BicycleState,
+    compiled_plan,
+    ego_controller,
+)
 from .comparison import (
     interval_robust_planner,
     multi_model_robust_planner,
@@ -38,6 +49,14 @@ __all__ = [
     "BoxState",
     "PointModel",
     "PointState",
+    "BicycleModel",
+    "BicycleState",
+    "ego_controller",
+    "compiled_plan",
+    "HIGHWAY_ACTIONS",
+    "TJUNCTION_ACTIONS",
+    "HIGHWAY_TARGET_SPEEDS",
+    "TJUNCTION_TARGET_SPEEDS",
     "OpenLoop",
     "LinearFeedback",
     "interval_robust_planner",

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from minimaxplan.kernels.bicycle import LaneGeometry
 from minimaxplan.models.errors import DimensionError, InputError, NonFiniteError
 from minimaxplan.models.validation import as_finite_array, as_positive_scalar
 
@@ -42,6 +43,7 @@ __all__ = [
     "TJunctionGeometry",
     "highway_road",
     "tjunction_road",
+    "lane_geometry",
 ]
 
 #: Lane kinds in `Road.kinds`.
@@ -846,4 +848,75 @@ def tjunction_road(geometry: TJunctionGeometry = TJunctionGeometry()) -> Road:
         connections=tuple((idx[a], idx[b]) for a, b in pairs),
         priorities=tuple(p for _, _, p in spec),
         areas=(((-w, -o), (w, -w)),),
+    )
+
+
+# ------------------------------------------------------------ compiled arrays
+def lane_geometry(road: Road, route: tuple[int, ...] = ()) -> LaneGeometry:
+    """The lanes of ``road`` as the arrays of `minimaxplan.kernels.bicycle.LaneGeometry`.
+
+    What the compiled ego controllers and the planner's ego model read (planners never
+    import this package: they get the road as these arrays).
+
+    Parameters
+    ----------
+    road : Road
+        The lanes.
+    route : tuple of int
+        A controlled vehicle's route, in driving order (e.g. the T-junction's
+        ``south_in -> south_west -> west_out``): ``next_lane`` maps each of its lanes
+        to the next one (the last to -1). Empty (the highway): no successors.
+
+    Returns
+    -------
+    LaneGeometry
+        The arrays of `Road` (``kinds``, ``starts``, ``directions``, ``centers``,
+        ``radii``, ``start_angles``, ``mid_angles``, ``signs``, ``lengths``,
+        ``widths``), the successors along ``route``, and each lane's side neighbours
+        (``left_lane``: the next lane of its side group, which is ordered right to left;
+        ``right_lane``: the previous one; -1 when none).
+
+    Raises
+    ------
+    InputError
+        If ``route`` names a lane that does not exist or two consecutive lanes that
+        are not connected.
+    """
+    n = len(road)
+    route = tuple(int(i) for i in route)
+    for i in route:
+        if not 0 <= i < n:
+            raise InputError(f"route holds lane {i}, but the road has {n} lanes")
+    for a, b in zip(route[:-1], route[1:]):
+        if (a, b) not in road.connections:
+            raise InputError(f"route: lane {road.names[a]} does not connect to {road.names[b]}")
+    next_lane = np.full(n, -1, dtype=np.int64)
+    for a, b in zip(route[:-1], route[1:]):
+        next_lane[a] = b
+    left = np.full(n, -1, dtype=np.int64)
+    right = np.full(n, -1, dtype=np.int64)
+    for group in road.side_groups:
+        for k, lane in enumerate(group):
+            if k + 1 < len(group):
+                left[lane] = group[k + 1]
+            if k > 0:
+                right[lane] = group[k - 1]
+
+    def floats(value):
+        return np.ascontiguousarray(value, dtype=np.float64)
+
+    return LaneGeometry(
+        kinds=np.ascontiguousarray(road.kinds, dtype=np.int64),
+        starts=floats(road.starts),
+        directions=floats(road.directions),
+        centers=floats(road.centers),
+        radii=floats(road.radii),
+        start_angles=floats(road.start_angles),
+        mid_angles=floats(road.mid_angles),
+        signs=floats(road.signs),
+        lengths=floats(road.lengths),
+        widths=floats(road.widths),
+        next_lane=next_lane,
+        left_lane=left,
+        right_lane=right,
     )

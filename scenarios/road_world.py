@@ -4,8 +4,9 @@ A `RoadWorld` holds the road, the ego (the kinematic bicycle of
 `minimaxplan.scenarios.vehicles`, parameters known, no disturbance, driven by a control
 ``(acceleration, steering)``) and the other vehicles (the LinearVehicle law with theta
 drawn per vehicle, disturbances, lane changes on a timer, routes drawn at spawn,
-yielding at the junction). The closed loop asks for noisy observations (`measure`,
-bounded uniform noise on every vehicle) and applies one control per decision period
+yielding at the junction). The closed loop asks for observations (`measure`:
+bounded uniform noise on every other vehicle; the ego is measured exactly by default,
+``ego_measurement_noise``) and applies one control per decision period
 (`step`: held for ``substeps`` sub-steps of ``dt``), like `RobotWorld`.
 
 Outcomes, checked after every sub-step in this order: ``"collision"`` (the ego's
@@ -60,10 +61,10 @@ ROAD_OUTCOMES = ("running", "goal", "collision", "off_road", "timeout")
 
 
 #: Slab height lifting the planar rectangles into fcl's 3-D world (any value > 0 works).
-def _noise_tuple(value) -> tuple:
+def _noise_tuple(value, name: str = "measurement_noise") -> tuple:
     noise = tuple(float(v) for v in value)
     if len(noise) != 4 or min(noise) < 0 or not all(np.isfinite(noise)):
-        raise InputError(f"measurement_noise must be 4 finite half-widths >= 0, got {value!r}")
+        raise InputError(f"{name} must be 4 finite half-widths >= 0, got {value!r}")
     return noise
 
 
@@ -77,6 +78,9 @@ def _check_common(scenario) -> None:
     if not 0 < scenario.ego_acceleration_bound:
         raise InputError(f"ego_acceleration_bound must be > 0, got {scenario.ego_acceleration_bound!r}")
     object.__setattr__(scenario, "measurement_noise", _noise_tuple(scenario.measurement_noise))
+    object.__setattr__(
+        scenario, "ego_measurement_noise", _noise_tuple(scenario.ego_measurement_noise, "ego_measurement_noise")
+    )
     if not np.isfinite(scenario.off_road_margin) or scenario.off_road_margin < 0:
         raise InputError(f"off_road_margin must be finite and >= 0, got {scenario.off_road_margin!r}")
 
@@ -121,8 +125,11 @@ class HighwayScenario:
         The ego's acceleration control must lie in ``[-bound, bound]``, m/s^2 (6);
         its steering in ``[-max_steering, max_steering]``.
     measurement_noise : tuple of 4 float
-        Half-widths of the uniform measurement noise on ``(x, y, v, psi)`` (m, m, m/s,
-        rad): (0.1, 0.1, 0.1, 0.01).
+        Half-widths of the uniform measurement noise on the other vehicles' ``(x, y, v,
+        psi)`` (m, m, m/s, rad): (0.1, 0.1, 0.1, 0.01).
+    ego_measurement_noise : tuple of 4 float
+        The same for the ego: (0, 0, 0, 0), the ego knows its own state exactly
+        (odometry; a documented choice, so the planner's ego is a point model).
     off_road_margin : float
         The ego is off the road when a corner of its rectangle is farther than this
         outside the road (`Road.on_road`), m (0: strictly on the road).
@@ -145,6 +152,7 @@ class HighwayScenario:
     ego_clearance: float = 12.0
     ego_acceleration_bound: float = 6.0
     measurement_noise: tuple = (0.1, 0.1, 0.1, 0.01)
+    ego_measurement_noise: tuple = (0.0, 0.0, 0.0, 0.0)
     off_road_margin: float = 0.0
 
     def __post_init__(self) -> None:
@@ -218,7 +226,10 @@ class TJunctionScenario:
     ego_acceleration_bound : float
         The ego's acceleration control must lie in ``[-bound, bound]``, m/s^2 (6).
     measurement_noise : tuple of 4 float
-        Half-widths of the uniform measurement noise on ``(x, y, v, psi)``: (0.1, 0.1, 0.1, 0.01).
+        Half-widths of the uniform measurement noise on the other vehicles' ``(x, y, v,
+        psi)``: (0.1, 0.1, 0.1, 0.01).
+    ego_measurement_noise : tuple of 4 float
+        The same for the ego: (0, 0, 0, 0), the ego's state is known exactly.
     off_road_margin : float
         The ego is off the road when a corner of its rectangle is farther than this
         outside the road (`Road.on_road`), m (0: strictly on the road).
@@ -244,6 +255,7 @@ class TJunctionScenario:
     stem_spacing: float = 25.0
     ego_acceleration_bound: float = 6.0
     measurement_noise: tuple = (0.1, 0.1, 0.1, 0.01)
+    ego_measurement_noise: tuple = (0.0, 0.0, 0.0, 0.0)
     off_road_margin: float = 0.0
 
     def __post_init__(self) -> None:
@@ -281,7 +293,8 @@ class Observation:
     time : float
         Simulated time, s.
     ego : ndarray, shape (4,)
-        The ego's ``(x, y, v, psi)`` with noise (NaN-free; all zeros without an ego).
+        The ego's ``(x, y, v, psi)`` with its noise ``ego_measurement_noise`` (exact by
+        default; all zeros without an ego).
     vehicles : ndarray, shape (m, 4)
         The other vehicles on the road, with noise.
     ids : ndarray of int, shape (m,)
@@ -614,14 +627,19 @@ class RoadWorld:
     def measure(self) -> Observation:
         """Noisy observations of the ego and of every other vehicle on the road.
 
-        Uniform noise, ``|noise_k| <= measurement_noise[k]`` on ``(x, y, v, psi)``, from
-        the measurement stream (one draw for every agent, on the road or not).
+        Uniform noise, ``|noise_k| <= measurement_noise[k]`` on ``(x, y, v, psi)`` of the
+        other vehicles and ``|noise_k| <= ego_measurement_noise[k]`` on the ego's (by
+        default 0: the ego is measured exactly), from the measurement stream (one draw
+        for every agent, on the road or not, so the other vehicles' noise does not
+        depend on the ego's bound).
 
         Returns
         -------
         Observation
         """
-        bound = np.array(self.scenario.measurement_noise)
+        bound = np.tile(np.array(self.scenario.measurement_noise), (len(self.traffic), 1))
+        if self.include_ego:
+            bound[0] = self.scenario.ego_measurement_noise
         noise = self._noise_rng.uniform(-1.0, 1.0, size=self.traffic.states.shape) * bound
         measured = self.traffic.states + noise
         others = self.others

@@ -46,6 +46,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from minimaxplan.kernels.bicycle import bicycle_step_into
 from minimaxplan.models.errors import DimensionError, InputError
 
 from .road import Road, readonly_copy, wrap_to_pi
@@ -555,6 +556,9 @@ def linear_steering(theta_b, features, max_steering: float):
 def bicycle_step(states, acceleration, steering, dt: float, vehicle: VehicleParameters = VehicleParameters()):
     """One forward-Euler step of the kinematic bicycle (see the module docstring).
 
+    The one implementation is the compiled `minimaxplan.kernels.bicycle.bicycle_step_into`,
+    which the planner's ego model runs too (its predicted ego is the world's, bit for bit).
+
     Parameters
     ----------
     states : array_like, shape (n, 4)
@@ -573,16 +577,14 @@ def bicycle_step(states, acceleration, steering, dt: float, vehicle: VehiclePara
     ndarray, shape (n, 4)
         The next states; the speed is clipped to ``[0, max_speed]``.
     """
-    x = np.asarray(states, dtype=float)
+    x = np.ascontiguousarray(states, dtype=float)
     if x.ndim != 2 or x.shape[1] != 4:
         raise DimensionError(f"states must have shape (n, 4), got shape {x.shape}")
-    v, psi = x[:, 2], x[:, 3]
-    beta = np.arctan(0.5 * np.tan(np.asarray(steering, dtype=float)))
+    n = x.shape[0]
+    accel = np.ascontiguousarray(np.broadcast_to(np.asarray(acceleration, dtype=float), (n,)))
+    steer = np.ascontiguousarray(np.broadcast_to(np.asarray(steering, dtype=float), (n,)))
     out = np.empty_like(x)
-    out[:, 0] = x[:, 0] + v * np.cos(psi + beta) * dt
-    out[:, 1] = x[:, 1] + v * np.sin(psi + beta) * dt
-    out[:, 3] = psi + v * np.sin(beta) / (vehicle.length / 2) * dt
-    out[:, 2] = np.clip(v + np.asarray(acceleration, dtype=float) * dt, 0.0, vehicle.max_speed)
+    bicycle_step_into(x, accel, steer, float(dt), float(vehicle.length), float(vehicle.max_speed), out)
     return out
 
 

@@ -1,0 +1,626 @@
+"""The ego of the driving worlds as a deterministic planner model: the bicycle, its controllers, a compiled reward.
+
+The ego knows its own state exactly and has no disturbance, so the planner's ego is a
+*point*: `BicycleModel` predicts it with the compiled bicycle and controllers of
+`minimaxplan.kernels.bicycle` (the ones the world's `bicycle_step` runs), so the
+predicted trajectory equals the world's ego bit for bit under the same controls, and
+all the uncertainty is in the reward's obstacle table (the other vehicles' forecast
+boxes). The reward comes in through the compiled-reward protocol of
+`minimaxplan.kernels` (a ``kernel_params`` with a registered `box_reward_minimum`, such
+as `minimaxplan.scenarios.DrivingReward`'s), the road as `LaneGeometry` arrays: the
+planners never import the scenarios.
+
+A planner state is (x, y, v, psi, speed level, target lane, time) (`BicycleState`). An
+action (`HIGHWAY_ACTIONS`, `TJUNCTION_ACTIONS`) changes the speed level and/or the
+target lane; the controllers then act at every sub-step. `expand` steps every action
+of a node over all sub-steps in one compiled call: the transition's reward is the
+minimum of the reward over the sub-step states (as `PointModel`'s), terminal when one
+of them collides.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+from numba import njit
+
+from ..kernels import bicycle as bicycle_kernels
+from ..kernels.bicycle import EgoController, LaneGeometry, apply_action, bicycle_step_one, ego_control_one
+from ..kernels.box_primitives import minimum
+from ..kernels.reward_protocol import (
+    box_reward_minimum,
+    has_compiled_minimum,
+    minimum_sources,
+    sources_digest,
+)
+from ..models.errors import DimensionError, InputError, RewardRangeError
+from ..models.validation import as_count, as_discount, as_finite_array, as_positive_scalar, check_instance
+from . import tree_ops
+from .decision import Decision
+from .tree import SearchTree
+
+# Module globals, not closure cells (numba keys a cached closure by its cells' pickles; see compiled_search).
+from .tree_ops import N_EXPANDED, SIZE, expand, reset, select
+
+__all__ = [
+    "HIGHWAY_ACTIONS",
+    "TJUNCTION_ACTIONS",
+    "HIGHWAY_TARGET_SPEEDS",
+    "TJUNCTION_TARGET_SPEEDS",
+    "BicycleState",
+    "BicycleModel",
+    "ego_controller",
+    "compiled_plan",
+]
+
+#: The highway's actions (the paper's) as (name, speed-level change, lane change: +1 left, -1 right).
+HIGHWAY_ACTIONS = (("LANE_LEFT", 0, 1), ("IDLE", 0, 0), ("LANE_RIGHT", 0, -1), ("FASTER", 1, 0), ("SLOWER", -1, 0))
+#: The T-junction's actions: speed only, on the fixed left-turn route.
+TJUNCTION_ACTIONS = (("SLOWER", -1, 0), ("IDLE", 0, 0), ("FASTER", 1, 0))
+#: Target speeds of the speed levels, m/s.
+HIGHWAY_TARGET_SPEEDS = (20.0, 25.0, 30.0)
+TJUNCTION_TARGET_SPEEDS = (0.0, 4.5, 9.0)
+
+#: Default controller gains (documented in `ego_controller`).
+SPEED_GAIN = 1.0 / 0.6
+STEERING_GAINS = (5.0, 8.33)
+PURSUIT_TIME = 0.1
+SPEED_EPSILON = 0.01
+
+
+def ego_controller(
+    lanes: LaneGeometry,
+    target_speeds: Sequence[float],
+    *,
+    speed_gain: float = SPEED_GAIN,
+    acceleration_bound: float = 6.0,
+    steering_gains: Sequence[float] = STEERING_GAINS,
+    pursuit_time: float = PURSUIT_TIME,
+    speed_epsilon: float = SPEED_EPSILON,
+    length: float = 5.0,
+    max_speed: float = 40.0,
+    max_steering: float = float(np.pi / 3),
+    dt: float = 0.1,
+) -> EgoController:
+    """The ego's low-level controllers and bicycle (`minimaxplan.kernels.bicycle.EgoController`), checked.
+
+    Parameters
+    ----------
+    lanes : LaneGeometry
+        The road's lanes as arrays (`minimaxplan.scenarios.road.lane_geometry`, with the
+        ego's route for the T-junction).
+    target_speeds : sequence of float
+        The speed levels' target speeds, m/s (`HIGHWAY_TARGET_SPEEDS` {20, 25, 30},
+        `TJUNCTION_TARGET_SPEEDS` {0, 4.5, 9}), nondecreasing, >= 0.
+    speed_gain : float
+        k_v, 1/s: 1 / 0.6, highway-env's ``KP_A`` (the speed error decays with a 0.6 s
+        time constant until the acceleration saturates).
+    acceleration_bound : float
+        a_bound, m/s^2 (6, the worlds' ``ego_acceleration_bound``: the controls stay
+        admissible for `RoadWorld`).
+    steering_gains : sequence of 2 float
+        theta_b of the LinearVehicle steering law, fixed: (5, 8.33), the nominal gains
+        of the other vehicles (highway-env's KP_HEADING and KP_HEADING * KP_LATERAL).
+    pursuit_time : float
+        tau, s (0.1, highway-env's TAU_PURSUIT).
+    speed_epsilon : float
+        The smallest speed in the steering features, m/s (0.01).
+    length, max_speed, max_steering : float
+        The bicycle (the worlds' `VehicleParameters`: 5 m, 40 m/s, pi / 3 rad).
+    dt : float
+        The sub-step, s (0.1).
+
+    Returns
+    -------
+    EgoController
+
+    Raises
+    ------
+    InputError
+        If ``lanes`` is not a `LaneGeometry`, a gain or bound is not finite and
+        positive, or the target speeds are negative or decreasing.
+    DimensionError
+        If ``steering_gains`` does not have length 2 or ``target_speeds`` is empty.
+    """
+    check_instance("lanes", lanes, LaneGeometry)
+    speeds = as_finite_array("target_speeds", target_speeds)
+    if speeds.ndim != 1 or speeds.size < 1:
+        raise DimensionError(f"target_speeds must have shape (k,) with k >= 1, got shape {speeds.shape}")
+    if np.any(speeds < 0) or np.any(np.diff(speeds) < 0):
+        raise InputError(f"target_speeds must be >= 0 and nondecreasing, got {speeds.tolist()}")
+    gains = as_finite_array("steering_gains", steering_gains, (2,))
+    if max_steering >= np.pi / 2:
+        raise InputError(f"max_steering must be < pi / 2, got {max_steering}")
+    return EgoController(
+        lanes=lanes,
+        target_speeds=np.ascontiguousarray(speeds, dtype=float),
+        speed_gain=as_positive_scalar("speed_gain", speed_gain),
+        acceleration_bound=as_positive_scalar("acceleration_bound", acceleration_bound),
+        theta_b=np.ascontiguousarray(gains, dtype=float),
+        pursuit_time=as_positive_scalar("pursuit_time", pursuit_time, allow_zero=True),
+        speed_epsilon=as_positive_scalar("speed_epsilon", speed_epsilon),
+        length=as_positive_scalar("length", length),
+        max_speed=as_positive_scalar("max_speed", max_speed),
+        max_steering=as_positive_scalar("max_steering", max_steering),
+        dt=as_positive_scalar("dt", dt),
+    )
+
+
+class BicycleState(NamedTuple):
+    """A planner state of `BicycleModel`.
+
+    Attributes
+    ----------
+    x : ndarray, shape (4,)
+        ``(x, y, v, psi)`` (read-only).
+    level : int
+        The speed level (index of the target speed).
+    lane : int
+        The target lane (a lane index of the `LaneGeometry`).
+    time : int
+        The absolute sub-step index.
+    """
+
+    x: np.ndarray
+    level: int
+    lane: int
+    time: int
+
+
+#: numba options of the ego kernels: cached on disk, no reference counting (see `_compile_without_refcounts`).
+_NO_REFCOUNTS: dict[str, Any] = {"cache": True, "_nrt": False}
+
+
+def _compile_without_refcounts(function, params_type: type):
+    """``njit(cache=True, _nrt=False)`` with an on-disk index per params type (as `compile_per_params_type`).
+
+    The kernels read the controller's and the reward's namedtuples in their inner
+    loops; with numba's reference counting every such read costs an atomic increment
+    and decrement (measured: 7x slower). They allocate nothing (the caller passes the
+    scratch arrays), so they run without it, like `minimaxplan.planners.tree_ops`.
+    """
+    tag = hashlib.sha256(f"{params_type.__module__}.{params_type.__qualname__}".encode()).hexdigest()[:12]
+    function.__qualname__ = f"{function.__qualname__}_{tag}"
+    return njit(**_NO_REFCOUNTS)(function)
+
+
+@functools.cache
+def _expand_kernel(params_type: type):
+    """The compiled expansion of every action of a node, for rewards of ``params_type``."""
+    version = sources_digest(__file__, bicycle_kernels.__file__, *minimum_sources(params_type))
+
+    def expand_actions(
+        controller, params, x0, level, lane, time, speed_changes, lane_changes, substeps, z, out_x, out_meta, rewards,
+        terminals,
+    ):
+        _ = version  # ties numba's cache entry to the sources it calls into
+        half = controller.length / 2
+        for a in range(speed_changes.shape[0]):
+            lv, ln = apply_action(controller, level, lane, speed_changes[a], lane_changes[a])
+            x, y, v, psi = x0[0], x0[1], x0[2], x0[3]
+            worst = 1.0
+            hit = False
+            for k in range(substeps):
+                accel, steer, ln = ego_control_one(controller, x, y, v, psi, lv, ln)
+                x, y, v, psi = bicycle_step_one(x, y, v, psi, accel, steer, controller.dt, half, controller.max_speed)
+                z[0], z[1], z[2], z[3] = -x, -y, -v, -psi
+                z[4], z[5], z[6], z[7] = x, y, v, psi
+                value, collided = box_reward_minimum(params, z, 4, float(time + k + 1))
+                worst = minimum(worst, value)
+                hit = hit or collided
+            out_x[a, 0], out_x[a, 1], out_x[a, 2], out_x[a, 3] = x, y, v, psi
+            out_meta[a, 0] = lv
+            out_meta[a, 1] = ln
+            rewards[a] = worst
+            terminals[a] = hit
+
+    return _compile_without_refcounts(expand_actions, params_type)
+
+
+class BicycleModel:
+    """The ego as a deterministic `VectorisedModel` for `RobustTreePlanner` (see the module docstring).
+
+    Parameters
+    ----------
+    controller : EgoController
+        The bicycle and the controllers (`ego_controller`).
+    reward : CompiledBoxReward
+        A reward in [0, 1] over states ``(x, y, v, psi)`` whose ``kernel_params`` have a
+        registered compiled box minimum (`minimaxplan.kernels.register_reward_params`),
+        e.g. `minimaxplan.scenarios.DrivingReward`; evaluated on the degenerate boxes of
+        the predicted sub-step states.
+    actions : sequence of (str, int, int)
+        ``(name, speed-level change, lane change)`` per action (`HIGHWAY_ACTIONS`,
+        `TJUNCTION_ACTIONS`); the planner's actions are their indices.
+    substeps : int
+        Sub-steps per decision (5: 0.5 s at dt = 0.1 s).
+
+    Raises
+    ------
+    InputError
+        If ``controller`` is not an `EgoController`, the reward has no registered
+        compiled minimum, or an action is malformed.
+
+    Notes
+    -----
+    The transition of action a from state (x, level, lane, t): ``(level', lane') =
+    apply_action(level, lane, a)``, then ``substeps`` times the controllers' control and
+    the bicycle step; reward ``min_k J(x_k, t + k)`` over the sub-step states k = 1 ..
+    S, terminal when one of them is a zero case (collision, off road, or beyond the
+    obstacle table). Deterministic: the same numbers as the world's ego under the same
+    controls (`predict`).
+    """
+
+    def __init__(self, controller: EgoController, reward: Any, actions: Sequence, *, substeps: int = 5) -> None:
+        check_instance("controller", controller, EgoController)
+        params = getattr(reward, "kernel_params", None)
+        if params is None or not has_compiled_minimum(params):
+            raise InputError(
+                "reward must expose kernel_params with a registered compiled box minimum "
+                f"(minimaxplan.kernels.register_reward_params), got {type(reward).__name__}"
+            )
+        needed = getattr(reward, "min_state_dim", 4)
+        if needed is not None and needed > 4:
+            raise DimensionError(f"reward reads state coordinates up to index {needed - 1}, but the ego has 4 states")
+        try:
+            table = [(str(name), int(ds), int(dl)) for name, ds, dl in actions]
+        except (TypeError, ValueError):
+            raise InputError(f"actions must be (name, speed change, lane change) triples, got {actions!r}") from None
+        if not table or any(ds not in (-1, 0, 1) or dl not in (-1, 0, 1) for _, ds, dl in table):
+            raise InputError(f"actions must be a non-empty sequence of changes in {{-1, 0, 1}}, got {actions!r}")
+        self.controller = controller
+        self.reward = reward
+        self.substeps = as_count("substeps", substeps)
+        self.action_names = tuple(name for name, _, _ in table)
+        self._speed_changes = np.array([ds for _, ds, _ in table], dtype=np.int64)
+        self._lane_changes = np.array([dl for _, _, dl in table], dtype=np.int64)
+        self._params = params
+        params_type: type = type(params)  # mypy infers type[Any], which it does not treat as Hashable
+        self._kernel = _expand_kernel(params_type)
+        self._index_cache: tuple[Any, np.ndarray] | None = None
+        self._scratch = np.empty(8)  # one box [-x | x] for the reward (the kernels allocate nothing)
+
+    @property
+    def n_actions(self) -> int:
+        """The number of actions."""
+        return len(self.action_names)
+
+    @property
+    def actions(self) -> tuple[int, ...]:
+        """The planner's actions: the indices ``0 .. n_actions - 1``."""
+        return tuple(range(self.n_actions))
+
+    def with_reward(self, reward: Any) -> BicycleModel:
+        """The same ego with another reward (e.g. the next decision's obstacle table).
+
+        Parameters
+        ----------
+        reward : CompiledBoxReward
+            The new reward (as for the constructor).
+
+        Returns
+        -------
+        BicycleModel
+        """
+        actions = list(zip(self.action_names, self._speed_changes.tolist(), self._lane_changes.tolist()))
+        return BicycleModel(self.controller, reward, actions, substeps=self.substeps)
+
+    def _action_index(self, actions) -> np.ndarray:
+        cache = self._index_cache
+        if cache is not None and cache[0] is actions:
+            return cache[1]
+        try:
+            index = [int(a) for a in actions]
+        except (TypeError, ValueError):
+            raise InputError(f"actions must be action indices (integers), got {actions!r}") from None
+        if any(i != a for i, a in zip(index, actions)) or any(not 0 <= i < self.n_actions for i in index):
+            raise InputError(f"actions must be action indices in [0, {self.n_actions}), got {list(actions)!r}")
+        value = np.array(index, dtype=np.int64)
+        if isinstance(actions, tuple):
+            self._index_cache = (actions, value)
+        return value
+
+    def expand(self, state: BicycleState, actions) -> tuple[list, np.ndarray, np.ndarray]:
+        """Step every action from ``state`` over the decision's sub-steps, in one compiled call.
+
+        Parameters
+        ----------
+        state : BicycleState
+            The current state (`initial_state` or an earlier transition).
+        actions : sequence of int
+            Action indices in ``[0, n_actions)``.
+
+        Returns
+        -------
+        next_states : list of BicycleState
+        rewards : ndarray, shape (len(actions),)
+            The minimum reward over the sub-step states, in [0, 1].
+        terminals : ndarray of bool, shape (len(actions),)
+        """
+        if type(state) is not BicycleState:
+            check_instance("state", state, BicycleState, "a BicycleState (see BicycleModel.initial_state)")
+        index = self._action_index(actions)
+        n = index.shape[0]
+        out_x = np.empty((n, 4))
+        meta = np.empty((n, 2), dtype=np.int64)
+        rewards = np.empty(n)
+        terminals = np.empty(n, dtype=bool)
+        self._kernel(
+            self.controller,
+            self._params,
+            state.x,
+            state.level,
+            state.lane,
+            state.time,
+            self._speed_changes[index],
+            self._lane_changes[index],
+            self.substeps,
+            self._scratch,
+            out_x,
+            meta,
+            rewards,
+            terminals,
+        )
+        out_x.setflags(write=False)
+        time = state.time + self.substeps
+        levels, lanes = meta[:, 0].tolist(), meta[:, 1].tolist()
+        return [BicycleState(out_x[i], levels[i], lanes[i], time) for i in range(n)], rewards, terminals
+
+    def step(self, state: BicycleState, action) -> tuple[BicycleState, float, bool]:
+        """One transition ``(next_state, reward, terminal)`` (see `expand`).
+
+        Parameters
+        ----------
+        state : BicycleState
+            The current state.
+        action : int
+            An action index.
+        """
+        next_states, rewards, terminals = self.expand(state, (action,))
+        return next_states[0], float(rewards[0]), bool(terminals[0])
+
+    def predict(self, state: BicycleState, action) -> tuple[np.ndarray, np.ndarray, BicycleState]:
+        """The sub-step states and controls of one action: what the world's ego does under them.
+
+        Parameters
+        ----------
+        state : BicycleState
+            The current state.
+        action : int
+            An action index.
+
+        Returns
+        -------
+        states : ndarray, shape (substeps, 4)
+            The ego after each sub-step (the runtime check's predicted points).
+        controls : ndarray, shape (substeps, 2)
+            ``(acceleration, steering)`` at each sub-step (admissible for `RoadWorld`).
+        next_state : BicycleState
+            The state after the decision (as `expand` returns it).
+        """
+        (a,) = self._action_index((action,))
+        level, lane = apply_action(
+            self.controller, state.level, state.lane, int(self._speed_changes[a]), int(self._lane_changes[a])
+        )
+        states = np.empty((self.substeps, 4))
+        controls = np.empty((self.substeps, 2))
+        x0 = np.ascontiguousarray(state.x, dtype=float)
+        lane = bicycle_kernels.ego_rollout(self.controller, x0, level, lane, self.substeps, states, controls)
+        final = states[-1].copy()
+        final.setflags(write=False)
+        return states, controls, BicycleState(final, int(level), int(lane), state.time + self.substeps)
+
+    def initial_state(self, x, *, level: int, lane: int, time: int = 0) -> BicycleState:
+        """The planner's root state from the ego's (exactly known) state.
+
+        Parameters
+        ----------
+        x : array_like, shape (4,)
+            ``(x, y, v, psi)``.
+        level : int
+            The current speed level, in ``[0, len(target_speeds))``.
+        lane : int
+            The current target lane, a lane index.
+        time : int
+            The absolute sub-step index (the reward's time).
+
+        Returns
+        -------
+        BicycleState
+
+        Raises
+        ------
+        DimensionError, NonFiniteError, InputError
+            On a malformed state, level, lane or time.
+        """
+        x = as_finite_array("x", x, (4,)).copy()
+        x.setflags(write=False)
+        level = as_count("level", level, minimum=0)
+        if level >= self.controller.target_speeds.shape[0]:
+            raise InputError(f"level must be < {self.controller.target_speeds.shape[0]}, got {level}")
+        lane = as_count("lane", lane, minimum=0)
+        if lane >= self.controller.lanes.kinds.shape[0]:
+            raise InputError(f"lane must be a lane index < {self.controller.lanes.kinds.shape[0]}, got {lane}")
+        return BicycleState(x, level, lane, as_count("time", time, minimum=0))
+
+
+#: `compiled_plan`'s kernel status: budget spent, or stopped because the root's bounds met.
+_DONE, _SOLVED = 0, 1
+
+
+@functools.cache
+def _search_kernel(params_type: type):
+    """The whole robust search over M `BicycleModel`s in one compiled call, for rewards of ``params_type``."""
+    version = sources_digest(__file__, tree_ops.__file__, bicycle_kernels.__file__, *minimum_sources(params_type))
+
+    def run_ego_search(budget, tree, nodes, z, controller, params, speed_changes, lane_changes, substeps, time0):
+        """Expand ``tree`` from ``nodes[0]`` (x, y, v, psi, level, lane) for ``budget`` expansions.
+
+        ``params`` holds the M models' reward parameters (one ego, M rewards). Returns
+        ``(status, bad)`` as `minimaxplan.planners.compiled_search`'s kernel (the arrays
+        hold the whole budget's tree, so they never fill up).
+        """
+        _ = version  # ties numba's cache entry to the sources it calls into
+        rewards, new_terminal, terminal, depth, counts = (
+            tree.rewards,
+            tree.new_terminal,
+            tree.terminal,
+            tree.depth,
+            tree.counts,
+        )
+        n_models, n_actions = rewards.shape
+        half = controller.length / 2
+        dt, max_speed = controller.dt, controller.max_speed
+        reset(tree)
+        while counts[N_EXPANDED] < budget:
+            leaf = select(tree)
+            if leaf < 0:
+                return _SOLVED, -1
+            first = counts[SIZE]
+            alive = False
+            for m in range(n_models):
+                if not terminal[leaf, m]:
+                    alive = True
+            if alive:
+                time = time0 + depth[leaf] * substeps
+                level, lane = int(nodes[leaf, 4]), int(nodes[leaf, 5])
+                for a in range(n_actions):
+                    lv, ln = apply_action(controller, level, lane, speed_changes[a], lane_changes[a])
+                    x, y, v, psi = nodes[leaf, 0], nodes[leaf, 1], nodes[leaf, 2], nodes[leaf, 3]
+                    for m in range(n_models):
+                        rewards[m, a] = 1.0
+                        new_terminal[m, a] = False
+                    for k in range(substeps):
+                        accel, steer, ln = ego_control_one(controller, x, y, v, psi, lv, ln)
+                        x, y, v, psi = bicycle_step_one(x, y, v, psi, accel, steer, dt, half, max_speed)
+                        z[0], z[1], z[2], z[3] = -x, -y, -v, -psi
+                        z[4], z[5], z[6], z[7] = x, y, v, psi
+                        for m in range(n_models):
+                            value, collided = box_reward_minimum(params[m], z, 4, float(time + k + 1))
+                            rewards[m, a] = minimum(rewards[m, a], value)
+                            new_terminal[m, a] = new_terminal[m, a] or collided
+                    child = first + a
+                    nodes[child, 0], nodes[child, 1], nodes[child, 2], nodes[child, 3] = x, y, v, psi
+                    nodes[child, 4], nodes[child, 5] = lv, ln
+            else:  # every model terminated: nothing is stepped (`expand` zeroes the rewards)
+                for a in range(n_actions):
+                    for j in range(6):
+                        nodes[first + a, j] = nodes[leaf, j]
+            bad = expand(tree, leaf)
+            if bad >= 0:
+                return _DONE, bad
+        return _DONE, -1
+
+    return _compile_without_refcounts(run_ego_search, params_type)
+
+
+def compiled_plan(models, state: BicycleState, *, gamma: float, budget: int) -> tuple[Decision, SearchTree]:
+    """`RobustTreePlanner` ``(models, actions, ...)``'s search, compiled whole, for `BicycleModel`s of one ego.
+
+    The same tree operations (`minimaxplan.planners.tree_ops`) and the same
+    transitions as the Python engine with the models' ``expand``, in one compiled
+    call: the same tree and the same `Decision`, bit for bit (tested), without a
+    Python round trip per expansion. With M models (scene-wide hypotheses, each its
+    own reward, the same ego), the ego is stepped once per action and each reward
+    evaluated on it.
+
+    Parameters
+    ----------
+    models : BicycleModel or sequence of BicycleModel
+        The ego models: one controller object, one action table, one number of
+        sub-steps; rewards whose ``kernel_params`` have one type.
+    state : BicycleState
+        The root state, shared by every model.
+    gamma : float
+        Discount factor in (0, 1).
+    budget : int
+        Expansions K >= 1.
+
+    Returns
+    -------
+    decision : Decision
+        As `RobustTreePlanner.plan` returns it.
+    tree : SearchTree
+        The search tree (its states are `BicycleState`s; a terminated model keeps its
+        terminal state on the rest of the branch, as in the Python engine).
+
+    Raises
+    ------
+    InputError
+        If a model is not a `BicycleModel`, the models differ in their controller,
+        actions, sub-steps or reward type, or ``state`` is not a `BicycleState`.
+    RewardRangeError
+        If a reward returned a value outside [0, 1].
+
+    Notes
+    -----
+    Hooking it into `RobustTreePlanner` (its ``engine="compiled"``) needs the planner to
+    dispatch its compiled search on the models' kind; until then this is the ego
+    models' compiled engine.
+    """
+    group = [models] if isinstance(models, BicycleModel) else list(models)
+    if not group:
+        raise InputError("models must be a BicycleModel or a non-empty sequence of them")
+    for m, model in enumerate(group):
+        check_instance(f"models[{m}]", model, BicycleModel)
+    first = group[0]
+    for model in group[1:]:
+        if (
+            model.controller is not first.controller
+            or model.substeps != first.substeps
+            or not np.array_equal(model._speed_changes, first._speed_changes)
+            or not np.array_equal(model._lane_changes, first._lane_changes)
+            or type(model._params) is not type(first._params)
+        ):
+            raise InputError("models must share one controller, action table, sub-steps and reward type")
+    check_instance("state", state, BicycleState)
+    gamma = as_discount("gamma", gamma)
+    budget = as_count("budget", budget)
+    n_models, n_actions = len(group), first.n_actions
+    capacity = 1 + budget * n_actions
+    tree = tree_ops.allocate(capacity, n_models, n_actions, gamma, tree_ops.discount_table(gamma, budget + 2))
+    nodes = np.empty((capacity, 6))
+    nodes[0, :4] = state.x
+    nodes[0, 4], nodes[0, 5] = state.level, state.lane
+    params_type: type = type(first._params)  # mypy infers type[Any], which it does not treat as Hashable
+    kernel = _search_kernel(params_type)
+    status, bad = kernel(
+        budget,
+        tree,
+        nodes,
+        first._scratch,
+        first.controller,
+        tuple(model._params for model in group),
+        first._speed_changes,
+        first._lane_changes,
+        first.substeps,
+        state.time,
+    )
+    if bad >= 0:
+        a, m = divmod(int(bad), n_models)
+        raise RewardRangeError(
+            f"models[{m}] returned reward {float(tree.rewards[m, a])!r} for action {a}; rewards must be in [0, 1]"
+        )
+    size = int(tree.counts[SIZE])
+
+    def states() -> list:
+        depth, parent, terminal = tree.depth[:size], tree.parent[:size], tree.terminal
+        joint: list = [state]
+        for i in range(1, size):
+            x = nodes[i, :4].copy()
+            x.setflags(write=False)
+            joint.append(BicycleState(x, int(nodes[i, 4]), int(nodes[i, 5]), state.time + int(depth[i]) * first.substeps))
+        columns = []
+        for m in range(n_models):
+            column = [state] + [None] * (size - 1)
+            for i in range(1, size):
+                column[i] = column[parent[i]] if terminal[parent[i], m] else joint[i]
+            columns.append(column)
+        return columns
+
+    search_tree = SearchTree(tree, states)
+    return Decision.from_tree(search_tree, first.actions, solved=status == _SOLVED), search_tree

@@ -1,0 +1,191 @@
+"""The planner's ego model: the world's ego bit for bit, the pessimistic reward over sub-steps, planning with it."""
+
+import numpy as np
+import pytest
+
+from minimaxplan.kernels.bicycle import apply_action, ego_control
+from minimaxplan.models.errors import InputError
+from minimaxplan.planners import RobustTreePlanner
+from minimaxplan.planners.bicycle_model import (
+    HIGHWAY_ACTIONS,
+    HIGHWAY_TARGET_SPEEDS,
+    TJUNCTION_ACTIONS,
+    TJUNCTION_TARGET_SPEEDS,
+    BicycleModel,
+    BicycleState,
+    compiled_plan,
+    ego_controller,
+)
+from minimaxplan.planners.protocols import VectorisedModel
+from minimaxplan.scenarios.driving_reward import DrivingReward
+from minimaxplan.scenarios.road import lane_geometry
+from minimaxplan.scenarios.road_world import HighwayScenario, TJunctionScenario, make_road_world
+
+EMPTY = np.array([np.inf, np.inf, -np.inf, -np.inf])
+
+
+def _ego_setup(kind):
+    if kind == "highway":
+        world = make_road_world("highway", 3, scenario=HighwayScenario(vehicle_count=0))
+        road = world.road
+        controller = ego_controller(lane_geometry(road), HIGHWAY_TARGET_SPEEDS)
+        reward = DrivingReward.highway(np.tile(EMPTY, (400, 1, 1)), 0, road)
+        model = BicycleModel(controller, reward, HIGHWAY_ACTIONS)
+        lane = int(world.traffic.lane[0])
+        return world, controller, model, model.initial_state(world.ego_state, level=1, lane=lane)
+    world = make_road_world("tjunction", 3, scenario=TJUNCTION_NO_TRAFFIC)
+    road = world.road
+    route = road.route("south_in", "south_west", "west_out")
+    controller = ego_controller(lane_geometry(road, route), TJUNCTION_TARGET_SPEEDS)
+    goal = road.position_at(road.index("west_out"), 25.0)
+    reward = DrivingReward.tjunction(np.tile(EMPTY, (400, 1, 1)), 0, road, goal, 80.0)
+    model = BicycleModel(controller, reward, TJUNCTION_ACTIONS)
+    return world, controller, model, model.initial_state(world.ego_state, level=1, lane=route[0])
+
+
+#: No main-road traffic (the first arrival is after the time limit).
+TJUNCTION_NO_TRAFFIC = TJunctionScenario(headway_min=1e6)
+
+
+@pytest.mark.parametrize(
+    "kind, actions",
+    [("highway", [0, 0, 3, 1, 2, 2, 4, 1, 0, 3, 1, 1]), ("tjunction", [2, 2, 1, 1, 1, 2, 1, 1, 1, 1, 0, 1, 2, 1, 1, 1, 1, 1])],
+)
+def test_the_predicted_ego_is_the_worlds_bit_for_bit(kind, actions):
+    """The world stepped with the kernel's controls puts the ego exactly where the model predicts it."""
+    world, controller, model, state = _ego_setup(kind)
+    for a in actions:
+        predicted, controls, after = model.predict(state, a)
+        (expanded,), _, (terminal,) = model.expand(state, (a,))
+        assert np.array_equal(expanded.x, after.x) and (expanded.level, expanded.lane) == (after.level, after.lane)
+        assert not terminal
+        level, lane = apply_action(
+            controller, state.level, state.lane, model._speed_changes[a], model._lane_changes[a]
+        )
+        for k in range(model.substeps):
+            control, lane = ego_control(controller, world.ego_state, level, lane)
+            assert np.array_equal(control, controls[k])
+            assert world.apply(control) == "running"
+            assert np.array_equal(world.ego_state, predicted[k])
+            assert np.array_equal(world.measure().ego, world.ego_state)  # the ego is measured exactly
+        assert lane == after.lane
+        state = after
+    if kind == "tjunction":  # the left turn is done
+        assert state.lane == world.road.index("west_out")
+
+
+@pytest.mark.parametrize("kind", ["highway", "tjunction"])
+def test_expand_is_step_and_its_reward_the_minimum_over_the_substeps(kind):
+    _, _, model, state = _ego_setup(kind)
+    assert isinstance(model, VectorisedModel) and model.actions == tuple(range(len(model.action_names)))
+    for _ in range(3):
+        next_states, rewards, terminals = model.expand(state, model.actions)
+        for a in model.actions:
+            one, reward, terminal = model.step(state, a)
+            assert np.array_equal(one.x, next_states[a].x) and reward == rewards[a] and terminal == terminals[a]
+            predicted, _, _ = model.predict(state, a)
+            times = state.time + 1 + np.arange(model.substeps)
+            values, collided = model.reward.box_minimum(predicted, predicted, times)
+            assert rewards[a] == values.min() and terminals[a] == collided.any()
+            assert 0.0 <= rewards[a] <= 1.0 and next_states[a].time == state.time + model.substeps
+        state = next_states[1]
+
+
+def test_beyond_the_obstacle_table_the_transition_is_terminal():
+    world, controller, _, _ = _ego_setup("highway")
+    reward = DrivingReward.highway(np.tile(EMPTY, (8, 1, 1)), 0, world.road)
+    model = BicycleModel(controller, reward, HIGHWAY_ACTIONS)
+    state = model.initial_state(world.ego_state, level=1, lane=int(world.traffic.lane[0]))
+    _, rewards, terminals = model.expand(state, model.actions)
+    assert not terminals.any() and rewards.min() > 0
+    _, rewards, terminals = model.expand(BicycleState(state.x, 1, state.lane, 5), model.actions)
+    assert terminals.all() and np.all(rewards == 0.0)
+
+
+def _stopped_vehicle_ahead(lane_y, x_front, horizon=50):
+    table = np.tile(EMPTY, (horizon + 1, 2, 1))
+    table[:, 0] = [x_front - 2.6, lane_y - 1.1, x_front + 2.6, lane_y + 1.1]
+    return table
+
+
+def test_the_robust_planner_drives_around_a_stopped_vehicle_without_collision():
+    world, controller, _, _ = _ego_setup("highway")
+    road = world.road
+    ego = np.array([200.0, 4.0, 25.0, 0.0])
+    reward = DrivingReward.highway(_stopped_vehicle_ahead(4.0, 240.0, 80), 0, road)
+    model = BicycleModel(controller, reward, HIGHWAY_ACTIONS)
+    state = model.initial_state(ego, level=1, lane=1)
+    planner = RobustTreePlanner([model], model.actions, gamma=0.9, budget=100)
+    for _ in range(12):
+        decision = planner.plan(state)
+        assert 0.0 < decision.lower <= decision.upper
+        state, reward_value, terminal = model.step(state, decision.action)
+        assert not terminal and reward_value > 0
+    assert state.x[0] > 240.0 + 5.0 and state.lane != 1  # passed it in another lane
+
+
+def test_malformed_arguments_are_rejected():
+    world, controller, model, state = _ego_setup("highway")
+    with pytest.raises(InputError, match="kernel_params"):
+        BicycleModel(controller, object(), HIGHWAY_ACTIONS)
+    with pytest.raises(InputError, match="actions"):
+        BicycleModel(controller, model.reward, [("JUMP", 2, 0)])
+    with pytest.raises(InputError, match="controller"):
+        BicycleModel(object(), model.reward, HIGHWAY_ACTIONS)
+    with pytest.raises(InputError, match="action indices"):
+        model.expand(state, (7,))
+    with pytest.raises(InputError, match="BicycleState"):
+        model.expand((state.x, 1, 1, 0), (0,))
+    with pytest.raises(InputError, match="level"):
+        model.initial_state(state.x, level=3, lane=0)
+    with pytest.raises(InputError, match="lane"):
+        model.initial_state(state.x, level=0, lane=9)
+    with pytest.raises(InputError, match="target_speeds"):
+        ego_controller(lane_geometry(world.road), [25.0, 20.0])
+
+
+@pytest.mark.parametrize("kind", ["highway", "tjunction"])
+def test_the_compiled_search_builds_the_python_engines_tree(kind):
+    world, controller, model, state = _ego_setup(kind)
+    if kind == "highway":
+        x = state.x
+        table = _stopped_vehicle_ahead(float(x[1]), float(x[0]) + 45.0)
+        table[:, 1] = [x[0] + 10.0, x[1] + 2.0, x[0] + 16.0, x[1] + 6.0]  # a box in the lane to the left
+        model = model.with_reward(DrivingReward.highway(table, 0, world.road))
+    for budget in (1, 7, 100):
+        planner = RobustTreePlanner([model], model.actions, gamma=0.9, budget=budget, engine="python")
+        expected = planner.plan(state)
+        decision, tree = compiled_plan(model, state, gamma=0.9, budget=budget)
+        assert decision == expected
+        for name in ("parent", "action", "returns", "lower", "upper", "leaf_upper", "terminal"):
+            assert np.array_equal(getattr(tree, name), getattr(planner.tree, name)), name
+        for mine, theirs in zip(tree.states[0], planner.tree.states[0]):
+            assert np.array_equal(mine.x, theirs.x) and mine[1:] == theirs[1:]
+    with pytest.raises(InputError, match="state"):
+        compiled_plan(model, (state.x, 1, 1, 0), gamma=0.9, budget=10)
+
+
+def test_the_compiled_search_over_scene_hypotheses_is_the_python_engines():
+    """M models: one ego, M obstacle tables (scene-wide hypotheses); one of them blocks the ego's lane."""
+    world, controller, model, state = _ego_setup("highway")
+    x = state.x
+    free = np.tile(EMPTY, (51, 2, 1))
+    blocked = _stopped_vehicle_ahead(float(x[1]), float(x[0]) + 40.0)
+    side = blocked.copy()
+    side[:, 1] = [x[0] - 30.0, x[1] + 2.5, x[0] + 60.0, x[1] + 6.0]  # the lane to the left is taken
+    models = [model.with_reward(DrivingReward.highway(table, 0, world.road)) for table in (free, blocked, side)]
+    for budget in (3, 60):
+        planner = RobustTreePlanner(models, models[0].actions, gamma=0.9, budget=budget)
+        expected = planner.plan(state)
+        decision, tree = compiled_plan(models, state, gamma=0.9, budget=budget)
+        assert decision == expected
+        for name in ("returns", "terminal", "lower", "upper", "parent"):
+            assert np.array_equal(getattr(tree, name), getattr(planner.tree, name)), name
+        if budget == 60:  # some models terminated on some branches, not all
+            assert tree.terminal.any() and not tree.terminal[:, 0].all()
+        for m in range(3):
+            for mine, theirs in zip(tree.states[m], planner.tree.states[m]):
+                assert np.array_equal(mine.x, theirs.x) and mine[1:] == theirs[1:]
+    other = ego_controller(lane_geometry(world.road), HIGHWAY_TARGET_SPEEDS)
+    with pytest.raises(InputError, match="share one controller"):
+        compiled_plan([models[0], BicycleModel(other, models[1].reward, HIGHWAY_ACTIONS)], state, gamma=0.9, budget=5)

@@ -1,0 +1,252 @@
+"""The driving reward: its box minimum against brute force and python-fcl, the road test, the range [0, 1]."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from minimaxplan.kernels import box_minima, has_compiled_minimum
+from minimaxplan.kernels.driving_reward import interval_cos_range
+from minimaxplan.models.errors import DimensionError, InputError
+from minimaxplan.scenarios.driving_reward import DrivingReward, road_pieces
+from minimaxplan.scenarios.geometry import _fcl
+from minimaxplan.scenarios.road import highway_road, tjunction_road
+from minimaxplan.scenarios.vehicles import vehicle_corners
+
+HIGHWAY = highway_road()
+TJUNCTION = tjunction_road()
+EMPTY = np.array([np.inf, np.inf, -np.inf, -np.inf])
+
+
+def _fcl_rectangle_meets_box(centre, psi, box, grow=0.0):
+    """python-fcl: the 5 m x 2 m rectangle at ``centre`` and heading psi against an axis-aligned box (grown)."""
+    fcl = _fcl()
+    c, s = np.cos(psi), np.sin(psi)
+    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    rect = fcl.CollisionObject(fcl.Box(5.0, 2.0, 1.0), fcl.Transform(rotation, np.array([centre[0], centre[1], 0.0])))
+    lo, hi = np.asarray(box[:2]) - grow, np.asarray(box[2:]) + grow
+    mid = (lo + hi) / 2
+    obstacle = fcl.CollisionObject(
+        fcl.Box(float(hi[0] - lo[0]), float(hi[1] - lo[1]), 1.0), fcl.Transform(np.array([mid[0], mid[1], 0.0]))
+    )
+    return fcl.collide(rect, obstacle, fcl.CollisionRequest(), fcl.CollisionResult()) > 0
+
+
+def _obstacle_reward(boxes):
+    table = np.asarray(boxes, dtype=float).reshape(1, -1, 4)
+    return DrivingReward(table, 0, None, speed_weight=0.4)
+
+
+def _random_box(rng, centre_range=6.0, size=(0.5, 5.0)):
+    centre = rng.uniform(-centre_range, centre_range, 2)
+    half = rng.uniform(*size, 2) / 2
+    return np.concatenate([centre - half, centre + half])
+
+
+def test_the_family_is_registered_and_reads_x_y_v_psi():
+    reward = _obstacle_reward(EMPTY)
+    assert has_compiled_minimum(reward.kernel_params) and reward.min_state_dim == 4
+    assert reward.horizon == 0 and reward.to_dict()["family"] == "driving"
+
+
+def test_the_rectangle_box_test_at_points_is_fcls():
+    rng = np.random.default_rng(1)
+    agree = 0
+    for _ in range(1500):
+        box = _random_box(rng)
+        centre, psi = rng.uniform(-4, 4, 2), rng.uniform(-np.pi, np.pi)
+        state = np.array([centre[0], centre[1], 20.0, psi])
+        collided = _obstacle_reward(box).box_minimum(state, state)[1]
+        inner, outer = _fcl_rectangle_meets_box(centre, psi, box, -1e-7), _fcl_rectangle_meets_box(centre, psi, box, 1e-7)
+        if inner == outer:  # not within 1e-7 m of touching
+            assert collided == inner
+            agree += 1
+    assert agree > 1400
+
+
+def test_the_box_minimum_at_a_fixed_heading_is_exact_against_brute_force():
+    """No sampled position of a box without collision collides; a colliding box has a witness (checked by fcl)."""
+    rng = np.random.default_rng(2)
+    hits = 0
+    for _ in range(300):
+        box = _random_box(rng, 8.0)
+        psi = rng.uniform(-np.pi, np.pi)
+        p_lo = rng.uniform(-4, 4, 2)
+        p_hi = p_lo + rng.uniform(0.0, 3.0, 2)
+        lower, upper = np.array([*p_lo, 20.0, psi]), np.array([*p_hi, 25.0, psi])
+        reward = _obstacle_reward(box)
+        value, collided = reward.box_minimum(lower, upper)
+        xs, ys = np.meshgrid(np.linspace(p_lo[0], p_hi[0], 9), np.linspace(p_lo[1], p_hi[1], 9))
+        samples = [np.array([x, y]) for x, y in zip(xs.ravel(), ys.ravel())]
+        if collided:
+            hits += 1
+            assert value == 0.0
+            witness = reward.box_argmin(lower, upper)
+            assert np.all(witness >= lower) and np.all(witness <= upper)
+            assert _fcl_rectangle_meets_box(witness[:2], psi, box, 1e-6)
+        else:
+            assert not any(_fcl_rectangle_meets_box(c, psi, box, -1e-7) for c in samples)
+            assert value == pytest.approx((1 + 0.4 * 20 / 30) / 1.4)
+    assert 50 < hits < 280  # both cases exercised
+
+
+def test_over_a_heading_interval_the_minimum_is_a_sound_bound():
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        box = _random_box(rng, 8.0)
+        psi_lo = rng.uniform(-np.pi, np.pi)
+        psi_hi = psi_lo + rng.uniform(0.0, 1.5)
+        p_lo = rng.uniform(-4, 4, 2)
+        p_hi = p_lo + rng.uniform(0.0, 2.0, 2)
+        collided = _obstacle_reward(box).box_minimum([*p_lo, 20.0, psi_lo], [*p_hi, 20.0, psi_hi])[1]
+        if not collided:
+            for _ in range(40):
+                c, psi = rng.uniform(p_lo, p_hi), rng.uniform(psi_lo, psi_hi)
+                assert not _fcl_rectangle_meets_box(c, psi, box, -1e-7)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-20, 20), st.floats(0, 7))
+def test_the_cosine_range_over_an_interval_is_exact(low, width):
+    bottom, top = interval_cos_range(low, low + width)
+    grid = np.cos(np.linspace(low, low + width, 2001))
+    assert bottom <= grid.min() + 1e-12 and top >= grid.max() - 1e-12
+    assert bottom >= grid.min() - 1e-5 and top <= grid.max() + 1e-5  # the extremes are attained
+
+
+@pytest.mark.parametrize("road", [HIGHWAY, TJUNCTION], ids=["highway", "tjunction"])
+def test_the_road_test_at_points_is_the_worlds(road):
+    rng = np.random.default_rng(4)
+    table = np.tile(EMPTY, (1, 1, 1))
+    reward = DrivingReward(table, 0, road, speed_weight=0.4)
+    if road is HIGHWAY:
+        x = np.column_stack([rng.uniform(-10, 2010, 4000), rng.uniform(-5, 13, 4000)])
+    else:  # near the lanes
+        lanes = rng.integers(0, len(TJUNCTION), 4000)
+        s = rng.uniform(-5, 105, 4000)
+        x = TJUNCTION.position_at(lanes, np.minimum(s, TJUNCTION.lengths[lanes] + 5), rng.uniform(-4, 4, 4000))
+    states = np.column_stack([x, np.full(4000, 5.0), rng.uniform(-np.pi, np.pi, 4000)])
+    off = ~road.on_road(vehicle_corners(states)).all(axis=1)
+    collided = reward.box_minimum(states, states)[1]
+    assert 300 < off.sum() < 3700
+    assert np.array_equal(collided, off)
+
+
+def test_the_road_test_over_boxes_is_sound():
+    rng = np.random.default_rng(5)
+    reward = DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, TJUNCTION)
+    inside = 0
+    for _ in range(400):
+        p_lo = rng.uniform(-20, 20, 2)
+        p_hi = p_lo + rng.uniform(0.0, 1.0, 2)
+        psi = rng.uniform(-np.pi, np.pi)
+        psi_hi = psi + rng.choice([0.0, rng.uniform(0.0, 0.3)])
+        if not reward.box_minimum([*p_lo, 5.0, psi], [*p_hi, 5.0, psi_hi])[1]:
+            inside += 1
+            c = rng.uniform(p_lo, p_hi, (30, 2))
+            states = np.column_stack([c, np.full(30, 5.0), rng.uniform(psi, psi_hi, 30)])
+            assert TJUNCTION.on_road(vehicle_corners(states)).all()
+    assert inside > 20
+
+
+def test_the_highway_is_one_strip_and_the_junction_its_lanes_and_area():
+    strips, arcs, areas = road_pieces(HIGHWAY)
+    assert strips.tolist() == [[0.0, 4.0, 1.0, 0.0, 2000.0, 6.0]] and arcs.shape == (0, 7) and areas.shape == (0, 4)
+    strips, arcs, areas = road_pieces(TJUNCTION, 0.5)
+    assert strips.shape == (8, 6) and arcs.shape == (4, 7) and areas.tolist() == [[-4.5, -11.5, 4.5, -3.5]]
+    # a box across two highway lanes is on the road
+    reward = DrivingReward.highway(np.tile(EMPTY, (1, 1, 1)), 0, HIGHWAY)
+    assert not reward.box_minimum([100.0, 1.0, 25.0, 0.0], [101.0, 3.0, 25.0, 0.0])[1]
+
+
+def test_highway_reward_values_and_the_right_lane_preference():
+    reward = DrivingReward.highway(np.tile(EMPTY, (1, 1, 1)), 0, HIGHWAY)
+    states = np.array([[100.0, 0.0, 30.0, 0.0], [100.0, 4.0, 30.0, 0.0], [100.0, 8.0, 15.0, 0.0]])
+    value, collided = reward.box_minimum(states, states)
+    assert np.allclose(value, [1.0, (1 + 0.4 + 0.05) / 1.5, (1 + 0.2) / 1.5]) and not collided.any()
+    # over a box: the lowest speed and the worst lane the y-interval touches
+    value, _ = reward.box_minimum([100.0, -0.5, 20.0, 0.0], [100.5, 5.0, 28.0, 0.0])
+    assert value == pytest.approx((1 + 0.4 * 20 / 30 + 0.1 * 0.5) / 1.5)
+
+
+def test_tjunction_reward_is_progress_to_the_goal():
+    goal = TJUNCTION.position_at(TJUNCTION.index("west_out"), 25.0)
+    reward = DrivingReward.tjunction(np.tile(EMPTY, (1, 1, 1)), 0, TJUNCTION, goal, 80.0)
+    at_goal = np.array([goal[0], goal[1], 0.0, np.pi])
+    assert reward.box_minimum(at_goal, at_goal)[0] == pytest.approx(1.0)
+    start = np.array([2.0, -51.0, 4.5, np.pi / 2])
+    d = np.hypot(*(start[:2] - goal))
+    assert reward.box_minimum(start, start)[0] == pytest.approx((1 + 0.4 * (1 - min(d / 80, 1))) / 1.4)
+
+
+@pytest.mark.parametrize("kind", ["highway", "tjunction"])
+def test_the_free_minimum_over_a_box_is_exact_and_attained(kind):
+    rng = np.random.default_rng(6)
+    if kind == "highway":
+        reward = DrivingReward.highway(np.tile(EMPTY, (1, 1, 1)), 0, HIGHWAY)
+    else:
+        goal = TJUNCTION.position_at(TJUNCTION.index("west_out"), 25.0)
+        reward = DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, None, goal_weight=0.4, goal=goal, goal_scale=80.0)
+    for _ in range(100):
+        lower = np.array([rng.uniform(50, 60), rng.uniform(-1.5, 9.0), rng.uniform(0, 35), 0.0])
+        upper = lower + np.array([rng.uniform(0, 3), rng.uniform(0, 6), rng.uniform(0, 5), 0.0])
+        upper[1] = min(upper[1], 9.5)
+        value, collided = reward.box_minimum(lower, upper)
+        if collided:
+            continue
+        grid = np.stack(np.meshgrid(*[np.linspace(lo, hi, 7) for lo, hi in zip(lower, upper)]), -1).reshape(-1, 4)
+        assert reward.free_value(grid).min() >= value - 1e-12
+        point = reward.box_argmin(lower, upper)
+        assert np.all(point >= lower) and np.all(point <= upper)
+        assert reward.free_value(point) == pytest.approx(value, abs=1e-12)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    st.lists(st.floats(-20, 20), min_size=4, max_size=4),
+    st.lists(st.floats(0, 5), min_size=4, max_size=4),
+    st.integers(-3, 8),
+)
+def test_the_reward_lies_in_zero_one(low, width, t):
+    rng = np.random.default_rng(abs(int(sum(low) * 1000)) % 2**32)
+    boxes = np.array([[_random_box(rng, 20.0) for _ in range(3)] for _ in range(6)])
+    goal = np.array([0.0, 0.0])
+    for reward in (
+        DrivingReward.highway(boxes, 0, HIGHWAY),
+        DrivingReward.tjunction(boxes, 0, TJUNCTION, goal, 30.0),
+    ):
+        lower = np.array(low)
+        value, collided = reward.box_minimum(lower, lower + np.array(width), t)
+        assert 0.0 <= value <= 1.0 and (not collided or value == 0.0)
+
+
+def test_beyond_the_table_the_reward_is_zero_and_terminal_and_empty_rows_never_collide():
+    table = np.tile(EMPTY, (3, 2, 1))
+    table[1, 0] = [-1.0, -1.0, 1.0, 1.0]
+    reward = DrivingReward(table, 10, None, speed_weight=0.4)
+    state = np.array([0.0, 0.0, 30.0, 0.0])
+    value, collided = reward.box_minimum(state, state, np.arange(8, 15))
+    assert collided.tolist() == [True, True, False, True, False, True, True]
+    assert value.tolist()[2] == value.tolist()[4] == pytest.approx(1.0)
+    assert np.array_equal(box_minima(reward.kernel_params, state, state, 12), (value[4], collided[4]))
+    moved = reward.with_obstacles(np.tile(EMPTY, (1, 1, 1)), 0)
+    assert moved.horizon == 0 and moved.speed_weight == 0.4
+
+
+def test_malformed_arguments_are_rejected():
+    with pytest.raises(DimensionError, match=r"\(H\+1, m, 4\)"):
+        DrivingReward(np.zeros((3, 4)), 0)
+    with pytest.raises(InputError, match="NaN"):
+        DrivingReward(np.full((1, 1, 4), np.nan), 0)
+    with pytest.raises(InputError, match="lo <= hi"):
+        DrivingReward(np.array([[[1.0, 0.0, 0.0, 1.0]]]), 0)
+    with pytest.raises(InputError, match="at most one"):
+        DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, lane_weight=0.1, lane_values=[1.0], goal_weight=0.4, goal=[0, 0])
+    with pytest.raises(InputError, match="lane_values"):
+        DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, lane_weight=0.1)
+    with pytest.raises(InputError, match="goal"):
+        DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, goal_weight=0.4)
+    with pytest.raises(InputError, match="road"):
+        DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, road="highway")
+    with pytest.raises(InputError, match="moving_positions"):
+        DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0).evaluate(np.zeros(4), moving_positions=np.zeros((0, 2)))
