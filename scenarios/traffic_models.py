@@ -89,8 +89,12 @@ DEFAULT_BEHAVIOUR = BehaviourParameters()
 
 
 def _out(lo, hi):
-    """``[lo, hi]`` rounded outward by `ROUND_MARGIN`."""
-    return lo - ROUND_MARGIN * (1.0 + np.abs(lo)), hi + ROUND_MARGIN * (1.0 + np.abs(hi))
+    """``[lo, hi]`` rounded outward by `ROUND_MARGIN` (infinite bounds stay as they are)."""
+    with np.errstate(invalid="ignore"):
+        return (
+            np.where(np.isfinite(lo), lo - ROUND_MARGIN * (1.0 + np.abs(lo)), lo),
+            np.where(np.isfinite(hi), hi + ROUND_MARGIN * (1.0 + np.abs(hi)), hi),
+        )
 
 
 def _mul(alo, ahi, blo, bhi):
@@ -1002,239 +1006,243 @@ def forecast_traffic(
         ds_hi = np.maximum(np.where(f_ok, sf[1], -np.inf), np.where(l_ok, sl[1], -np.inf))
         return nz_lo, nz_hi, ni_lo, ni_hi, ds_lo, ds_hi
 
-    for n in range(H1):
-        # ------------------------------------------------ world boxes per row
-        eu_lo, eu_hi = unit_boxes()
-        alive = ualive[:R].copy()
-        if has_side:
-            alive |= ualive[R:].reshape(R, 2 * C).any(axis=1)
-        e_lo, e_hi = row_hull(eu_lo, eu_hi)
-        lat_lo, lat_hi = e_lo[:, 0] + c, e_hi[:, 0] + c
-        ch_lo, ch_hi = e_lo[:, 1], e_hi[:, 1]
-        with np.errstate(invalid="ignore"):
-            fx = _lin(origin[:, 0], u[:, 0], -u[:, 1], s_lo, s_hi, lat_lo, lat_hi)
-            fy = _lin(origin[:, 1], u[:, 1], u[:, 0], s_lo, s_hi, lat_lo, lat_hi)
-        cx_lo, cx_hi = np.where(fine, fx[0], x_lo), np.where(fine, fx[1], x_hi)
-        cy_lo, cy_hi = np.where(fine, fy[0], y_lo), np.where(fine, fy[1], y_hi)
-        ps_lo = np.where(fine, h_unw + ch_lo, p_lo)
-        ps_hi = np.where(fine, h_unw + ch_hi, p_hi)
-        dead = ~alive
-        cx_lo[dead] = cy_lo[dead] = ps_lo[dead] = 0.0
-        cx_hi[dead] = cy_hi[dead] = ps_hi[dead] = 0.0
-        foot = footprint_box(np.stack([cx_lo, cy_lo], 1), np.stack([cx_hi, cy_hi], 1), ps_lo, ps_hi, vehicle)
-        st_lo = np.stack([cx_lo, cy_lo, v_lo, ps_lo], 1)
-        st_hi = np.stack([cx_hi, cy_hi, v_hi, ps_hi], 1)
-        st_lo[dead], st_hi[dead], foot[dead] = np.inf, -np.inf, empty
-        lower[n] = st_lo.reshape(m, P, 4).min(axis=1)
-        upper[n] = st_hi.reshape(m, P, 4).max(axis=1)
-        fb = foot.reshape(m, P, 4)
-        boxes[n] = np.concatenate([fb[..., :2].min(axis=1), fb[..., 2:].max(axis=1)], axis=1)
-        guaranteed[n] = (fine | dead).reshape(m, P).all(axis=1)
-        if n == steps:
-            break
-
-        # ------------------------------------- leave the fine region -> coarse
-        leave = fine & alive & ((np.maximum(-ch_lo, ch_hi) > CHI_MAX) | (s_hi + tau * v_hi > prefix_end))
-
-        # --------------------------------------- the other agents' boxes at step n
-        vb_lo = np.where(alive[:, None], np.stack([cx_lo, cy_lo], 1), np.inf)
-        vb_hi = np.where(alive[:, None], np.stack([cx_hi, cy_hi], 1), -np.inf)
-        k_lo = np.vstack([vb_lo.reshape(m, P, 2).min(axis=1), reach[n, :2]])
-        k_hi = np.vstack([vb_hi.reshape(m, P, 2).max(axis=1), reach[n, 2:]])
-        kfoot = np.vstack([boxes[n], reach[n]])
-        present = np.all(kfoot[:, :2] <= kfoot[:, 2:], axis=1)
-        k_lo[~present], k_hi[~present] = 0.0, 0.0
-        kv_lo = np.append(lower[n, :, 2], max(e_speed[n, 0], 0.0))
-        kv_hi = np.append(upper[n, :, 2], e_speed[n, 1])
-        pk_lo, pk_hi = _lin(
-            -np.sum(origin * u, axis=1)[:, None], u[:, None, 0], u[:, None, 1],
-            k_lo[None, :, 0], k_hi[None, :, 0], k_lo[None, :, 1], k_hi[None, :, 1],
-        )
-        lk_lo, lk_hi = _lin(
-            (-np.sum(origin * nrm, axis=1) - c)[:, None], nrm[:, None, 0], nrm[:, None, 1],
-            k_lo[None, :, 0], k_hi[None, :, 0], k_lo[None, :, 1], k_hi[None, :, 1],
-        )
-        # agents that certainly occupy the row's lane and stay on the road: every hypothesis of
-        # theirs steers to it or has its centre in its strip (the ego: its centre box in the strip)
-        abs_lo, abs_hi = lat_lo, lat_hi
-        lw = road.widths[None, :] / 2
-        with np.errstate(invalid="ignore"):
-            strip_in = (abs_lo[:, None] >= lane_offset[None, :] - lw) & (abs_hi[:, None] <= lane_offset[None, :] + lw)
-        certain_row = ~alive[:, None] | (row_lane[:, None] == np.arange(n_lanes)[None, :]) | (strip_in & same_group)
-        certain_row = (certain_row & fine[:, None]) | ~alive[:, None] | ~side_row[:, None]
-        certain_veh = certain_row.reshape(m, P, n_lanes).all(axis=1)[:, row_lane].T  # (R, m)
-        phys = (lk_lo >= -half_w[:, None]) & (lk_hi <= half_w[:, None])  # centre certainly in the strip
-        certain_k = np.where(side_row[:, None], np.concatenate([certain_veh, phys[:, m:]], axis=1), phys)
-        in_strip = present[None, :] & ~same & certain_k & (pk_hi + length / 2 < exit_s[:, None])
-        # pairs that may both steer to the row's lane after a switch: the later switch accepted the gap
-        gap_need = beh.standstill_distance + rules.lane_change_margin + beh.time_headway * np.minimum(
-            v_lo[:, None], kv_lo[None, :]
-        )
-        pair_ok |= np.maximum(np.abs(pk_lo - s_hi[:, None]), np.abs(pk_hi - s_lo[:, None])) - length >= gap_need
-
-        # ------------------------------------------- switching (side lanes)
-        if has_side:
-            slot = (n // block) % C
-            cohort = R + (2 * np.arange(R)[:, None] + np.arange(2)[None, :]) * C + slot  # (R, 2)
-            if n % block == 0 and n > 0:  # the slot's cohorts are >= C block steps old: merge into the row's own box
-                for d in range(2):
-                    k = cohort[:, d]
-                    old = ualive[k]
-                    for lo_a, hi_a in ((ui_lo, ui_hi), (uz_lo, uz_hi)):
-                        lo_a[:R] = np.where(old[:, None], np.minimum(lo_a[:R], lo_a[k]), lo_a[:R])
-                        hi_a[:R] = np.where(old[:, None], np.maximum(hi_a[:R], hi_a[k]), hi_a[:R])
-                        lo_a[k], hi_a[k] = np.inf, -np.inf
-                    ualive[:R] |= old
-                    ualive[k] = False
-            nat_lo, nat_hi = eu_lo[:R], eu_hi[:R]  # the sources: each row's own box (settled part)
-            new_s = [np.where(alive, a, np.inf if q % 2 == 0 else -np.inf) for q, a in enumerate((s_lo, s_hi, v_lo, v_hi))]
-            to_coarse = np.zeros(R, dtype=bool)
-            xy = [cx_lo.copy(), cx_hi.copy(), cy_lo.copy(), cy_hi.copy(), ps_lo.copy(), ps_hi.copy()]
-            xy = [np.where(alive, a, np.inf if i % 2 == 0 else -np.inf) for i, a in enumerate(xy)]
-            for d in range(2):
-                nb = nbr[:, d]
-                ok = nb >= 0
-                nb = np.maximum(nb, 0)
-                src_alive = ualive[nb] & ok
-                fine_pair = fine[nb] & fine & ~leave & ~leave[nb]
-                je_lo = np.maximum(nat_lo[nb, 0], -settle)
-                je_hi = np.minimum(nat_hi[nb, 0], settle)
-                # gap acceptance: blocked by an agent certainly in the target lane whatever the states
-                d_lo, d_hi = pk_lo - s_hi[nb][:, None], pk_hi - s_lo[nb][:, None]
-                far = np.maximum(np.abs(d_lo), np.abs(d_hi)) - length
-                need = beh.standstill_distance + rules.lane_change_margin + beh.time_headway * np.minimum(
-                    v_lo[nb][:, None], kv_lo[None, :]
-                )
-                blocked = (in_strip & (far < need)).any(axis=1)
-                both = src_alive & fine_pair & (je_lo <= je_hi) & ~blocked
-                coarse_in = ok & alive[nb] & ~fine_pair
-                shift = c[nb] - c
-                ii_lo, ii_hi = _out(np.stack([je_lo + shift, nat_lo[nb, 1]], 1), np.stack([je_hi + shift, nat_hi[nb, 1]], 1))
-                zi_lo, zi_hi = _matvec(Tinv, ii_lo, ii_hi)
-                k = cohort[:, d]
-                for lo_a, hi_a, a_lo, a_hi in ((ui_lo, ui_hi, ii_lo, ii_hi), (uz_lo, uz_hi, zi_lo, zi_hi)):
-                    lo_a[k] = np.where(both[:, None], np.minimum(lo_a[k], a_lo), lo_a[k])
-                    hi_a[k] = np.where(both[:, None], np.maximum(hi_a[k], a_hi), hi_a[k])
-                ualive[k] |= both
-                grow = both | coarse_in
-                for q, (arr, op) in enumerate(((s_lo, np.minimum), (s_hi, np.maximum), (v_lo, np.minimum), (v_hi, np.maximum))):
-                    new_s[q] = np.where(grow, op(new_s[q], arr[nb]), new_s[q])
-                src_xy = (cx_lo, cx_hi, cy_lo, cy_hi, ps_lo, ps_hi)
-                for q in range(6):
-                    op = np.minimum if q % 2 == 0 else np.maximum
-                    xy[q] = np.where(coarse_in, op(xy[q], src_xy[q][nb]), xy[q])
-                to_coarse |= coarse_in
-            grown = np.isfinite(new_s[0])
-            s_lo, s_hi, v_lo, v_hi = (np.where(grown, a, b) for a, b in zip(new_s, (s_lo, s_hi, v_lo, v_hi)))
-            leave = leave | (to_coarse & fine)
-            cx_lo, cx_hi, cy_lo, cy_hi, ps_lo, ps_hi = (
-                np.where(to_coarse, xy[q], a) for q, a in enumerate((cx_lo, cx_hi, cy_lo, cy_hi, ps_lo, ps_hi))
-            )
-            alive = alive | to_coarse | ualive[R:].reshape(R, 2 * C).any(axis=1)
+    # dead units hold empty boxes (inf, -inf): their arithmetic is masked, never output
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        for n in range(H1):
+            # ------------------------------------------------ world boxes per row
             eu_lo, eu_hi = unit_boxes()
+            alive = ualive[:R].copy()
+            if has_side:
+                alive |= ualive[R:].reshape(R, 2 * C).any(axis=1)
             e_lo, e_hi = row_hull(eu_lo, eu_hi)
+            lat_lo, lat_hi = e_lo[:, 0] + c, e_hi[:, 0] + c
             ch_lo, ch_hi = e_lo[:, 1], e_hi[:, 1]
-        if leave.any():
-            x_lo, x_hi = np.where(leave, cx_lo, x_lo), np.where(leave, cx_hi, x_hi)
-            y_lo, y_hi = np.where(leave, cy_lo, y_lo), np.where(leave, cy_hi, y_hi)
-            p_lo, p_hi = np.where(leave, ps_lo, p_lo), np.where(leave, ps_hi, p_hi)
-            fine = fine & ~leave
-            gone = ~fine[unit_row]
-            ualive[:R] |= alive & ~fine
-            ualive[R:] &= ~gone[R:]
+            with np.errstate(invalid="ignore"):
+                fx = _lin(origin[:, 0], u[:, 0], -u[:, 1], s_lo, s_hi, lat_lo, lat_hi)
+                fy = _lin(origin[:, 1], u[:, 1], u[:, 0], s_lo, s_hi, lat_lo, lat_hi)
+            cx_lo, cx_hi = np.where(fine, fx[0], x_lo), np.where(fine, fx[1], x_hi)
+            cy_lo, cy_hi = np.where(fine, fy[0], y_lo), np.where(fine, fy[1], y_hi)
+            ps_lo = np.where(fine, h_unw + ch_lo, p_lo)
+            ps_hi = np.where(fine, h_unw + ch_hi, p_hi)
+            dead = ~alive
+            cx_lo[dead] = cy_lo[dead] = ps_lo[dead] = 0.0
+            cx_hi[dead] = cy_hi[dead] = ps_hi[dead] = 0.0
+            foot = footprint_box(np.stack([cx_lo, cy_lo], 1), np.stack([cx_hi, cy_hi], 1), ps_lo, ps_hi, vehicle)
+            st_lo = np.stack([cx_lo, cy_lo, v_lo, ps_lo], 1)
+            st_hi = np.stack([cx_hi, cy_hi, v_hi, ps_hi], 1)
+            st_lo[dead], st_hi[dead], foot[dead] = np.inf, -np.inf, empty
+            lower[n] = st_lo.reshape(m, P, 4).min(axis=1)
+            upper[n] = st_hi.reshape(m, P, 4).max(axis=1)
+            fb = foot.reshape(m, P, 4)
+            boxes[n] = np.concatenate([fb[..., :2].min(axis=1), fb[..., 2:].max(axis=1)], axis=1)
+            guaranteed[n] = (fine | dead).reshape(m, P).all(axis=1)
+            if n == steps:
+                break
 
-        # ------------------------------------------------- possible leaders
-        touch = np.all(
-            (kfoot[:, None, :2] <= strips[None, :, 2:]) & (kfoot[:, None, 2:] >= strips[None, :, :2]), axis=-1
-        )
-        in_prefix = ~np.isnan(pre_lo) & (np.nan_to_num(pre_hi, nan=-np.inf) >= s_lo[:, None])
-        row_int = np.where(fine[:, None], in_prefix & (np.nan_to_num(pre_lo, nan=np.inf) <= s_hi[:, None]), route_mask)
-        row_int &= alive[:, None]
-        switched = row_int & ~belief_lane[:, None]  # side lanes steered to only after a switch since the observation
-        occ = touch.copy()
-        occ[:m] |= (row_int & ~switched).reshape(m, P, n_lanes).any(axis=1)
-        occ[m] |= ego_lanes
-        occ &= present[:, None]
-        occ_sw = np.zeros((m + 1, n_lanes), dtype=bool)
-        occ_sw[:m] = switched.reshape(m, P, n_lanes).any(axis=1)
-        occ_sw &= present[:, None]
-        foot_now = footprint_box(
-            np.stack([np.where(alive, cx_lo, 0.0), np.where(alive, cy_lo, 0.0)], 1),
-            np.stack([np.where(alive, cx_hi, 0.0), np.where(alive, cy_hi, 0.0)], 1),
-            np.where(alive, ps_lo, 0.0), np.where(alive, ps_hi, 0.0), vehicle,
-        )
-        row_touch = np.all(
-            (foot_now[:, None, :2] <= strips[None, :, 2:]) & (foot_now[:, None, 2:] >= strips[None, :, :2]), -1
-        )
-        interest_pre = in_prefix | (side & (row_touch | (np.arange(n_lanes)[None, :] == row_lane[:, None])))
-        pre = (interest_pre[:, None, :] & occ[None, :, :]).any(axis=-1)
-        pre |= (interest_pre[:, None, :] & occ_sw[None, :, :]).any(axis=-1) & pair_ok
-        pre &= ~same
-        bey = (beyond[:, None, :] & occ[None, :, :]).any(axis=-1) & ~same
-        dist_lo, dist_hi = pk_lo - s_hi[:, None], pk_hi - s_lo[:, None]
-        poss_pre = pre & (dist_hi > 0)
-        gap_cand = np.where(poss_pre, np.maximum(dist_lo, 0.0) - length, np.inf)
-        gap_cand = np.where(bey, -length, gap_cand)
-        kp_lo = np.append(lower[n, :, 3], e_head[n, 0])[None, :] - heading[:, None]
-        kp_hi = np.append(upper[n, :, 3], e_head[n, 1])[None, :] - heading[:, None]
-        with np.errstate(invalid="ignore"):
-            cs_lo, cs_hi = cos_interval(np.nan_to_num(kp_lo), np.nan_to_num(kp_hi))
-        vf_lo = np.minimum(kv_lo[None, :] * cs_lo, kv_hi[None, :] * cs_lo)
-        vf_hi = np.maximum(kv_hi[None, :] * cs_hi, kv_lo[None, :] * cs_hi)
-        vf_lo = np.where(bey, -np.abs(kv_hi)[None, :], vf_lo)  # a lane beyond the prefix: any direction
-        vf_hi = np.where(bey, np.abs(kv_hi)[None, :], vf_hi)
-        any_poss = poss_pre | bey
-        front_lo = np.where(any_poss, vf_lo, np.inf).min(axis=1)
-        front_hi = np.where(any_poss, vf_hi, -np.inf).max(axis=1)
-        gap_lo = gap_cand.min(axis=1)
-        certain = poss_pre & in_strip & (dist_lo > 0)
-        gap_hi = np.where(certain, dist_hi - length, np.inf).min(axis=1)
-        may_stop = ~np.isnan(stop_s) & (s_lo <= np.nan_to_num(stop_s, nan=-np.inf))
-        stop_gap = np.maximum(np.nan_to_num(stop_s, nan=np.inf) - s_hi - length / 2, 0.0)
-        gap_lo = np.where(may_stop, np.minimum(gap_lo, stop_gap), gap_lo)
-        front_lo = np.where(may_stop, np.minimum(front_lo, 0.0), front_lo)
-        front_hi = np.where(may_stop, np.maximum(front_hi, 0.0), front_hi)
-        front_hi = np.where(np.isfinite(gap_hi), front_hi, np.inf)
-        vt_lo = np.where(s_hi >= cap_from, np.minimum(t_lo, cap_speed), t_lo)
-        vt_hi = np.where(s_lo >= cap_from, np.minimum(t_hi, cap_speed), t_hi)
-        coarse = ~fine  # no information on the front object or the curve cap
-        gap_lo = np.where(coarse, -length, gap_lo)
-        front_lo = np.where(coarse, -vmax, front_lo)
-        gap_hi = np.where(coarse, np.inf, gap_hi)
-        front_hi = np.where(coarse, np.inf, front_hi)
-        vt_lo = np.where(coarse, 0.0, vt_lo)
-        vt_hi = np.where(coarse, t_hi, vt_hi)
-        if _TRACE is not None:
-            _TRACE.append((n, eu_lo.copy(), eu_hi.copy(), fine.copy(), ualive.copy(), s_lo.copy(), s_hi.copy(),
-                           dict(gap_lo=gap_lo, gap_hi=gap_hi, front_lo=front_lo, poss_pre=poss_pre, bey=bey, occ=occ,
-                                alive=alive.copy(), interest=interest_pre, gap_cand=gap_cand.copy(), s=(s_lo.copy(), s_hi.copy()), pk=(pk_lo.copy(), pk_hi.copy()), v=(v_lo.copy(), v_hi.copy()))))
+            # ------------------------------------- leave the fine region -> coarse
+            leave = fine & alive & ((np.maximum(-ch_lo, ch_hi) > CHI_MAX) | (s_hi + tau * v_hi > prefix_end))
 
-        # ----------------------------------------------------- longitudinal
-        nv_lo, nv_hi = longitudinal_bounds(
-            (v_lo, v_hi), (vt_lo, vt_hi), (front_lo, front_hi), (gap_lo, gap_hi), (ta_lo, ta_hi), dt, beh, vmax
-        )
+            # --------------------------------------- the other agents' boxes at step n
+            vb_lo = np.where(alive[:, None], np.stack([cx_lo, cy_lo], 1), np.inf)
+            vb_hi = np.where(alive[:, None], np.stack([cx_hi, cy_hi], 1), -np.inf)
+            k_lo = np.vstack([vb_lo.reshape(m, P, 2).min(axis=1), reach[n, :2]])
+            k_hi = np.vstack([vb_hi.reshape(m, P, 2).max(axis=1), reach[n, 2:]])
+            kfoot = np.vstack([boxes[n], reach[n]])
+            present = np.all(kfoot[:, :2] <= kfoot[:, 2:], axis=1)
+            k_lo[~present], k_hi[~present] = 0.0, 0.0
+            kv_lo = np.append(lower[n, :, 2], max(e_speed[n, 0], 0.0))
+            kv_hi = np.append(upper[n, :, 2], e_speed[n, 1])
+            pk_lo, pk_hi = _lin(
+                -np.sum(origin * u, axis=1)[:, None], u[:, None, 0], u[:, None, 1],
+                k_lo[None, :, 0], k_hi[None, :, 0], k_lo[None, :, 1], k_hi[None, :, 1],
+            )
+            lk_lo, lk_hi = _lin(
+                (-np.sum(origin * nrm, axis=1) - c)[:, None], nrm[:, None, 0], nrm[:, None, 1],
+                k_lo[None, :, 0], k_hi[None, :, 0], k_lo[None, :, 1], k_hi[None, :, 1],
+            )
+            # agents that certainly occupy the row's lane and stay on the road: every hypothesis of
+            # theirs steers to it or has its centre in its strip (the ego: its centre box in the strip)
+            abs_lo, abs_hi = lat_lo, lat_hi
+            lw = road.widths[None, :] / 2
+            with np.errstate(invalid="ignore"):
+                strip_in = (abs_lo[:, None] >= lane_offset[None, :] - lw) & (abs_hi[:, None] <= lane_offset[None, :] + lw)
+            certain_row = ~alive[:, None] | (row_lane[:, None] == np.arange(n_lanes)[None, :]) | (strip_in & same_group)
+            certain_row = (certain_row & fine[:, None]) | ~alive[:, None] | ~side_row[:, None]
+            certain_veh = certain_row.reshape(m, P, n_lanes).all(axis=1)[:, row_lane].T  # (R, m)
+            phys = (lk_lo >= -half_w[:, None]) & (lk_hi <= half_w[:, None])  # centre certainly in the strip
+            certain_k = np.where(side_row[:, None], np.concatenate([certain_veh, phys[:, m:]], axis=1), phys)
+            in_strip = present[None, :] & ~same & certain_k & (pk_hi + length / 2 < exit_s[:, None])
+            # pairs that may both steer to the row's lane after a switch: the later switch accepted the gap
+            gap_need = beh.standstill_distance + rules.lane_change_margin + beh.time_headway * np.minimum(
+                v_lo[:, None], kv_lo[None, :]
+            )
+            pair_ok |= np.maximum(np.abs(pk_lo - s_hi[:, None]), np.abs(pk_hi - s_lo[:, None])) - length >= gap_need
 
-        # ---------------------------------------------------------- lateral
-        idx = np.flatnonzero(ualive & fine[unit_row])
-        if idx.size:
-            nz_lo, nz_hi, ni_lo, ni_hi, ds_lo, ds_hi = lateral_step(idx, v_lo, v_hi)
-            uz_lo[idx], uz_hi[idx], ui_lo[idx], ui_hi[idx] = nz_lo, nz_hi, ni_lo, ni_hi
-            d_lo = np.full(R, np.inf)
-            d_hi = np.full(R, -np.inf)
-            np.minimum.at(d_lo, unit_row[idx], ds_lo)
-            np.maximum.at(d_hi, unit_row[idx], ds_hi)
-            moved = fine & np.isfinite(d_lo) & np.isfinite(d_hi)
-            ns_lo, ns_hi = _out(s_lo + np.where(moved, d_lo, 0.0), s_hi + np.where(moved, d_hi, 0.0))
-            s_lo, s_hi = np.where(moved, ns_lo, s_lo), np.where(moved, ns_hi, s_hi)
+            # ------------------------------------------- switching (side lanes)
+            if has_side:
+                slot = (n // block) % C
+                cohort = R + (2 * np.arange(R)[:, None] + np.arange(2)[None, :]) * C + slot  # (R, 2)
+                if n % block == 0 and n > 0:  # the slot's cohorts are >= C block steps old: merge into the row's own box
+                    for d in range(2):
+                        k = cohort[:, d]
+                        old = ualive[k]
+                        for lo_a, hi_a in ((ui_lo, ui_hi), (uz_lo, uz_hi)):
+                            lo_a[:R] = np.where(old[:, None], np.minimum(lo_a[:R], lo_a[k]), lo_a[:R])
+                            hi_a[:R] = np.where(old[:, None], np.maximum(hi_a[:R], hi_a[k]), hi_a[:R])
+                            lo_a[k], hi_a[k] = np.inf, -np.inf
+                        ualive[:R] |= old
+                        ualive[k] = False
+                nat_lo, nat_hi = eu_lo[:R], eu_hi[:R]  # the sources: each row's own box (settled part)
+                new_s = [np.where(alive, a, np.inf if q % 2 == 0 else -np.inf) for q, a in enumerate((s_lo, s_hi, v_lo, v_hi))]
+                to_coarse = np.zeros(R, dtype=bool)
+                xy = [cx_lo.copy(), cx_hi.copy(), cy_lo.copy(), cy_hi.copy(), ps_lo.copy(), ps_hi.copy()]
+                xy = [np.where(alive, a, np.inf if i % 2 == 0 else -np.inf) for i, a in enumerate(xy)]
+                for d in range(2):
+                    nb = nbr[:, d]
+                    ok = nb >= 0
+                    nb = np.maximum(nb, 0)
+                    src_alive = ualive[nb] & ok
+                    fine_pair = fine[nb] & fine & ~leave & ~leave[nb]
+                    je_lo = np.maximum(nat_lo[nb, 0], -settle)
+                    je_hi = np.minimum(nat_hi[nb, 0], settle)
+                    # gap acceptance: blocked by an agent certainly in the target lane whatever the states
+                    d_lo, d_hi = pk_lo - s_hi[nb][:, None], pk_hi - s_lo[nb][:, None]
+                    far = np.maximum(np.abs(d_lo), np.abs(d_hi)) - length
+                    need = beh.standstill_distance + rules.lane_change_margin + beh.time_headway * np.minimum(
+                        v_lo[nb][:, None], kv_lo[None, :]
+                    )
+                    blocked = (in_strip & (far < need)).any(axis=1)
+                    both = src_alive & fine_pair & (je_lo <= je_hi) & ~blocked
+                    coarse_in = ok & alive[nb] & ~fine_pair
+                    shift = c[nb] - c
+                    ii_lo, ii_hi = _out(np.stack([je_lo + shift, nat_lo[nb, 1]], 1), np.stack([je_hi + shift, nat_hi[nb, 1]], 1))
+                    zi_lo, zi_hi = _matvec(Tinv, ii_lo, ii_hi)
+                    k = cohort[:, d]
+                    for lo_a, hi_a, a_lo, a_hi in ((ui_lo, ui_hi, ii_lo, ii_hi), (uz_lo, uz_hi, zi_lo, zi_hi)):
+                        lo_a[k] = np.where(both[:, None], np.minimum(lo_a[k], a_lo), lo_a[k])
+                        hi_a[k] = np.where(both[:, None], np.maximum(hi_a[k], a_hi), hi_a[k])
+                    ualive[k] |= both
+                    grow = both | coarse_in
+                    for q, (arr, op) in enumerate(((s_lo, np.minimum), (s_hi, np.maximum), (v_lo, np.minimum), (v_hi, np.maximum))):
+                        new_s[q] = np.where(grow, op(new_s[q], arr[nb]), new_s[q])
+                    src_xy = (cx_lo, cx_hi, cy_lo, cy_hi, ps_lo, ps_hi)
+                    for q in range(6):
+                        op = np.minimum if q % 2 == 0 else np.maximum
+                        xy[q] = np.where(coarse_in, op(xy[q], src_xy[q][nb]), xy[q])
+                    to_coarse |= coarse_in
+                grown = np.isfinite(new_s[0])
+                s_lo, s_hi, v_lo, v_hi = (np.where(grown, a, b) for a, b in zip(new_s, (s_lo, s_hi, v_lo, v_hi)))
+                leave = leave | (to_coarse & fine)
+                cx_lo, cx_hi, cy_lo, cy_hi, ps_lo, ps_hi = (
+                    np.where(to_coarse, xy[q], a) for q, a in enumerate((cx_lo, cx_hi, cy_lo, cy_hi, ps_lo, ps_hi))
+                )
+                alive = alive | to_coarse | ualive[R:].reshape(R, 2 * C).any(axis=1)
+                eu_lo, eu_hi = unit_boxes()
+                e_lo, e_hi = row_hull(eu_lo, eu_hi)
+                ch_lo, ch_hi = e_lo[:, 1], e_hi[:, 1]
+            if leave.any():
+                x_lo, x_hi = np.where(leave, cx_lo, x_lo), np.where(leave, cx_hi, x_hi)
+                y_lo, y_hi = np.where(leave, cy_lo, y_lo), np.where(leave, cy_hi, y_hi)
+                p_lo, p_hi = np.where(leave, ps_lo, p_lo), np.where(leave, ps_hi, p_hi)
+                fine = fine & ~leave
+                gone = ~fine[unit_row]
+                ualive[:R] |= alive & ~fine
+                ualive[R:] &= ~gone[R:]
 
-        # ----------------------------------------------------------- coarse
-        a_lo, a_hi = p_lo - beta_max, p_hi + beta_max
-        dx = _mul(v_lo * dt, v_hi * dt, *cos_interval(a_lo, a_hi))
-        dy = _mul(v_lo * dt, v_hi * dt, *sin_interval(a_lo, a_hi))
-        turn = 2 * dt / length * np.sin(beta_max)
-        x_lo, x_hi = _out(x_lo + dx[0], x_hi + dx[1])
-        y_lo, y_hi = _out(y_lo + dy[0], y_hi + dy[1])
-        p_lo, p_hi = _out(p_lo - turn * v_hi, p_hi + turn * v_hi)
-        v_lo, v_hi = nv_lo, nv_hi
+            # ------------------------------------------------- possible leaders
+            touch = np.all(
+                (kfoot[:, None, :2] <= strips[None, :, 2:]) & (kfoot[:, None, 2:] >= strips[None, :, :2]), axis=-1
+            )
+            in_prefix = ~np.isnan(pre_lo) & (np.nan_to_num(pre_hi, nan=-np.inf) >= s_lo[:, None])
+            row_int = np.where(fine[:, None], in_prefix & (np.nan_to_num(pre_lo, nan=np.inf) <= s_hi[:, None]), route_mask)
+            row_int &= alive[:, None]
+            switched = row_int & ~belief_lane[:, None]  # side lanes steered to only after a switch since the observation
+            occ = touch.copy()
+            occ[:m] |= (row_int & ~switched).reshape(m, P, n_lanes).any(axis=1)
+            occ[m] |= ego_lanes
+            occ &= present[:, None]
+            occ_sw = np.zeros((m + 1, n_lanes), dtype=bool)
+            occ_sw[:m] = switched.reshape(m, P, n_lanes).any(axis=1)
+            occ_sw &= present[:, None]
+            foot_now = footprint_box(
+                np.stack([np.where(alive, cx_lo, 0.0), np.where(alive, cy_lo, 0.0)], 1),
+                np.stack([np.where(alive, cx_hi, 0.0), np.where(alive, cy_hi, 0.0)], 1),
+                np.where(alive, ps_lo, 0.0), np.where(alive, ps_hi, 0.0), vehicle,
+            )
+            row_touch = np.all(
+                (foot_now[:, None, :2] <= strips[None, :, 2:]) & (foot_now[:, None, 2:] >= strips[None, :, :2]), -1
+            )
+            interest_pre = in_prefix | (side & (row_touch | (np.arange(n_lanes)[None, :] == row_lane[:, None])))
+            pre = (interest_pre[:, None, :] & occ[None, :, :]).any(axis=-1)
+            pre |= (interest_pre[:, None, :] & occ_sw[None, :, :]).any(axis=-1) & pair_ok
+            pre &= ~same
+            bey = (beyond[:, None, :] & occ[None, :, :]).any(axis=-1) & ~same
+            dist_lo, dist_hi = pk_lo - s_hi[:, None], pk_hi - s_lo[:, None]
+            poss_pre = pre & (dist_hi > 0)
+            gap_cand = np.where(poss_pre, np.maximum(dist_lo, 0.0) - length, np.inf)
+            gap_cand = np.where(bey, -length, gap_cand)
+            kp_lo = np.append(lower[n, :, 3], e_head[n, 0])[None, :] - heading[:, None]
+            kp_hi = np.append(upper[n, :, 3], e_head[n, 1])[None, :] - heading[:, None]
+            with np.errstate(invalid="ignore"):
+                cs_lo, cs_hi = cos_interval(np.nan_to_num(kp_lo), np.nan_to_num(kp_hi))
+            vf_lo = np.minimum(kv_lo[None, :] * cs_lo, kv_hi[None, :] * cs_lo)
+            vf_hi = np.maximum(kv_hi[None, :] * cs_hi, kv_lo[None, :] * cs_hi)
+            vf_lo = np.where(bey, -np.abs(kv_hi)[None, :], vf_lo)  # a lane beyond the prefix: any direction
+            vf_hi = np.where(bey, np.abs(kv_hi)[None, :], vf_hi)
+            any_poss = poss_pre | bey
+            front_lo = np.where(any_poss, vf_lo, np.inf).min(axis=1)
+            front_hi = np.where(any_poss, vf_hi, -np.inf).max(axis=1)
+            gap_lo = gap_cand.min(axis=1)
+            certain = poss_pre & in_strip & (dist_lo > 0)
+            gap_hi = np.where(certain, dist_hi - length, np.inf).min(axis=1)
+            may_stop = ~np.isnan(stop_s) & (s_lo <= np.nan_to_num(stop_s, nan=-np.inf))
+            stop_gap = np.maximum(np.nan_to_num(stop_s, nan=np.inf) - s_hi - length / 2, 0.0)
+            gap_lo = np.where(may_stop, np.minimum(gap_lo, stop_gap), gap_lo)
+            front_lo = np.where(may_stop, np.minimum(front_lo, 0.0), front_lo)
+            front_hi = np.where(may_stop, np.maximum(front_hi, 0.0), front_hi)
+            front_hi = np.where(np.isfinite(gap_hi), front_hi, np.inf)
+            vt_lo = np.where(s_hi >= cap_from, np.minimum(t_lo, cap_speed), t_lo)
+            vt_hi = np.where(s_lo >= cap_from, np.minimum(t_hi, cap_speed), t_hi)
+            coarse = ~fine  # no information on the front object or the curve cap
+            gap_lo = np.where(coarse, -length, gap_lo)
+            front_lo = np.where(coarse, -vmax, front_lo)
+            gap_hi = np.where(coarse, np.inf, gap_hi)
+            front_hi = np.where(coarse, np.inf, front_hi)
+            vt_lo = np.where(coarse, 0.0, vt_lo)
+            vt_hi = np.where(coarse, t_hi, vt_hi)
+            if _TRACE is not None:
+                _TRACE.append((n, eu_lo.copy(), eu_hi.copy(), fine.copy(), ualive.copy(), s_lo.copy(), s_hi.copy(),
+                               dict(gap_lo=gap_lo, gap_hi=gap_hi, front_lo=front_lo, poss_pre=poss_pre, bey=bey, occ=occ,
+                                    alive=alive.copy(), interest=interest_pre, gap_cand=gap_cand.copy(), s=(s_lo.copy(), s_hi.copy()), pk=(pk_lo.copy(), pk_hi.copy()), v=(v_lo.copy(), v_hi.copy()))))
 
+            # ----------------------------------------------------- longitudinal
+            nv_lo, nv_hi = longitudinal_bounds(
+                (v_lo, v_hi), (vt_lo, vt_hi), (front_lo, front_hi), (gap_lo, gap_hi), (ta_lo, ta_hi), dt, beh, vmax
+            )
+
+            # ---------------------------------------------------------- lateral
+            idx = np.flatnonzero(ualive & fine[unit_row])
+            if idx.size:
+                nz_lo, nz_hi, ni_lo, ni_hi, ds_lo, ds_hi = lateral_step(idx, v_lo, v_hi)
+                uz_lo[idx], uz_hi[idx], ui_lo[idx], ui_hi[idx] = nz_lo, nz_hi, ni_lo, ni_hi
+                d_lo = np.full(R, np.inf)
+                d_hi = np.full(R, -np.inf)
+                np.minimum.at(d_lo, unit_row[idx], ds_lo)
+                np.maximum.at(d_hi, unit_row[idx], ds_hi)
+                moved = fine & np.isfinite(d_lo) & np.isfinite(d_hi)
+                ns_lo, ns_hi = _out(s_lo + np.where(moved, d_lo, 0.0), s_hi + np.where(moved, d_hi, 0.0))
+                s_lo, s_hi = np.where(moved, ns_lo, s_lo), np.where(moved, ns_hi, s_hi)
+
+            # ----------------------------------------------------------- coarse
+            a_lo, a_hi = p_lo - beta_max, p_hi + beta_max
+            dx = _mul(v_lo * dt, v_hi * dt, *cos_interval(a_lo, a_hi))
+            dy = _mul(v_lo * dt, v_hi * dt, *sin_interval(a_lo, a_hi))
+            turn = 2 * dt / length * np.sin(beta_max)
+            x_lo, x_hi = _out(x_lo + dx[0], x_hi + dx[1])
+            y_lo, y_hi = _out(y_lo + dy[0], y_hi + dy[1])
+            p_lo, p_hi = _out(p_lo - turn * v_hi, p_hi + turn * v_hi)
+            v_lo, v_hi = nv_lo, nv_hi
+
+    if np.isnan(boxes).any() or np.isnan(lower).any() or np.isnan(upper).any():
+        raise FloatingPointError("the forecast produced NaN bounds (a bug: please report it)")
     return TrafficForecast(boxes, lower, upper, guaranteed, ids, dt)
