@@ -603,6 +603,17 @@ def _bases(a_nominal: np.ndarray) -> np.ndarray:
     return basis
 
 
+def _clip_to_road(box: np.ndarray, road_boxes: np.ndarray) -> np.ndarray:
+    """The hull of ``box`` met with each road box (rows (R, 4)); a box meeting none is kept."""
+    lo = np.maximum(box[:, None, :2], road_boxes[None, :, :2])
+    hi = np.minimum(box[:, None, 2:], road_boxes[None, :, 2:])
+    ok = np.all(lo <= hi, axis=-1)
+    new_lo = np.where(ok[..., None], lo, np.inf).min(axis=1)
+    new_hi = np.where(ok[..., None], hi, -np.inf).max(axis=1)
+    keep = ~ok.any(axis=1)
+    return np.where(keep[:, None], box, np.concatenate([new_lo, new_hi], axis=1))
+
+
 # -------------------------------------------------------------- row layout
 @dataclass
 class _Row:
@@ -714,9 +725,6 @@ def _target_range(scenario) -> tuple[float, float]:
     return float(speeds[0]), float(speeds[1])
 
 
-_TRACE = None
-
-
 def forecast_traffic(
     observation,
     road: Road,
@@ -726,6 +734,7 @@ def forecast_traffic(
     steps: int,
     ego_reach,
     ego_route: tuple | None = None,
+    road_edges: bool = True,
     ego_speed=None,
     ego_heading=None,
 ) -> TrafficForecast:
@@ -752,6 +761,12 @@ def forecast_traffic(
         ``(low, high)`` of the ego's speed (m/s) and heading (rad) at each sub-step under
         any of its action sequences (the ego is a possible leader: its speed along the
         lane is a feature of its followers); default ``[0, max_speed]`` and any heading.
+    road_edges : bool
+        Whether the coarse boxes are cut to the road (the hull of the road's lane-strip
+        and area boxes met by the box): sound under the world's property that other
+        vehicles keep their rectangle's corners and centre on the road (`RoadWorld`
+        records any violation in ``traffic_off_road``; tested never to happen). False:
+        the bicycle's limits only.
     ego_route : tuple of int, optional
         Lanes the ego may have as its route lane (it occupies them whatever its
         position); default: the T-junction's ``south_in, south_west, west_out`` (on the
@@ -816,6 +831,7 @@ def forecast_traffic(
     noise = np.array(scenario.measurement_noise, dtype=float)
     t_range = _target_range(scenario)
     strips = _strip_boxes(road)
+    road_boxes = np.vstack([strips] + [np.array([[a[0][0], a[0][1], a[1][0], a[1][1]]]) for a in road.areas])
 
     # ---------------------------------------------------------------- rows
     per_vehicle = []
@@ -1028,6 +1044,8 @@ def forecast_traffic(
             cx_lo[dead] = cy_lo[dead] = ps_lo[dead] = 0.0
             cx_hi[dead] = cy_hi[dead] = ps_hi[dead] = 0.0
             foot = footprint_box(np.stack([cx_lo, cy_lo], 1), np.stack([cx_hi, cy_hi], 1), ps_lo, ps_hi, vehicle)
+            if road_edges:
+                foot = np.where(fine[:, None], foot, _clip_to_road(foot, road_boxes))
             st_lo = np.stack([cx_lo, cy_lo, v_lo, ps_lo], 1)
             st_hi = np.stack([cx_hi, cy_hi, v_hi, ps_hi], 1)
             st_lo[dead], st_hi[dead], foot[dead] = np.inf, -np.inf, empty
@@ -1210,11 +1228,6 @@ def forecast_traffic(
             front_hi = np.where(coarse, np.inf, front_hi)
             vt_lo = np.where(coarse, 0.0, vt_lo)
             vt_hi = np.where(coarse, t_hi, vt_hi)
-            if _TRACE is not None:
-                _TRACE.append((n, eu_lo.copy(), eu_hi.copy(), fine.copy(), ualive.copy(), s_lo.copy(), s_hi.copy(),
-                               dict(gap_lo=gap_lo, gap_hi=gap_hi, front_lo=front_lo, poss_pre=poss_pre, bey=bey, occ=occ,
-                                    alive=alive.copy(), interest=interest_pre, gap_cand=gap_cand.copy(), s=(s_lo.copy(), s_hi.copy()), pk=(pk_lo.copy(), pk_hi.copy()), v=(v_lo.copy(), v_hi.copy()))))
-
             # ----------------------------------------------------- longitudinal
             nv_lo, nv_hi = longitudinal_bounds(
                 (v_lo, v_hi), (vt_lo, vt_hi), (front_lo, front_hi), (gap_lo, gap_hi), (ta_lo, ta_hi), dt, beh, vmax
@@ -1240,6 +1253,8 @@ def forecast_traffic(
             turn = 2 * dt / length * np.sin(beta_max)
             x_lo, x_hi = _out(x_lo + dx[0], x_hi + dx[1])
             y_lo, y_hi = _out(y_lo + dy[0], y_hi + dy[1])
+            if road_edges:
+                x_lo, y_lo, x_hi, y_hi = _clip_to_road(np.stack([x_lo, y_lo, x_hi, y_hi], 1), road_boxes).T
             p_lo, p_hi = _out(p_lo - turn * v_hi, p_hi + turn * v_hi)
             v_lo, v_hi = nv_lo, nv_hi
 
