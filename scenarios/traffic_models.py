@@ -1091,10 +1091,14 @@ def forecast_traffic(
             certain_k = np.where(side_row[:, None], np.concatenate([certain_veh, phys[:, m:]], axis=1), phys)
             in_strip = present[None, :] & ~same & certain_k & (pk_hi + length / 2 < exit_s[:, None])
             # pairs that may both steer to the row's lane after a switch: the later switch accepted the gap
+            # the pair's states at a switch may lie in any row of the vehicle: use its hull over the rows
+            sv_lo = np.where(alive, s_lo, np.inf).reshape(m, P).min(axis=1)[veh_of]
+            sv_hi = np.where(alive, s_hi, -np.inf).reshape(m, P).max(axis=1)[veh_of]
+            vv_lo = np.where(alive, v_lo, np.inf).reshape(m, P).min(axis=1)[veh_of]
             gap_need = beh.standstill_distance + rules.lane_change_margin + beh.time_headway * np.minimum(
-                v_lo[:, None], kv_lo[None, :]
+                vv_lo[:, None], kv_lo[None, :]
             )
-            pair_ok |= np.maximum(np.abs(pk_lo - s_hi[:, None]), np.abs(pk_hi - s_lo[:, None])) - length >= gap_need
+            pair_ok |= np.maximum(np.abs(pk_lo - sv_hi[:, None]), np.abs(pk_hi - sv_lo[:, None])) - length >= gap_need
 
             # ------------------------------------------- switching (side lanes)
             if has_side:
