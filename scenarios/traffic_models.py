@@ -90,11 +90,8 @@ DEFAULT_BEHAVIOUR = BehaviourParameters()
 
 def _out(lo, hi):
     """``[lo, hi]`` rounded outward by `ROUND_MARGIN` (infinite bounds stay as they are)."""
-    with np.errstate(invalid="ignore"):
-        return (
-            np.where(np.isfinite(lo), lo - ROUND_MARGIN * (1.0 + np.abs(lo)), lo),
-            np.where(np.isfinite(hi), hi + ROUND_MARGIN * (1.0 + np.abs(hi)), hi),
-        )
+    with np.errstate(invalid="ignore"):  # inf - inf = nan on empty boxes: fmin / fmax keep the infinite bound
+        return np.fmin(lo, lo - ROUND_MARGIN * (1.0 + np.abs(lo))), np.fmax(hi, hi + ROUND_MARGIN * (1.0 + np.abs(hi)))
 
 
 def _mul(alo, ahi, blo, bhi):
@@ -580,10 +577,29 @@ def _lin(c0, cx, cy, x_lo, x_hi, y_lo, y_hi):
 
 def _matvec(m, lo, hi):
     """Interval product of batched matrices (..., 2, 2) with boxes (..., 2), rounded outward."""
-    pos, neg = np.maximum(m, 0.0), np.maximum(-m, 0.0)
-    new_lo = np.einsum("...ij,...j->...i", pos, lo) - np.einsum("...ij,...j->...i", neg, hi)
-    new_hi = np.einsum("...ij,...j->...i", pos, hi) - np.einsum("...ij,...j->...i", neg, lo)
+    new_lo, new_hi = _matvec2(m, lo, hi)
     return _out(new_lo, new_hi)
+
+
+def _matvec2(m, lo, hi):
+    """The exact interval product of 2 x 2 matrices (..., 2, 2) with boxes (..., 2), not rounded."""
+    pos, neg = np.maximum(m, 0.0), np.maximum(-m, 0.0)
+    l0, l1, h0, h1 = lo[..., 0], lo[..., 1], hi[..., 0], hi[..., 1]
+    out_lo = np.stack(
+        [
+            pos[..., 0, 0] * l0 + pos[..., 0, 1] * l1 - neg[..., 0, 0] * h0 - neg[..., 0, 1] * h1,
+            pos[..., 1, 0] * l0 + pos[..., 1, 1] * l1 - neg[..., 1, 0] * h0 - neg[..., 1, 1] * h1,
+        ],
+        axis=-1,
+    )
+    out_hi = np.stack(
+        [
+            pos[..., 0, 0] * h0 + pos[..., 0, 1] * h1 - neg[..., 0, 0] * l0 - neg[..., 0, 1] * l1,
+            pos[..., 1, 0] * h0 + pos[..., 1, 1] * h1 - neg[..., 1, 0] * l0 - neg[..., 1, 1] * l1,
+        ],
+        axis=-1,
+    )
+    return out_lo, out_hi
 
 
 def _bases(a_nominal: np.ndarray) -> np.ndarray:
@@ -711,10 +727,10 @@ def _vertex_step(base, z_lo, z_hi, p_lo, p_hi):
     """
     corners = np.array([[(k >> i) & 1 for i in range(3)] for k in range(8)], dtype=bool)  # (8, 3)
     p = np.where(corners[None], p_hi[:, None, :], p_lo[:, None, :])  # (R, 8, 3)
-    mats = np.eye(2) + np.einsum("rki,rijl->rkjl", p, base)  # (R, 8, 2, 2)
-    pos, neg = np.maximum(mats, 0.0), np.maximum(-mats, 0.0)
-    lo = np.einsum("rkij,rj->rki", pos, z_lo) - np.einsum("rkij,rj->rki", neg, z_hi)
-    hi = np.einsum("rkij,rj->rki", pos, z_hi) - np.einsum("rkij,rj->rki", neg, z_lo)
+    mats = (p[..., None, None] * base[:, None]).sum(axis=2)  # (R, 8, 2, 2)
+    mats[..., 0, 0] += 1.0
+    mats[..., 1, 1] += 1.0
+    lo, hi = _matvec2(mats, z_lo[:, None, :], z_hi[:, None, :])
     return lo.min(axis=1), hi.max(axis=1)
 
 
@@ -961,9 +977,10 @@ def forecast_traffic(
 
     def unit_boxes():
         """(e, chi) box of every unit: the intersection of its two sound boxes."""
-        lo, hi = _matvec(T[unit_row], uz_lo, uz_hi)
-        lo, hi = np.maximum(lo, ui_lo), np.minimum(hi, ui_hi)
-        lo[~ualive], hi[~ualive] = np.inf, -np.inf
+        lo, hi = np.full((U, 2), np.inf), np.full((U, 2), -np.inf)
+        a = np.flatnonzero(ualive)
+        b_lo, b_hi = _matvec(T[unit_row[a]], uz_lo[a], uz_hi[a])
+        lo[a], hi[a] = np.maximum(b_lo, ui_lo[a]), np.minimum(b_hi, ui_hi[a])
         return lo, hi
 
     def row_hull(lo, hi):
@@ -996,6 +1013,11 @@ def forecast_traffic(
         if_lo, if_hi = _vertex_step(np.broadcast_to(phi, (len(idx), 3, 2, 2)), e_lo, e_hi, p_lo_, p_hi_)
         if_lo, if_hi = _out(if_lo + rw_lo, if_hi + rw_hi)
         sf = _mul(vf_lo_ * dt, vf_hi_ * dt, *cos_interval(*a_f))
+        if not l_ok.any():
+            back_lo, back_hi = _matvec(T[rr], zf_lo, zf_hi)
+            into_lo, into_hi = _matvec(Tinv[rr], if_lo, if_hi)
+            return (np.maximum(zf_lo, into_lo), np.minimum(zf_hi, into_hi), np.maximum(if_lo, back_lo),
+                    np.minimum(if_hi, back_hi), sf[0], sf[1])
         # low speeds: a direct interval step of the bicycle
         vl_lo, vl_hi = vlo, np.minimum(vhi, V_MIN)
         vh_lo, vh_hi = np.maximum(vl_lo, eps), np.maximum(vl_hi, eps)
