@@ -27,10 +27,16 @@ The models (``docs/traffic-models.md`` has the derivations):
   ``v >= V_MIN``; below ``V_MIN`` a direct interval step of the bicycle is hulled in;
 * **coarse** (``guaranteed = False``): from the first step at which a vehicle's tube
   may leave the straight lanes of its route (arcs, heading errors beyond ``CHI_MAX``),
-  the reachable box of the bicycle under its speed, steering and acceleration limits;
-* **switching intentions**: per vehicle, one box per lane it may steer to, updated each
-  step by the switching rule (a vehicle settled in lane l may start a change to a
-  neighbour at any step): see `forecast_traffic`'s Notes.
+  the reachable box of the bicycle under its speed, steering and acceleration limits,
+  cut to the road (``road_edges``);
+* **switching intentions**: per vehicle, one row per lane it may steer to, each with
+  its own box and *cohorts* of recent switches (a vehicle settled in lane l may start a
+  change to a neighbour at any step, when the gap rule may accept it): see
+  `forecast_traffic`'s Notes.
+
+The per-step loop is in one place (`forecast_traffic`; the lateral step is its
+``lateral_step`` with the batched vertex bound `_vertex_step`), so that it can move to
+`predict_tube`'s per-step parameter sets and box-valued inputs when those exist.
 
 Layer: numpy only (`minimaxplan.models` for the linear system and boxes); no planner
 import.
@@ -803,13 +809,22 @@ def forecast_traffic(
     remainder box (`lateral_remainder`), or the coarse bicycle bound.
 
     Switching (lane changes at any step): a vehicle changes from lane l' to a
-    neighbour l at step n only if settled, ``|e_l'| < lane_change_settled``. So the set
-    of states at n with intention l is contained in ``Pre_l(n) u shift(Pre_l'(n) n
-    {|e_l'| <= settled})`` over the neighbours l', with ``Pre_l(n)`` the successor of
-    the row's box at n - 1; the row's box is replaced by the hull of those (in its
-    basis) before each step. By induction every switch time (and sequence of switches)
-    is covered, with the per-step parameter sets unchanged; the union over the rows at
-    step n is the union of ``Pre`` (the same physical states), which is what is output.
+    neighbour l at step n only if settled, ``|e_l'| < lane_change_settled``, and the gap
+    rule accepts it. So the set of states at n with intention l is contained in
+    ``Pre_l(n) u shift(Pre_l'(n) n {|e_l'| <= settled})`` over the neighbours l', with
+    ``Pre_l(n)`` the successor of the row's sets at n - 1. The shifted part enters a
+    *cohort* (one per block of `COHORT_BLOCK` steps and source lane; hulling it into the
+    row's own box would wrap), propagated with the row's per-step parameters and merged
+    into the row's own box after ``min(COHORT_AGE, shortest timer period)`` steps: a
+    vehicle switches again only when its timer fires again, so only the row's own box
+    (which holds every trajectory that switched at least that long ago) is a source. By
+    induction every switch time and sequence of switches is covered; the union over a
+    row's units at step n is the union of ``Pre`` (the same physical states), which is
+    what is output. A switch is dropped when an agent certainly in the target lane
+    certainly fails the gap rule; a vehicle that reaches a lane only by a switch is a
+    candidate leader of a row in that lane only once the pair's gap could have been
+    accepted at some step so far (the later of two switches into a lane was checked
+    against the earlier).
 
     A vehicle's output is the hull over its rows (the union of its surviving
     hypotheses); ``guaranteed`` is False from the first step after one of its rows left

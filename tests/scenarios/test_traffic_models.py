@@ -301,3 +301,26 @@ def test_tjunction_prior_routes():
     belief = prior_belief(5, np.array([x, y, 8.0, 0.0]), road, world.scenario)
     assert road.route("west_in", "west_east", "east_out") in belief.routes
     assert road.route("west_in", "west_south", "south_out") in belief.routes
+
+
+@given(
+    v=st.tuples(st.floats(2.0, 30.0), st.floats(0, 5.0)),
+    e=st.tuples(st.floats(-4.0, 4.0), st.floats(0, 1.0)),
+    chi=st.tuples(st.floats(-0.5, 0.5), st.floats(0, 0.2)),
+    dt=st.sampled_from([0.05, 0.1, 0.2]),
+)
+def test_batched_vertex_bound_is_the_interval_predictors(v, e, chi, dt):
+    """The forecast's batched lateral step is `IntervalPredictor.step` on `lateral_system` (identity basis)."""
+    from minimaxplan.models.prediction import IntervalPredictor
+    from minimaxplan.scenarios.traffic_models import _structure, _vertex_step
+
+    lo_b, hi_b = BEHAVIOUR.theta_b_prior
+    system = lateral_system(dt, Box(lo_b, hi_b), (v[0], v[0] + v[1]), VEHICLE)
+    predictor = IntervalPredictor(system)
+    lo, hi = np.array([e[0], chi[0]]), np.array([e[0] + e[1], chi[0] + chi[1]])
+    ref_lo, ref_hi = predictor.step(lo, hi, np.zeros(1))
+    base = np.broadcast_to(_structure(dt, VEHICLE.length), (1, 3, 2, 2))
+    got_lo, got_hi = _vertex_step(base, lo[None], hi[None], system.theta.low[None], system.theta.high[None])
+    # the predictor adds the disturbance box [-1, 1] of lateral_system and rigorous rounding margins
+    np.testing.assert_allclose(got_lo[0] - 1.0, ref_lo, atol=1e-9)
+    np.testing.assert_allclose(got_hi[0] + 1.0, ref_hi, atol=1e-9)
