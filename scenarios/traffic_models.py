@@ -755,7 +755,7 @@ def forecast_traffic(
     *,
     steps: int,
     ego_reach,
-    ego_route: tuple | None = None,
+    ego_route=None,
     road_edges: bool = True,
     ego_speed=None,
     ego_heading=None,
@@ -789,11 +789,13 @@ def forecast_traffic(
         vehicles keep their rectangle's corners and centre on the road (`RoadWorld`
         records any violation in ``traffic_off_road``; tested never to happen). False:
         the bicycle's limits only.
-    ego_route : tuple of int, optional
+    ego_route : tuple of int or ndarray of bool, shape (steps + 1, n_lanes), optional
         Lanes the ego may have as its route lane (it occupies them whatever its
-        position); default: the T-junction's ``south_in, south_west, west_out`` (on the
-        highway the ego's route lane is the side lane nearest to its centre, which its
-        rectangle always touches).
+        position), for the whole horizon or per sub-step; default: every lane of the
+        T-junction's ``south_in, south_west, west_out`` at every step (sound, and
+        conservative: the planner knows the ego's route position and can pass the
+        lanes it may reach); on the highway the ego's route lane is the side lane
+        nearest to its centre, which its rectangle always touches, so nothing is needed.
 
     Returns
     -------
@@ -980,8 +982,13 @@ def forecast_traffic(
     vmax = vehicle.max_speed
     beta_max = float(_slip(vehicle.max_steering))
     eps = beh.speed_epsilon
-    ego_lanes = np.zeros(n_lanes, dtype=bool)
-    ego_lanes[list(ego_route)] = True
+    if isinstance(ego_route, np.ndarray) and ego_route.ndim == 2:
+        if ego_route.shape != (steps + 1, n_lanes):
+            raise DimensionError(f"ego_route must have shape ({steps + 1}, {n_lanes}), got shape {ego_route.shape}")
+        ego_lanes = ego_route.astype(bool)
+    else:
+        ego_lanes = np.zeros((steps + 1, n_lanes), dtype=bool)
+        ego_lanes[:, list(ego_route)] = True
     same = veh_of[:, None] == np.arange(m + 1)[None, :]
     pair_ok = np.zeros((R, m + 1), dtype=bool)
     lane_offset = np.full(n_lanes, np.nan)
@@ -1218,7 +1225,7 @@ def forecast_traffic(
             switched = row_int & ~belief_lane[:, None]  # side lanes steered to only after a switch since the observation
             occ = touch.copy()
             occ[:m] |= (row_int & ~switched).reshape(m, P, n_lanes).any(axis=1)
-            occ[m] |= ego_lanes
+            occ[m] |= ego_lanes[n]
             occ &= present[:, None]
             occ_sw = np.zeros((m + 1, n_lanes), dtype=bool)
             occ_sw[:m] = switched.reshape(m, P, n_lanes).any(axis=1)
@@ -1248,12 +1255,14 @@ def forecast_traffic(
             vf_hi = np.maximum(kv_hi[None, :] * cs_hi, kv_lo[None, :] * cs_hi)
             vf_lo = np.where(bey, -np.abs(kv_hi)[None, :], vf_lo)  # a lane beyond the prefix: any direction
             vf_hi = np.where(bey, np.abs(kv_hi)[None, :], vf_hi)
-            any_poss = poss_pre | bey
-            front_lo = np.where(any_poss, vf_lo, np.inf).min(axis=1)
-            front_hi = np.where(any_poss, vf_hi, -np.inf).max(axis=1)
-            gap_lo = gap_cand.min(axis=1)
             certain = poss_pre & in_strip & (dist_lo > 0)
             gap_hi = np.where(certain, dist_hi - length, np.inf).min(axis=1)
+            # the leader is the nearest candidate: one farther than a certain candidate can be is not it
+            nearest = np.where(certain, dist_hi, np.inf).min(axis=1)
+            any_poss = (poss_pre & (dist_lo <= nearest[:, None])) | bey
+            front_lo = np.where(any_poss, vf_lo, np.inf).min(axis=1)
+            front_hi = np.where(any_poss, vf_hi, -np.inf).max(axis=1)
+            gap_lo = np.where(any_poss, gap_cand, np.inf).min(axis=1)
             may_stop = ~np.isnan(stop_s) & (s_lo <= np.nan_to_num(stop_s, nan=-np.inf))
             stop_gap = np.maximum(np.nan_to_num(stop_s, nan=np.inf) - s_hi - length / 2, 0.0)
             gap_lo = np.where(may_stop, np.minimum(gap_lo, stop_gap), gap_lo)

@@ -58,33 +58,40 @@ def _ego_control(kind, state):
 
 
 def _episode(kind, seed, dt, length, rules=None, extreme=True):
-    """Run an episode; return the world, true states, observations and lane-change count per sub-step."""
+    """Run an episode; return the world, (true states, the ego's route lane) per sub-step, observations, lane changes."""
     base = HighwayScenario() if kind == "highway" else TJunctionScenario()
     scenario = dataclasses.replace(base, dt=dt, rules=rules or base.rules)
     world = make_road_world(kind, seed, scenario=scenario)
     if extreme:
         world._dynamics_rng = ExtremeDisturbances(world._dynamics_rng.bit_generator)
-    states, observations = [], []
+    states, observations, ego_lanes = [], [], []
     for _ in range(length):
         observations.append(world.measure())
         states.append(world.traffic.states.copy())
+        ego_lanes.append(int(world.traffic.lane[0]))
         if world.done:
             break
         world.apply(_ego_control(kind, world.traffic.states[0]))
     changes = sum(int(r.lane_change.sum()) for r in world.records)
-    return world, states, observations, changes
+    # the ego's true route lane at each sub-step (the planner knows its own route position)
+    return world, (states, ego_lanes), observations, changes
 
 
-def _check(world, states, observations, t0, steps):
-    """Forecast at t0 with prior beliefs and the exact ego; return (misses, checked vehicle-steps)."""
+def _check(world, run, observations, t0, steps):
+    """Forecast at t0 with prior beliefs and the exact ego; return (misses, checked vehicle-steps, forecast)."""
+    states, ego_lanes = run
     obs = observations[t0]
     ego = [states[t0 + n][0] for n in range(steps + 1)]
     reach = np.array([footprint_box(s[:2], s[:2], s[3], s[3], VEHICLE) for s in ego])
     speed = np.array([[s[2], s[2]] for s in ego])
     heading = np.array([[s[3], s[3]] for s in ego])
     beliefs = {int(i): prior_belief(int(i), obs.vehicles[k], world.road, world.scenario) for k, i in enumerate(obs.ids)}
+    route = np.zeros((steps + 1, len(world.road)), dtype=bool)
+    last = len(ego_lanes) - 1
+    route[np.arange(steps + 1), [ego_lanes[min(t0 + n, last)] for n in range(steps + 1)]] = True
     forecast = forecast_traffic(
-        obs, world.road, world.scenario, beliefs, steps=steps, ego_reach=reach, ego_speed=speed, ego_heading=heading
+        obs, world.road, world.scenario, beliefs, steps=steps, ego_reach=reach, ego_speed=speed, ego_heading=heading,
+        ego_route=route,
     )
     misses = checked = 0
     for n in range(steps + 1):
@@ -111,11 +118,12 @@ def _check(world, states, observations, t0, steps):
 def test_forecast_contains_every_vehicle(kind, seed, dt, when):
     steps = 30
     start = int(round(when * 30))
-    world, states, observations, _ = _episode(kind, seed, dt, start + steps + 1)
+    world, run, observations, _ = _episode(kind, seed, dt, start + steps + 1)
+    states = run[0]
     t0 = min(start, len(states) - 1 - steps)
     if t0 < 0:  # the episode ended early (the ego reached the goal): forecast from its start
         t0, steps = 0, len(states) - 1
-    misses, checked, forecast = _check(world, states, observations, t0, steps)
+    misses, checked, forecast = _check(world, run, observations, t0, steps)
     assert checked > 0
     assert misses == 0
     assert forecast.boxes.shape == (steps + 1, len(observations[t0].ids), 4)
@@ -125,13 +133,13 @@ def test_forecast_contains_every_vehicle(kind, seed, dt, when):
 def test_forecast_contains_lane_changes(seed):
     """Highway episodes with frequent lane changes (every vehicle tries when its 2-3 s timer fires)."""
     rules = TrafficRules(lane_change_interval=(2.0, 3.0), lane_change_probability=1.0)
-    world, states, observations, changes = _episode("highway", seed, 0.1, 96, rules=rules)
+    world, run, observations, changes = _episode("highway", seed, 0.1, 96, rules=rules)
     assert changes >= 3, f"only {changes} lane changes in the episode"
     total_misses = total = 0
     for t0 in (0, 20, 40):
-        if t0 + 50 >= len(states):
+        if t0 + 50 >= len(run[0]):
             continue
-        misses, checked, _ = _check(world, states, observations, t0, 50)
+        misses, checked, _ = _check(world, run, observations, t0, 50)
         total_misses += misses
         total += checked
     assert total > 0 and total_misses == 0
@@ -142,13 +150,13 @@ def test_forecast_contains_turning_vehicles():
     total_misses = total = 0
     turned = False
     for seed in (0, 3):
-        world, states, observations, _ = _episode("tjunction", seed, 0.1, 120)
+        world, run, observations, _ = _episode("tjunction", seed, 0.1, 120)
         road = world.road
         arcs = [i for i in range(len(road)) if road.kinds[i] == 1]
         turned |= bool(np.isin(world.intentions(), arcs).any())
         for t0 in (0, 40, 70):
-            if t0 + 50 < len(states):
-                misses, checked, forecast = _check(world, states, observations, t0, 50)
+            if t0 + 50 < len(run[0]):
+                misses, checked, forecast = _check(world, run, observations, t0, 50)
                 total_misses += misses
                 total += checked
     assert turned, "no vehicle drove on an arc"
