@@ -1206,6 +1206,13 @@ def forecast_traffic(
                 eu_lo, eu_hi = unit_boxes()
                 e_lo, e_hi = row_hull(eu_lo, eu_hi)
                 ch_lo, ch_hi = e_lo[:, 1], e_hi[:, 1]
+                # the rows' physical boxes after the switches (a new row holds its source's states)
+                fx = _lin(origin[:, 0], u[:, 0], -u[:, 1], s_lo, s_hi, e_lo[:, 0] + c, e_hi[:, 0] + c)
+                fy = _lin(origin[:, 1], u[:, 1], u[:, 0], s_lo, s_hi, e_lo[:, 0] + c, e_hi[:, 0] + c)
+                upd = fine & ~to_coarse & alive
+                cx_lo, cx_hi = np.where(upd, fx[0], cx_lo), np.where(upd, fx[1], cx_hi)
+                cy_lo, cy_hi = np.where(upd, fy[0], cy_lo), np.where(upd, fy[1], cy_hi)
+                ps_lo, ps_hi = np.where(upd, h_unw + ch_lo, ps_lo), np.where(upd, h_unw + ch_hi, ps_hi)
             if leave.any():
                 x_lo, x_hi = np.where(leave, cx_lo, x_lo), np.where(leave, cx_hi, x_hi)
                 y_lo, y_hi = np.where(leave, cy_lo, y_lo), np.where(leave, cy_hi, y_hi)
@@ -1216,20 +1223,10 @@ def forecast_traffic(
                 ualive[R:] &= ~gone[R:]
 
             # ------------------------------------------------- possible leaders
-            touch = np.all(
-                (kfoot[:, None, :2] <= strips[None, :, 2:]) & (kfoot[:, None, 2:] >= strips[None, :, :2]), axis=-1
-            )
             in_prefix = ~np.isnan(pre_lo) & (np.nan_to_num(pre_hi, nan=-np.inf) >= s_lo[:, None])
             row_int = np.where(fine[:, None], in_prefix & (np.nan_to_num(pre_lo, nan=np.inf) <= s_hi[:, None]), route_mask)
             row_int &= alive[:, None]
             switched = row_int & ~belief_lane[:, None]  # side lanes steered to only after a switch since the observation
-            occ = touch.copy()
-            occ[:m] |= (row_int & ~switched).reshape(m, P, n_lanes).any(axis=1)
-            occ[m] |= ego_lanes[n]
-            occ &= present[:, None]
-            occ_sw = np.zeros((m + 1, n_lanes), dtype=bool)
-            occ_sw[:m] = switched.reshape(m, P, n_lanes).any(axis=1)
-            occ_sw &= present[:, None]
             foot_now = footprint_box(
                 np.stack([np.where(alive, cx_lo, 0.0), np.where(alive, cy_lo, 0.0)], 1),
                 np.stack([np.where(alive, cx_hi, 0.0), np.where(alive, cy_hi, 0.0)], 1),
@@ -1237,7 +1234,18 @@ def forecast_traffic(
             )
             row_touch = np.all(
                 (foot_now[:, None, :2] <= strips[None, :, 2:]) & (foot_now[:, None, 2:] >= strips[None, :, :2]), -1
+            ) & alive[:, None]
+            # a switched row's rectangle in the lane it switched into: gated by the gap rule like its intention
+            into_own = (alive & ~belief_lane & side_row)[:, None] & (np.arange(n_lanes)[None, :] == row_lane[:, None])
+            occ = np.zeros((m + 1, n_lanes), dtype=bool)
+            occ[:m] = ((row_int & ~switched) | (row_touch & ~into_own)).reshape(m, P, n_lanes).any(axis=1)
+            occ[m] = ego_lanes[n] | np.all(
+                (reach[n, None, :2] <= strips[:, 2:]) & (reach[n, None, 2:] >= strips[:, :2]), axis=-1
             )
+            occ &= present[:, None]
+            occ_sw = np.zeros((m + 1, n_lanes), dtype=bool)
+            occ_sw[:m] = (switched | (row_touch & into_own)).reshape(m, P, n_lanes).any(axis=1)
+            occ_sw &= present[:, None]
             interest_pre = in_prefix | (side & (row_touch | (np.arange(n_lanes)[None, :] == row_lane[:, None])))
             pre = (interest_pre[:, None, :] & occ[None, :, :]).any(axis=-1)
             pre |= (interest_pre[:, None, :] & occ_sw[None, :, :]).any(axis=-1) & pair_ok

@@ -77,8 +77,11 @@ def _episode(kind, seed, dt, length, rules=None, extreme=True):
     return world, (states, ego_lanes), observations, changes
 
 
-def _check(world, run, observations, t0, steps):
-    """Forecast at t0 with prior beliefs and the exact ego; return (misses, checked vehicle-steps, forecast)."""
+def _check(world, run, observations, t0, steps, intentions=None):
+    """Forecast at t0 with prior beliefs (or the true intention lanes at t0) and the exact ego.
+
+    Returns (misses, checked vehicle-steps, forecast).
+    """
     states, ego_lanes = run
     obs = observations[t0]
     ego = [states[t0 + n][0] for n in range(steps + 1)]
@@ -86,6 +89,8 @@ def _check(world, run, observations, t0, steps):
     speed = np.array([[s[2], s[2]] for s in ego])
     heading = np.array([[s[3], s[3]] for s in ego])
     beliefs = {int(i): prior_belief(int(i), obs.vehicles[k], world.road, world.scenario) for k, i in enumerate(obs.ids)}
+    if intentions is not None:  # what elimination may leave: the intention in force now (switches still possible)
+        beliefs = {i: dataclasses.replace(b, lanes=(int(intentions[i]),)) for i, b in beliefs.items()}
     route = np.zeros((steps + 1, len(world.road)), dtype=bool)
     last = len(ego_lanes) - 1
     route[np.arange(steps + 1), [ego_lanes[min(t0 + n, last)] for n in range(steps + 1)]] = True
@@ -136,12 +141,14 @@ def test_forecast_contains_lane_changes(seed):
     world, run, observations, changes = _episode("highway", seed, 0.1, 96, rules=rules)
     assert changes >= 3, f"only {changes} lane changes in the episode"
     total_misses = total = 0
+    lanes = world.intentions()
     for t0 in (0, 20, 40):
         if t0 + 50 >= len(run[0]):
             continue
-        misses, checked, _ = _check(world, run, observations, t0, 50)
-        total_misses += misses
-        total += checked
+        for intentions in (None, lanes[t0]):
+            misses, checked, _ = _check(world, run, observations, t0, 50, intentions)
+            total_misses += misses
+            total += checked
     assert total > 0 and total_misses == 0
 
 
