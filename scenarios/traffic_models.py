@@ -349,10 +349,10 @@ class TrafficForecast:
         return self.state_upper - self.state_lower
 
     def to_dict(self) -> dict:
-        """The forecast as plain data (infinite bounds as the strings "inf" / "-inf")."""
+        """The forecast as plain data (the infinite bounds of empty rows as None)."""
 
         def plain(a):
-            return np.where(np.isfinite(a), a, np.nan).tolist()
+            return np.where(np.isfinite(a), a, None).tolist()
 
         return {
             "boxes": plain(self.boxes),
