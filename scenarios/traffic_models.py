@@ -1,0 +1,1321 @@
+"""Forecasting traffic: sound boxes for every other vehicle of a road world.
+
+One concept: from a noisy `Observation` and a belief per vehicle (`VehicleBelief`: boxes
+of its behaviour parameters, the lanes it may be steering to, its possible routes),
+`forecast_traffic` returns a `TrafficForecast`: for every other vehicle and every
+sub-step ``n = 0 .. H`` after the observation, an axis-aligned box that contains its
+whole 5 m x 2 m rectangle, for every parameter of the belief, every surviving
+intention (a union), every lane-change switch time, every disturbance and every
+measurement noise; and a box of its centre state ``(x, y, v, psi)``.
+
+The models (``docs/traffic-models.md`` has the derivations):
+
+* **longitudinal** ``(s, v)`` along the route, in theta_a: ``v+ = clip(v + dt (clip(theta_a
+  . f, -a_max, a_max) + w), 0, v_max)`` with ``f = [v_t - v, min(v_f - v, 0), min(gap - d0 -
+  T v, 0)]``. The features are monotone in ``(v, v_f, gap)`` and the map is monotone in
+  ``v`` (`longitudinal_bounds`): its exact bounds over the box come from the box's
+  corners, and the front object's ``(v_f, gap)`` from every possible leader (any vehicle
+  whose box may be ahead in the corridor, the ego through ``ego_reach``, a stop line
+  where the vehicle may yield);
+* **lateral** ``(e, chi)`` (offset from the lane steered to, heading error): the
+  `lateral_system`, affine in ``(v, theta_b1, theta_b2 / v)``, with one parameter box
+  per step from the longitudinal tube, propagated by the vertex bound of
+  `minimaxplan.models.prediction.IntervalPredictor` in one fixed basis per vehicle; the
+  nonlinear remainders (sin, the slip angle, the steering clip) are per-step
+  disturbance boxes computed exactly from the box by monotone functions
+  (`lateral_remainder`), valid on straight lanes while ``|chi| <= CHI_MAX`` and
+  ``v >= V_MIN``; below ``V_MIN`` a direct interval step of the bicycle is hulled in;
+* **coarse** (``guaranteed = False``): from the first step at which a vehicle's tube
+  may leave the straight lanes of its route (arcs, heading errors beyond ``CHI_MAX``),
+  the reachable box of the bicycle under its speed, steering and acceleration limits,
+  cut to the road (``road_edges``);
+* **switching intentions**: per vehicle, one row per lane it may steer to, each with
+  its own box and *cohorts* of recent switches (a vehicle settled in lane l may start a
+  change to a neighbour at any step, when the gap rule may accept it): see
+  `forecast_traffic`'s Notes.
+
+The per-step loop is in one place (`forecast_traffic`; the lateral step is its
+``lateral_step`` with the batched vertex bound `_vertex_step`), so that it can move to
+`predict_tube`'s per-step parameter sets and box-valued inputs when those exist.
+
+Layer: numpy only (`minimaxplan.models` for the linear system and boxes); no planner
+import.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from minimaxplan.models.errors import DimensionError, InputError
+from minimaxplan.models.sets import Box
+from minimaxplan.models.system import UncertainLinearSystem
+from minimaxplan.models.validation import as_finite_array, frozen_copy
+
+from .road import ARC, STRAIGHT, Road, wrap_to_pi
+from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters
+
+__all__ = [
+    "CHI_MAX",
+    "V_MIN",
+    "ROUND_MARGIN",
+    "VehicleBelief",
+    "TrafficForecast",
+    "prior_belief",
+    "forecast_traffic",
+    "lateral_system",
+    "lateral_remainder",
+    "longitudinal_bounds",
+    "acceleration_feature_bounds",
+    "footprint_box",
+    "cos_interval",
+    "sin_interval",
+]
+
+#: Largest heading error (rad) of the fine lateral model's region of validity.
+CHI_MAX = 1.0
+#: Speeds (m/s) from which the fine lateral model is used; below it a direct interval
+#: step of the bicycle bounds the motion (both hulled when the speed box straddles it).
+V_MIN = 1.0
+#: Outward rounding of every bound, relative: ``[lo - m (1 + |lo|), hi + m (1 + |hi|)]``
+#: per step, orders of magnitude above the floating-point error of the few operations
+#: of a step (a few units of 2^-53 relative).
+ROUND_MARGIN = 1e-9
+#: Lane-change cohorts: switches are grouped in blocks of this many sub-steps ...
+COHORT_BLOCK = 2
+#: ... and a cohort is merged into its row's own box after this many sub-steps (capped by the
+#: rules' shortest lane-change period: the row's box is the source of further switches).
+COHORT_AGE = 30
+#: Tolerance of the collinearity test of consecutive straight lanes, m and rad.
+COLLINEAR_TOL = 1e-6
+#: The default LinearVehicle constants, a module-level value for argument defaults.
+DEFAULT_BEHAVIOUR = BehaviourParameters()
+
+
+def _out(lo, hi):
+    """``[lo, hi]`` rounded outward by `ROUND_MARGIN` (infinite bounds stay as they are)."""
+    with np.errstate(invalid="ignore"):  # inf - inf = nan on empty boxes: fmin / fmax keep the infinite bound
+        return np.fmin(lo, lo - ROUND_MARGIN * (1.0 + np.abs(lo))), np.fmax(hi, hi + ROUND_MARGIN * (1.0 + np.abs(hi)))
+
+
+def _mul(alo, ahi, blo, bhi):
+    """The interval product ``[alo, ahi] * [blo, bhi]`` (elementwise)."""
+    c = np.stack([alo * blo, alo * bhi, ahi * blo, ahi * bhi])
+    return c.min(axis=0), c.max(axis=0)
+
+
+def cos_interval(lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """Exact range of ``cos`` over ``[lo, hi]`` (elementwise, before rounding).
+
+    Parameters
+    ----------
+    lo, hi : array_like
+        Angles, rad, ``lo <= hi``.
+
+    Returns
+    -------
+    low, high : ndarray
+        ``min`` and ``max`` of cos on the interval: the endpoint values, or -1 / +1 when
+        the interval holds an odd / even multiple of pi.
+    """
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    a, b = np.cos(lo), np.cos(hi)
+    has_max = np.floor(hi / (2 * np.pi)) * (2 * np.pi) >= lo
+    has_min = np.floor((hi - np.pi) / (2 * np.pi)) * (2 * np.pi) + np.pi >= lo
+    return np.where(has_min, -1.0, np.minimum(a, b)), np.where(has_max, 1.0, np.maximum(a, b))
+
+
+def sin_interval(lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """Exact range of ``sin`` over ``[lo, hi]`` (``sin x = cos(x - pi/2)``).
+
+    Parameters
+    ----------
+    lo, hi : array_like
+        Angles, rad, ``lo <= hi``.
+    """
+    return cos_interval(np.asarray(lo, dtype=float) - np.pi / 2, np.asarray(hi, dtype=float) - np.pi / 2)
+
+
+def footprint_box(center_lower, center_upper, psi_lower, psi_upper, vehicle: VehicleParameters = DEFAULT_VEHICLE):
+    """The exact axis-aligned box of every L x W rectangle with centre in a box and heading in an interval.
+
+    Parameters
+    ----------
+    center_lower, center_upper : array_like, shape (..., 2)
+        Box of the centre ``(x, y)``, m.
+    psi_lower, psi_upper : array_like, shape (...)
+        Heading interval, rad.
+    vehicle : VehicleParameters
+        L and W.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``[x_lo, y_lo, x_hi, y_hi]``, rounded outward.
+
+    Notes
+    -----
+    A corner is ``centre + r (cos(psi + a_c), sin(psi + a_c))`` with ``r`` the half
+    diagonal and ``a_c`` in ``{+-atan2(W, L), pi +- atan2(W, L)}``; the union over the
+    box and the interval is the centre box plus the range of each corner offset, whose
+    extremes are exact (`cos_interval`, `sin_interval`). Rectangles whose heading
+    interval is at least 2 pi wide get the disc of radius r.
+    """
+    clo = np.asarray(center_lower, dtype=float)
+    chi = np.asarray(center_upper, dtype=float)
+    plo, phi = np.asarray(psi_lower, dtype=float), np.asarray(psi_upper, dtype=float)
+    r = 0.5 * np.hypot(vehicle.length, vehicle.width)
+    a = np.arctan2(vehicle.width, vehicle.length)
+    dx_lo = dy_lo = np.full(plo.shape, np.inf)
+    dx_hi = dy_hi = np.full(plo.shape, -np.inf)
+    for ac in (a, -a, np.pi + a, np.pi - a):
+        c_lo, c_hi = cos_interval(plo + ac, phi + ac)
+        s_lo, s_hi = sin_interval(plo + ac, phi + ac)
+        dx_lo, dx_hi = np.minimum(dx_lo, r * c_lo), np.maximum(dx_hi, r * c_hi)
+        dy_lo, dy_hi = np.minimum(dy_lo, r * s_lo), np.maximum(dy_hi, r * s_hi)
+    x_lo, x_hi = _out(clo[..., 0] + dx_lo, chi[..., 0] + dx_hi)
+    y_lo, y_hi = _out(clo[..., 1] + dy_lo, chi[..., 1] + dy_hi)
+    return np.stack([x_lo, y_lo, x_hi, y_hi], axis=-1)
+
+
+# ----------------------------------------------------------------- beliefs
+@dataclass(frozen=True)
+class VehicleBelief:
+    """What the planner believes about one other vehicle.
+
+    Parameters
+    ----------
+    agent : int
+        Agent index (as `Observation.ids`).
+    theta_a : Box
+        Box of the acceleration gains, dimension 3.
+    theta_b : Box
+        Box of the steering gains, dimension 2.
+    lanes : tuple of int
+        The lanes the vehicle may be steering to now (its lane, or a side lane it may be
+        changing to).
+    routes : tuple of tuple of int
+        Its possible routes (lane sequences; at the T-junction the candidate routes
+        through the junction). A route's lanes before the vehicle's current one are
+        ignored; on side lanes (the highway) the route of a lane ``l`` is ``(l,)``.
+    target_speed : tuple of 2 float, optional
+        Bounds of its (hidden) target speed ``v_target``, m/s; None: the scenario's draw
+        range (``vehicle_speed`` or ``main_speed``).
+    """
+
+    agent: int
+    theta_a: Box
+    theta_b: Box
+    lanes: tuple
+    routes: tuple
+    target_speed: tuple | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.theta_a, Box) or self.theta_a.dim != 3:
+            raise DimensionError(f"theta_a must be a Box of dimension 3, got {self.theta_a!r}")
+        if not isinstance(self.theta_b, Box) or self.theta_b.dim != 2:
+            raise DimensionError(f"theta_b must be a Box of dimension 2, got {self.theta_b!r}")
+        if np.any(self.theta_a.low < 0) or np.any(self.theta_b.low <= 0):
+            raise InputError("the forecast needs theta_a >= 0 and theta_b > 0 (the monotone feature bounds)")
+        lanes = tuple(int(lane) for lane in self.lanes)
+        routes = tuple(tuple(int(lane) for lane in route) for route in self.routes)
+        if not lanes or not routes or not all(routes):
+            raise InputError("a belief needs at least one lane and one non-empty route")
+        object.__setattr__(self, "agent", int(self.agent))
+        object.__setattr__(self, "lanes", lanes)
+        object.__setattr__(self, "routes", routes)
+        if self.target_speed is not None:
+            lo, hi = (float(v) for v in self.target_speed)
+            if not 0 <= lo <= hi:
+                raise InputError(f"target_speed must satisfy 0 <= low <= high, got {self.target_speed}")
+            object.__setattr__(self, "target_speed", (lo, hi))
+
+    def to_dict(self) -> dict:
+        """The belief as plain data."""
+        return {
+            "agent": self.agent,
+            "theta_a": [self.theta_a.low.tolist(), self.theta_a.high.tolist()],
+            "theta_b": [self.theta_b.low.tolist(), self.theta_b.high.tolist()],
+            "lanes": list(self.lanes),
+            "routes": [list(r) for r in self.routes],
+            "target_speed": None if self.target_speed is None else list(self.target_speed),
+        }
+
+
+def _routes_from(road: Road, lane: int) -> list[tuple[int, ...]]:
+    """Every lane sequence from ``lane`` to a lane without successor."""
+    out, stack = [], [(lane,)]
+    while stack:
+        route = stack.pop()
+        nxt = road.successors(route[-1])
+        if not nxt:
+            out.append(route)
+        for b in nxt:
+            if b not in route:
+                stack.append(route + (b,))
+    return sorted(out)
+
+
+def prior_belief(agent: int, measured, road: Road, scenario) -> VehicleBelief:
+    """The prior belief of a measured vehicle: prior boxes, every geometrically possible intention and route.
+
+    Parameters
+    ----------
+    agent : int
+        Agent index.
+    measured : array_like, shape (4,)
+        Its measured ``(x, y, v, psi)``.
+    road : Road
+        The lanes.
+    scenario : HighwayScenario or TJunctionScenario
+        ``behaviour`` (the priors ``theta_a_prior``, ``theta_b_prior``) and
+        ``measurement_noise``.
+
+    Returns
+    -------
+    VehicleBelief
+        ``lanes``: the lanes whose strip (grown by the position noise) holds the measured
+        centre and, in a side group, their neighbours (a vehicle may be changing lane
+        towards either); ``routes``: every route from those lanes to the end of the road.
+    """
+    x = as_finite_array("measured", measured, (4,))
+    behaviour: BehaviourParameters = scenario.behaviour
+    noise = float(max(scenario.measurement_noise[0], scenario.measurement_noise[1])) * np.sqrt(2.0)
+    member = road.lane_membership(x[:2], margin=noise)
+    lanes = set(int(i) for i in np.flatnonzero(member))
+    if not lanes:
+        s, off = road.frenet(np.arange(len(road)), x[0], x[1])
+        lanes = {int(np.argmin(np.abs(off) + np.maximum(-s, 0) + np.maximum(s - road.lengths, 0)))}
+    for lane in list(lanes):
+        group = road.side_lanes(lane)
+        k = group.index(lane)
+        lanes.update(group[max(k - 1, 0) : k + 2])
+    routes: list = []
+    for lane in sorted(lanes):
+        routes.extend(r for r in _routes_from(road, lane) if r not in routes)
+    lo_a, hi_a = behaviour.theta_a_prior
+    lo_b, hi_b = behaviour.theta_b_prior
+    return VehicleBelief(agent, Box(lo_a, hi_a), Box(lo_b, hi_b), tuple(sorted(lanes)), tuple(routes))
+
+
+# ------------------------------------------------------------ the forecast
+@dataclass(frozen=True, eq=False)
+class TrafficForecast:
+    """Boxes of every other vehicle over the sub-steps of a horizon (read-only arrays).
+
+    Attributes
+    ----------
+    boxes : ndarray, shape (H+1, m, 4)
+        ``[x_lo, y_lo, x_hi, y_hi]`` (m) containing vehicle j's whole rectangle at
+        sub-step n after the observation; rows of vehicles not on the road are empty
+        boxes (``lo = +inf``, ``hi = -inf``).
+    state_lower, state_upper : ndarray, shape (H+1, m, 4)
+        Box of the centre state ``(x, y, v, psi)`` (psi unwrapped near the measured heading).
+    guaranteed : ndarray of bool, shape (H+1, m)
+        False from the step at which the fine model's region of validity was left and
+        the coarse reachable box is used instead (still sound).
+    ids : ndarray of int, shape (m,)
+        Agent indices, as `Observation.ids`.
+    dt : float
+        Sub-step, s.
+    """
+
+    boxes: np.ndarray
+    state_lower: np.ndarray
+    state_upper: np.ndarray
+    guaranteed: np.ndarray
+    ids: np.ndarray
+    dt: float
+
+    def __post_init__(self) -> None:
+        for name in ("boxes", "state_lower", "state_upper", "guaranteed", "ids"):
+            object.__setattr__(self, name, frozen_copy(np.asarray(getattr(self, name))))
+        h1, m = self.guaranteed.shape
+        for name in ("boxes", "state_lower", "state_upper"):
+            if getattr(self, name).shape != (h1, m, 4):
+                raise DimensionError(f"{name} must have shape {(h1, m, 4)}, got {getattr(self, name).shape}")
+        if self.ids.shape != (m,):
+            raise DimensionError(f"ids must have shape ({m},), got {self.ids.shape}")
+
+    @property
+    def steps(self) -> int:
+        """H, the number of sub-steps."""
+        return self.boxes.shape[0] - 1
+
+    def widths(self) -> np.ndarray:
+        """Widths of the centre boxes ``(x, y, v, psi)``, shape (H+1, m, 4)."""
+        return self.state_upper - self.state_lower
+
+    def to_dict(self) -> dict:
+        """The forecast as plain data (the infinite bounds of empty rows as None)."""
+
+        def plain(a):
+            return np.where(np.isfinite(a), a, None).tolist()
+
+        return {
+            "boxes": plain(self.boxes),
+            "state_lower": plain(self.state_lower),
+            "state_upper": plain(self.state_upper),
+            "guaranteed": self.guaranteed.tolist(),
+            "ids": self.ids.tolist(),
+            "dt": self.dt,
+        }
+
+
+# ------------------------------------------------------------------ models
+def lateral_system(dt: float, theta_b: Box, speed: tuple, vehicle: VehicleParameters = DEFAULT_VEHICLE):
+    """The lateral model as an `UncertainLinearSystem` in ``(v, theta_b1, q = theta_b2 / v)``.
+
+    Parameters
+    ----------
+    dt : float
+        Sub-step, s.
+    theta_b : Box
+        Steering gains.
+    speed : tuple of 2 float
+        ``(v_lo, v_hi)``, m/s, ``0 < v_lo <= v_hi``.
+    vehicle : VehicleParameters
+        L.
+
+    Returns
+    -------
+    UncertainLinearSystem
+        State ``(e, chi)``, ``A = I + v Phi_v + theta_b1 Phi_b1 + q Phi_q`` with
+        ``Phi_v = [[0, dt], [0, 0]]``, ``Phi_b1 = [[0, -L dt / 2], [0, -dt]]``,
+        ``Phi_q = [[-L dt / 2, 0], [-dt, 0]]``; parameter box ``[v_lo, v_hi] x
+        theta_b1 x [theta_b2_lo / v_hi, theta_b2_hi / v_lo]``; the remainders enter as
+        the disturbance (``D = I``, `lateral_remainder`).
+
+    Notes
+    -----
+    Linearising ``sin`` and the slip angle ``beta = arctan(tan(delta) / 2) ~ delta / 2``
+    in the bicycle (`minimaxplan.scenarios.vehicles.bicycle_step`) with the steering
+    law ``delta = -(L / v)(theta_b1 chi + theta_b2 e / v)`` on a straight lane:
+    ``e+ = e + v dt chi + v dt delta / 2`` and ``chi+ = chi + dt v delta / L``. The
+    matrix depends on v and on theta_b2 / v, each entry affinely in ``(v, theta_b1,
+    q)``: that is the reparametrisation (Assumption 1's ``A0 + sum theta_i phi_i``).
+    """
+    lo, hi = float(speed[0]), float(speed[1])
+    if not 0 < lo <= hi:
+        raise InputError(f"speed must satisfy 0 < low <= high, got {speed}")
+    half = vehicle.length * dt / 2
+    phi = np.array([[[0.0, dt], [0.0, 0.0]], [[0.0, -half], [0.0, -dt]], [[-half, 0.0], [-dt, 0.0]]])
+    theta = Box(
+        np.array([lo, theta_b.low[0], theta_b.low[1] / hi]), np.array([hi, theta_b.high[0], theta_b.high[1] / lo])
+    )
+    return UncertainLinearSystem(np.eye(2), phi, np.zeros((2, 1)), w=Box(-np.ones(2), np.ones(2)), theta=theta)
+
+
+def _slip(delta):
+    return np.arctan(0.5 * np.tan(delta))
+
+
+def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = DEFAULT_VEHICLE):
+    """Per-step disturbance boxes: the true bicycle step minus `lateral_system`'s, over a box.
+
+    Parameters
+    ----------
+    e, chi, v, b1, q : tuple of 2 ndarray
+        ``(lo, hi)`` of the offset, heading error, speed (``v_lo > 0``), theta_b1 and
+        ``q`` (the steering uses ``b2 / v = q``; the caller gives its range).
+    dt : float
+        Sub-step, s.
+    vehicle : VehicleParameters
+        L and the steering bound.
+
+    Returns
+    -------
+    r_e, r_chi : tuple of 2 ndarray
+        Bounds on ``e+ - e+_lin`` and ``chi+ - chi+_lin`` for every point of the box.
+    delta : tuple of 2 ndarray
+        Bounds of the applied steering angle.
+    a : tuple of 2 ndarray
+        Bounds of the velocity's angle to the lane, ``chi + beta``.
+
+    Notes
+    -----
+    With ``delta_r = -(L / v)(b1 chi + q e)``, ``delta = clip(delta_r)``, ``beta =
+    delta / 2 + g(delta)``, ``g(d) = arctan(tan(d) / 2) - d / 2`` (nondecreasing on
+    ``(-pi/2, pi/2)``: ``g' = (1/2)((1 + t^2) / (1 + t^2 / 4) - 1) >= 0``) and
+    ``rho(x) = x - sin x`` (nondecreasing): ``e+ - e+_lin = v dt [(delta - delta_r) / 2 +
+    g(delta) - rho(chi + beta)]`` and ``chi+ - chi+_lin = (2 v dt / L) [(delta - delta_r)
+    / 2 + g(delta) - rho(beta)]``. ``clip(x) - x`` is nonincreasing; every term is
+    bounded exactly from its argument's interval, the products by interval products.
+    Valid on straight lanes for every ``|chi| < pi`` (the wrap of the heading error) and
+    ``v >= speed_epsilon``; the forecast uses it on ``|chi| <= CHI_MAX``,
+    ``v >= V_MIN``.
+    """
+    length, dmax = vehicle.length, vehicle.max_steering
+    x_lo, x_hi = _mul(b1[0], b1[1], chi[0], chi[1])
+    y_lo, y_hi = _mul(q[0], q[1], e[0], e[1])
+    s_lo, s_hi = x_lo + y_lo, x_hi + y_hi
+    # delta_r = -(L / v) s
+    k_lo, k_hi = length / v[1], length / v[0]
+    d_lo, d_hi = _mul(-k_hi, -k_lo, s_lo, s_hi)
+    d_lo, d_hi = _out(d_lo, d_hi)
+    dc_lo, dc_hi = np.clip(d_lo, -dmax, dmax), np.clip(d_hi, -dmax, dmax)
+    c_lo, c_hi = dc_hi - d_hi, dc_lo - d_lo  # clip(x) - x, nonincreasing
+    g_lo, g_hi = _slip(dc_lo) - dc_lo / 2, _slip(dc_hi) - dc_hi / 2
+    b_lo, b_hi = _slip(dc_lo), _slip(dc_hi)
+    a_lo, a_hi = chi[0] + b_lo, chi[1] + b_hi
+    ra_lo, ra_hi = a_lo - np.sin(a_lo), a_hi - np.sin(a_hi)
+    rb_lo, rb_hi = b_lo - np.sin(b_lo), b_hi - np.sin(b_hi)
+    common_lo, common_hi = c_lo / 2 + g_lo, c_hi / 2 + g_hi
+    re = _mul(v[0] * dt, v[1] * dt, common_lo - ra_hi, common_hi - ra_lo)
+    rc = _mul(2 * v[0] * dt / length, 2 * v[1] * dt / length, common_lo - rb_hi, common_hi - rb_lo)
+    return _out(*re), _out(*rc), (dc_lo, dc_hi), (a_lo, a_hi)
+
+
+def acceleration_feature_bounds(v, target, front_speed, gap, params: BehaviourParameters = DEFAULT_BEHAVIOUR):
+    """Exact bounds of the features ``[v_t - v, min(v_f - v, 0), min(gap - d0 - T v, 0)]`` over a box.
+
+    Parameters
+    ----------
+    v, target, front_speed, gap : tuple of 2 array_like
+        ``(lo, hi)`` of the speed, target speed, front speed and gap (``gap_hi = inf``
+        and ``front_speed_hi = inf`` when there may be no front object).
+    params : BehaviourParameters
+        d0 and T.
+
+    Returns
+    -------
+    lower, upper : ndarray, shape (..., 3)
+        Every feature is monotone in each argument (``v_t - v`` and the ``min`` terms
+        nonincreasing in v, nondecreasing in the others), so its range over the box is
+        attained at opposite corners: exact.
+    """
+    v_lo, v_hi = (np.asarray(a, dtype=float) for a in v)
+    t_lo, t_hi = (np.asarray(a, dtype=float) for a in target)
+    f_lo, f_hi = (np.asarray(a, dtype=float) for a in front_speed)
+    g_lo, g_hi = (np.asarray(a, dtype=float) for a in gap)
+    d0, headway = params.standstill_distance, params.time_headway
+    lower = np.stack(
+        [t_lo - v_hi, np.minimum(f_lo - v_hi, 0.0), np.minimum(g_lo - d0 - headway * v_hi, 0.0)], axis=-1
+    )
+    upper = np.stack(
+        [t_hi - v_lo, np.minimum(f_hi - v_lo, 0.0), np.minimum(g_hi - d0 - headway * v_lo, 0.0)], axis=-1
+    )
+    return lower, upper
+
+
+def longitudinal_bounds(v, target, front_speed, gap, theta_a: tuple, dt: float, behaviour: BehaviourParameters, vmax):
+    """Bounds of the next speed ``clip(v + dt (clip(theta_a . f) + w), 0, v_max)`` over a box.
+
+    Parameters
+    ----------
+    v, target, front_speed, gap : tuple of 2 array_like
+        As `acceleration_feature_bounds`.
+    theta_a : tuple of 2 array_like, shape (..., 3)
+        ``(lo, hi)`` of the gains, ``lo >= 0``.
+    dt : float
+        Sub-step, s.
+    behaviour : BehaviourParameters
+        d0, T, a_max, w_bar.
+    vmax : float
+        The speed clip, m/s.
+
+    Returns
+    -------
+    lo, hi : ndarray
+        Rounded outward.
+
+    Notes
+    -----
+    ``phi(v) = v + dt clip(theta_a . f(v))`` has slope ``>= 1 - dt (theta_1 + theta_2 +
+    T theta_3) `` in v: when that is ``>= 0`` (``joint``) the maximum is at ``v_hi``
+    with the features evaluated there (and the minimum at ``v_lo``); otherwise the
+    features' ranges over the whole box are used with ``v + dt theta_1 (v_t - v)``
+    monotone (``dt theta_1 <= 1``). theta_2, theta_3 >= 0 multiply features <= 0: the
+    extremes are at theta's corners; clip and the speed clip are nondecreasing.
+    """
+    v_lo, v_hi = (np.asarray(a, dtype=float) for a in v)
+    t_lo, t_hi = (np.asarray(a, dtype=float) for a in target)
+    th_lo, th_hi = (np.asarray(a, dtype=float) for a in theta_a)
+    headway, amax, wbar = behaviour.time_headway, behaviour.acceleration_bound, behaviour.disturbance_bound
+    joint = dt * (th_hi[..., 0] + th_hi[..., 1] + headway * th_hi[..., 2]) <= 1.0
+    if np.any(dt * th_hi[..., 0] > 1.0):
+        raise InputError("dt theta_a1 > 1: the speed law is not monotone in v at this sub-step")
+    vu = np.where(joint, v_hi, v_lo)  # where the features are evaluated for the upper bound
+    vl = np.where(joint, v_lo, v_hi)
+    f_lo = acceleration_feature_bounds((vl, vl), target, front_speed, gap, behaviour)[0]
+    f_hi = acceleration_feature_bounds((vu, vu), target, front_speed, gap, behaviour)[1]
+    up1 = np.maximum(th_lo[..., 0] * (t_hi - v_hi), th_hi[..., 0] * (t_hi - v_hi))
+    lo1 = np.minimum(th_lo[..., 0] * (t_lo - v_lo), th_hi[..., 0] * (t_lo - v_lo))
+    x_hi = up1 + th_lo[..., 1] * f_hi[..., 1] + th_lo[..., 2] * f_hi[..., 2]
+    x_lo = lo1 + th_hi[..., 1] * f_lo[..., 1] + th_hi[..., 2] * f_lo[..., 2]
+    hi = np.clip(v_hi + dt * (np.clip(x_hi, -amax, amax) + wbar), 0.0, vmax)
+    lo = np.clip(v_lo + dt * (np.clip(x_lo, -amax, amax) - wbar), 0.0, vmax)
+    lo, hi = _out(lo, hi)
+    return np.maximum(lo, 0.0), np.minimum(hi, vmax)
+
+
+# ------------------------------------------------------------- geometry helpers
+def _strip_boxes(road: Road) -> np.ndarray:
+    """Axis-aligned boxes (n_lanes, 4) containing each lane's strip (closed), rounded outward."""
+    out = np.zeros((len(road), 4))
+    for i, lane in enumerate(road.lanes):
+        half = lane.width / 2
+        if road.kinds[i] == STRAIGHT:
+            pts = lane.position(np.array([0.0, 0.0, lane.length, lane.length]), np.array([-half, half, -half, half]))
+        else:
+            d, r = road.signs[i], road.radii[i]
+            a0 = road.start_angles[i]
+            a1 = a0 + d * lane.length / r
+            lo_a, hi_a = min(a0, a1), max(a0, a1)
+            angles = [lo_a, hi_a] + [k * np.pi / 2 for k in range(-8, 9) if lo_a <= k * np.pi / 2 <= hi_a]
+            radii = (r - half, r + half)
+            pts = np.array(
+                [road.centers[i] + rad * np.array([np.cos(a), np.sin(a)]) for a in angles for rad in radii]
+            )
+        lo, hi = _out(pts.min(axis=0), pts.max(axis=0))
+        out[i] = [lo[0], lo[1], hi[0], hi[1]]
+    return out
+
+
+def _lin(c0, cx, cy, x_lo, x_hi, y_lo, y_hi):
+    """Exact range of ``c0 + cx x + cy y`` over a box (elementwise)."""
+    lo = c0 + np.minimum(cx * x_lo, cx * x_hi) + np.minimum(cy * y_lo, cy * y_hi)
+    hi = c0 + np.maximum(cx * x_lo, cx * x_hi) + np.maximum(cy * y_lo, cy * y_hi)
+    return _out(lo, hi)
+
+
+def _matvec(m, lo, hi):
+    """Interval product of batched matrices (..., 2, 2) with boxes (..., 2), rounded outward."""
+    new_lo, new_hi = _matvec2(m, lo, hi)
+    return _out(new_lo, new_hi)
+
+
+def _matvec2(m, lo, hi):
+    """The exact interval product of 2 x 2 matrices (..., 2, 2) with boxes (..., 2), not rounded."""
+    pos, neg = np.maximum(m, 0.0), np.maximum(-m, 0.0)
+    l0, l1, h0, h1 = lo[..., 0], lo[..., 1], hi[..., 0], hi[..., 1]
+    out_lo = np.stack(
+        [
+            pos[..., 0, 0] * l0 + pos[..., 0, 1] * l1 - neg[..., 0, 0] * h0 - neg[..., 0, 1] * h1,
+            pos[..., 1, 0] * l0 + pos[..., 1, 1] * l1 - neg[..., 1, 0] * h0 - neg[..., 1, 1] * h1,
+        ],
+        axis=-1,
+    )
+    out_hi = np.stack(
+        [
+            pos[..., 0, 0] * h0 + pos[..., 0, 1] * h1 - neg[..., 0, 0] * l0 - neg[..., 0, 1] * l1,
+            pos[..., 1, 0] * h0 + pos[..., 1, 1] * h1 - neg[..., 1, 0] * l0 - neg[..., 1, 1] * l1,
+        ],
+        axis=-1,
+    )
+    return out_lo, out_hi
+
+
+def _bases(a_nominal: np.ndarray) -> np.ndarray:
+    """An orthogonal basis per matrix (R, 2, 2): the real Schur vectors of each nominal matrix.
+
+    In it the nominal matrix is upper triangular when its eigenvalues are real, so the
+    interval iteration contracts at the rate of the largest eigenvalue modulus; an
+    orthogonal basis costs at most a factor sqrt(2) per axis on entering and leaving.
+    """
+    values, vectors = np.linalg.eig(a_nominal)
+    real = np.abs(values[:, 0].imag) <= 1e-12
+    first = np.argmax(np.abs(values), axis=1)  # the slow mode first
+    v = vectors.real[np.arange(len(a_nominal)), :, first]
+    v = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
+    basis = np.stack([v, np.stack([-v[:, 1], v[:, 0]], axis=1)], axis=-1)
+    basis[~real] = np.eye(2)
+    return basis
+
+
+def _clip_to_road(box: np.ndarray, road_boxes: np.ndarray) -> np.ndarray:
+    """The hull of ``box`` met with each road box (rows (R, 4)); a box meeting none is kept."""
+    lo = np.maximum(box[:, None, :2], road_boxes[None, :, :2])
+    hi = np.minimum(box[:, None, 2:], road_boxes[None, :, 2:])
+    ok = np.all(lo <= hi, axis=-1)
+    new_lo = np.where(ok[..., None], lo, np.inf).min(axis=1)
+    new_hi = np.where(ok[..., None], hi, -np.inf).max(axis=1)
+    keep = ~ok.any(axis=1)
+    return np.where(keep[:, None], box, np.concatenate([new_lo, new_hi], axis=1))
+
+
+# -------------------------------------------------------------- row layout
+@dataclass
+class _Row:
+    veh: int
+    lane: int
+    c: float
+    origin: np.ndarray
+    u: np.ndarray
+    fine: bool
+    alive: bool
+    prefix_end: float
+    exit_s: float
+    stop_s: float
+    cap_from: float
+    cap_speed: float
+    prefix: dict  # lane -> (s_start, s_end)
+    beyond: tuple
+
+
+def _route_rows(road: Road, veh: int, belief: VehicleBelief, state: np.ndarray, vehicle, rules) -> list:
+    """Hypothesis rows of one vehicle: side lanes (switching) or candidate routes."""
+    junction = np.asarray(road.conflicts.any(axis=1))
+    lanes = [lane for lane in belief.lanes if 0 <= lane < len(road)]
+    rows = []
+    grouped = [lane for lane in lanes if road.side_of[lane] >= 0]
+    if grouped:
+        group = road.side_lanes(grouped[0])
+        base = group[0]
+        o, u = road.starts[base], road.directions[base]
+        nrm = np.array([-u[1], u[0]])
+        straight = all(road.kinds[g] == STRAIGHT for g in group)
+        for lane in group:
+            c = float((road.starts[lane] - o) @ nrm)
+            s0 = float((road.starts[lane] - o) @ u)
+            end = s0 + float(road.lengths[lane])
+            rows.append(
+                _Row(veh, lane, c, o, u, straight, lane in lanes, np.inf, end, np.nan, np.inf, np.inf,
+                     {lane: (s0, end)}, ())
+            )
+        return rows
+    for route in belief.routes:
+        idx = next((i for i, lane in enumerate(route) if lane in lanes), None)
+        if idx is None:
+            continue
+        rest = route[idx:]
+        cur = rest[0]
+        o, u = road.starts[cur], road.directions[cur]
+        nrm = np.array([-u[1], u[0]])
+        prefix = {}
+        k = 0
+        while k < len(rest):
+            lane = rest[k]
+            if road.kinds[lane] != STRAIGHT:
+                break
+            d = road.directions[lane]
+            if abs(float(d @ u) - 1.0) > COLLINEAR_TOL or abs(float((road.starts[lane] - o) @ nrm)) > COLLINEAR_TOL:
+                break
+            s0 = float((road.starts[lane] - o) @ u)
+            prefix[lane] = (s0, s0 + float(road.lengths[lane]))
+            k += 1
+        beyond = tuple(rest[k:])
+        fine = bool(prefix) and road.kinds[cur] == STRAIGHT
+        last_end = max((e for _, e in prefix.values()), default=0.0)
+        prefix_end = np.inf if not beyond else last_end
+        stop_s = np.nan
+        for i in range(min(k, len(rest) - 1)):
+            if junction[rest[i + 1]] and not junction[rest[i]]:
+                stop_s = prefix[rest[i]][1]
+                break
+        cap_from, cap_speed = np.inf, np.inf
+        if beyond and road.kinds[beyond[0]] == ARC:
+            cap_from = last_end - vehicle.length / 2 - rules.curve_approach
+            cap_speed = float(np.sqrt(rules.curve_lateral_acceleration * road.radii[beyond[0]]))
+        rows.append(
+            _Row(veh, cur, 0.0, o, u, fine, True, prefix_end, last_end, stop_s,
+                 cap_from, cap_speed, prefix, beyond)
+        )
+    if not rows:
+        raise InputError(f"belief of agent {belief.agent}: no route holds one of its lanes {belief.lanes}")
+    return rows
+
+
+def _structure(dt: float, length: float) -> np.ndarray:
+    """``(Phi_v, Phi_b1, Phi_q)`` of `lateral_system`, shape (3, 2, 2)."""
+    half = length * dt / 2
+    return np.array([[[0.0, dt], [0.0, 0.0]], [[0.0, -half], [0.0, -dt]], [[-half, 0.0], [-dt, 0.0]]])
+
+
+def _vertex_step(base, z_lo, z_hi, p_lo, p_hi):
+    """The `IntervalPredictor` vertex bound, batched over rows, with one parameter box per row.
+
+    ``base``: (R, 3, 2, 2) structure matrices in each row's basis; the matrix is
+    ``I + sum_i p_i base_i`` for ``p`` in the box ``[p_lo, p_hi]`` (R, 3). Returns the
+    tightest box of ``M z`` over the 8 vertices and the box of z (before the disturbance).
+    """
+    corners = np.array([[(k >> i) & 1 for i in range(3)] for k in range(8)], dtype=bool)  # (8, 3)
+    p = np.where(corners[None], p_hi[:, None, :], p_lo[:, None, :])  # (R, 8, 3)
+    mats = (p[..., None, None] * base[:, None]).sum(axis=2)  # (R, 8, 2, 2)
+    mats[..., 0, 0] += 1.0
+    mats[..., 1, 1] += 1.0
+    lo, hi = _matvec2(mats, z_lo[:, None, :], z_hi[:, None, :])
+    return lo.min(axis=1), hi.max(axis=1)
+
+
+def _target_range(scenario) -> tuple[float, float]:
+    speeds = getattr(scenario, "vehicle_speed", None)
+    if speeds is None:
+        speeds = scenario.main_speed
+    return float(speeds[0]), float(speeds[1])
+
+
+def forecast_traffic(
+    observation,
+    road: Road,
+    scenario,
+    beliefs: Mapping[int, VehicleBelief],
+    *,
+    steps: int,
+    ego_reach,
+    ego_route=None,
+    road_edges: bool = True,
+    ego_speed=None,
+    ego_heading=None,
+) -> TrafficForecast:
+    """Sound boxes of every other vehicle of an observation over ``steps`` sub-steps.
+
+    Parameters
+    ----------
+    observation : Observation
+        The noisy measurement (``vehicles`` (m, 4), ``ids`` (m,)).
+    road : Road
+        The lanes.
+    scenario : HighwayScenario or TJunctionScenario
+        ``dt``, ``vehicle``, ``behaviour``, ``rules``, ``measurement_noise`` and the
+        target-speed range (``vehicle_speed`` or ``main_speed``).
+    beliefs : mapping of int to VehicleBelief
+        Per agent index; a vehicle without a belief gets `prior_belief`.
+    steps : int
+        H, the number of sub-steps.
+    ego_reach : array_like, shape (steps + 1, 4)
+        World boxes ``[x_lo, y_lo, x_hi, y_hi]`` that contain the ego's whole rectangle
+        (hence its centre) at each sub-step under any of its action sequences; an empty
+        row (``lo > hi``) means no ego.
+    ego_speed, ego_heading : array_like, shape (steps + 1, 2), optional
+        ``(low, high)`` of the ego's speed (m/s) and heading (rad) at each sub-step under
+        any of its action sequences (the ego is a possible leader: its speed along the
+        lane is a feature of its followers); default ``[0, max_speed]`` and any heading.
+    road_edges : bool
+        Whether the coarse boxes are cut to the road (the hull of the road's lane-strip
+        and area boxes met by the box): sound under the world's property that other
+        vehicles keep their rectangle's corners and centre on the road (`RoadWorld`
+        records any violation in ``traffic_off_road``; tested never to happen). False:
+        the bicycle's limits only.
+    ego_route : tuple of int or ndarray of bool, shape (steps + 1, n_lanes), optional
+        Lanes the ego may have as its route lane (it occupies them whatever its
+        position), for the whole horizon or per sub-step; default: every lane of the
+        T-junction's ``south_in, south_west, west_out`` at every step (sound, and
+        conservative: the planner knows the ego's route position and can pass the
+        lanes it may reach); on the highway the ego's route lane is the side lane
+        nearest to its centre, which its rectangle always touches, so nothing is needed.
+
+    Returns
+    -------
+    TrafficForecast
+
+    Notes
+    -----
+    Induction over the sub-steps, per hypothesis row (a vehicle's side lane or route):
+    the row's box at step n contains the state of every trajectory whose intention in
+    force for the transition ``n -> n+1`` is the row's lane, for every admissible
+    parameter, disturbance, noise and switch history. Step: the features' exact range
+    over the leaders' boxes (`longitudinal_bounds`), the lateral vertex bound plus the
+    remainder box (`lateral_remainder`), or the coarse bicycle bound.
+
+    Switching (lane changes at any step): a vehicle changes from lane l' to a
+    neighbour l at step n only if settled, ``|e_l'| < lane_change_settled``, and the gap
+    rule accepts it. So the set of states at n with intention l is contained in
+    ``Pre_l(n) u shift(Pre_l'(n) n {|e_l'| <= settled})`` over the neighbours l', with
+    ``Pre_l(n)`` the successor of the row's sets at n - 1. The shifted part enters a
+    *cohort* (one per block of `COHORT_BLOCK` steps and source lane; hulling it into the
+    row's own box would wrap), propagated with the row's per-step parameters and merged
+    into the row's own box after ``min(COHORT_AGE, shortest timer period)`` steps: a
+    vehicle switches again only when its timer fires again, so only the row's own box
+    (which holds every trajectory that switched at least that long ago) is a source. By
+    induction every switch time and sequence of switches is covered; the union over a
+    row's units at step n is the union of ``Pre`` (the same physical states), which is
+    what is output. A switch is dropped when an agent certainly in the target lane
+    certainly fails the gap rule; a vehicle that reaches a lane only by a switch is a
+    candidate leader of a row in that lane only once the pair's gap could have been
+    accepted at some step so far (the later of two switches into a lane was checked
+    against the earlier).
+
+    A vehicle's output is the hull over its rows (the union of its surviving
+    hypotheses); ``guaranteed`` is False from the first step after one of its rows left
+    the fine region (then its box is the coarse reachable box).
+    """
+    dt = float(scenario.dt)
+    vehicle: VehicleParameters = scenario.vehicle
+    beh: BehaviourParameters = scenario.behaviour
+    rules = scenario.rules
+    steps = int(steps)
+    if steps < 0:
+        raise InputError(f"steps must be >= 0, got {steps}")
+    ids = np.asarray(observation.ids, dtype=int)
+    meas = np.asarray(observation.vehicles, dtype=float).reshape(-1, 4)
+    m = len(ids)
+    if meas.shape != (m, 4):
+        raise DimensionError(f"observation.vehicles must have shape ({m}, 4), got shape {meas.shape}")
+    reach = np.asarray(ego_reach, dtype=float)
+    if reach.shape != (steps + 1, 4):
+        raise DimensionError(f"ego_reach must have shape ({steps + 1}, 4), got shape {reach.shape}")
+    if np.any(np.isnan(reach)):
+        raise InputError("ego_reach contains NaN")
+    empty = np.array([np.inf, np.inf, -np.inf, -np.inf])
+    e_speed = np.tile([0.0, scenario.vehicle.max_speed], (steps + 1, 1)) if ego_speed is None else ego_speed
+    e_speed = as_finite_array("ego_speed", e_speed, (steps + 1, 2))
+    e_head = np.tile([-np.pi, np.pi], (steps + 1, 1)) if ego_heading is None else ego_heading
+    e_head = as_finite_array("ego_heading", e_head, (steps + 1, 2))
+    if m == 0:
+        z = np.zeros((steps + 1, 0, 4))
+        return TrafficForecast(z, z, z, np.zeros((steps + 1, 0), dtype=bool), ids, dt)
+    if ego_route is None:
+        ego_route = road.route("south_in", "south_west", "west_out") if "south_west" in road.names else ()
+    n_lanes = len(road)
+    length = vehicle.length
+    noise = np.array(scenario.measurement_noise, dtype=float)
+    t_range = _target_range(scenario)
+    strips = _strip_boxes(road)
+    road_boxes = np.vstack([strips] + [np.array([[a[0][0], a[0][1], a[1][0], a[1][1]]]) for a in road.areas])
+
+    # ---------------------------------------------------------------- rows
+    per_vehicle = []
+    for j in range(m):
+        belief = beliefs.get(int(ids[j])) if beliefs is not None else None
+        if belief is None:
+            belief = prior_belief(int(ids[j]), meas[j], road, scenario)
+        per_vehicle.append((belief, _route_rows(road, j, belief, meas[j], vehicle, rules)))
+    P = max(len(r) for _, r in per_vehicle)
+    R = m * P
+    veh_of = np.repeat(np.arange(m), P)
+    alive = np.zeros(R, dtype=bool)
+    fine = np.zeros(R, dtype=bool)
+    origin = np.zeros((R, 2))
+    u = np.tile([1.0, 0.0], (R, 1))
+    c = np.zeros(R)
+    row_lane = np.zeros(R, dtype=int)
+    prefix_end = np.full(R, np.inf)
+    exit_s = np.full(R, np.inf)
+    stop_s = np.full(R, np.nan)
+    cap_from = np.full(R, np.inf)
+    cap_speed = np.full(R, np.inf)
+    pre_lo = np.full((R, n_lanes), np.nan)
+    pre_hi = np.full((R, n_lanes), np.nan)
+    beyond = np.zeros((R, n_lanes), dtype=bool)
+    route_mask = np.zeros((R, n_lanes), dtype=bool)
+    side = np.zeros((R, n_lanes), dtype=bool)
+    nbr = np.full((R, 2), -1, dtype=int)
+    ta_lo, ta_hi = np.zeros((R, 3)), np.zeros((R, 3))
+    tb_lo, tb_hi = np.ones((R, 2)), np.ones((R, 2))
+    t_lo, t_hi = np.full(R, t_range[0]), np.full(R, t_range[1])
+    for j, (belief, rows) in enumerate(per_vehicle):
+        lane_rows = {}
+        for p, row in enumerate(rows):
+            r = j * P + p
+            alive[r], fine[r] = row.alive, row.fine
+            origin[r], u[r], c[r], row_lane[r] = row.origin, row.u, row.c, row.lane
+            prefix_end[r], exit_s[r], stop_s[r] = row.prefix_end, row.exit_s, row.stop_s
+            cap_from[r], cap_speed[r] = row.cap_from, row.cap_speed
+            for lane, (s0, s1) in row.prefix.items():
+                pre_lo[r, lane], pre_hi[r, lane] = s0, s1
+            beyond[r, list(row.beyond)] = True
+            route_mask[r] = ~np.isnan(pre_lo[r]) | beyond[r]
+            if road.side_of[row.lane] >= 0:
+                side[r, list(road.side_lanes(row.lane))] = True
+            lane_rows[row.lane] = r
+        for lane, r in lane_rows.items():
+            if road.side_of[lane] >= 0:
+                group = road.side_lanes(lane)
+                k = group.index(lane)
+                if k > 0 and group[k - 1] in lane_rows:
+                    nbr[r, 0] = lane_rows[group[k - 1]]
+                if k + 1 < len(group) and group[k + 1] in lane_rows:
+                    nbr[r, 1] = lane_rows[group[k + 1]]
+        sl = slice(j * P, (j + 1) * P)
+        ta_lo[sl], ta_hi[sl] = belief.theta_a.low, belief.theta_a.high
+        tb_lo[sl], tb_hi[sl] = belief.theta_b.low, belief.theta_b.high
+        if belief.target_speed is not None:
+            t_lo[sl], t_hi[sl] = belief.target_speed
+        for p in range(len(rows), P):  # padding: copies of the first row, never alive
+            r = j * P + p
+            origin[r], u[r], c[r], row_lane[r] = origin[j * P], u[j * P], c[j * P], row_lane[j * P]
+    if np.any(dt * ta_hi[:, 0] > 1.0):
+        raise InputError("dt theta_a1 > 1: the speed law is not monotone in v at this sub-step")
+    nrm = np.stack([-u[:, 1], u[:, 0]], axis=1)
+    heading = np.arctan2(u[:, 1], u[:, 0])
+    widths = road.widths[row_lane]
+
+    # ------------------------------------------------------- initial boxes
+    mv = meas[veh_of]
+    x_lo, x_hi = _out(mv[:, 0] - noise[0], mv[:, 0] + noise[0])
+    y_lo, y_hi = _out(mv[:, 1] - noise[1], mv[:, 1] + noise[1])
+    v_lo, v_hi = _out(np.maximum(mv[:, 2] - noise[2], 0.0), mv[:, 2] + noise[2])
+    v_lo = np.maximum(v_lo, 0.0)
+    chi0 = wrap_to_pi(mv[:, 3] - heading)
+    h_unw = mv[:, 3] - chi0
+    p_lo, p_hi = _out(mv[:, 3] - noise[3], mv[:, 3] + noise[3])  # psi (coarse rows)
+    s_lo, s_hi = _lin(-np.sum(origin * u, axis=1), u[:, 0], u[:, 1], x_lo, x_hi, y_lo, y_hi)
+    l_lo, l_hi = _lin(-np.sum(origin * nrm, axis=1) - c, nrm[:, 0], nrm[:, 1], x_lo, x_hi, y_lo, y_hi)
+    ch_lo, ch_hi = _out(chi0 - noise[3], chi0 + noise[3])
+    fine &= (np.maximum(-ch_lo, ch_hi) <= CHI_MAX) & (s_hi + beh.pursuit_time * v_hi <= prefix_end)
+    # one basis per vehicle (rows share it): the nominal matrix at the measured speed
+    phi = _structure(dt, length)
+    v0 = np.maximum(mv[:, 2], V_MIN)
+    b1m, b2m = (tb_lo[:, 0] + tb_hi[:, 0]) / 2, (tb_lo[:, 1] + tb_hi[:, 1]) / 2
+    nominal = np.eye(2) + v0[:, None, None] * phi[0] + b1m[:, None, None] * phi[1] + (b2m / v0)[:, None, None] * phi[2]
+    T = _bases(nominal)
+    Tinv = np.linalg.inv(T)
+    base = np.einsum("rij,kjl,rlm->rkim", Tinv, phi, T)  # (R, 3, 2, 2)
+    # lateral units: each row's own box (unit r) and, on side lanes, its switch cohorts
+    # (unit R + (2 r + d) C + c: switches from the neighbour d during block c of `block` steps)
+    gap_steps = int(np.floor(rules.lane_change_interval[0] / dt + 1e-9)) - 1
+    block = COHORT_BLOCK
+    C = max(1, min(COHORT_AGE, max(gap_steps, 1)) // block)
+    has_side = bool(np.any(nbr >= 0))
+    U = R + (2 * R * C if has_side else 0)
+    unit_row = np.concatenate([np.arange(R), np.repeat(np.arange(R), 2 * C)]) if has_side else np.arange(R)
+    ui_lo = np.full((U, 2), np.inf)
+    ui_hi = np.full((U, 2), -np.inf)
+    ui_lo[:R], ui_hi[:R] = np.stack([l_lo, ch_lo], 1), np.stack([l_hi, ch_hi], 1)
+    uz_lo, uz_hi = ui_lo.copy(), ui_hi.copy()
+    uz_lo[:R], uz_hi[:R] = _matvec(Tinv, ui_lo[:R], ui_hi[:R])
+    ualive = np.zeros(U, dtype=bool)
+    ualive[:R] = alive
+    for arr, val in ((ui_lo, np.inf), (ui_hi, -np.inf), (uz_lo, np.inf), (uz_hi, -np.inf)):
+        arr[:R][~alive] = val
+
+    H1 = steps + 1
+    boxes = np.empty((H1, m, 4))
+    lower = np.empty((H1, m, 4))
+    upper = np.empty((H1, m, 4))
+    guaranteed = np.empty((H1, m), dtype=bool)
+    half_w = widths / 2
+    tau, settle = beh.pursuit_time, rules.lane_change_settled
+    vmax = vehicle.max_speed
+    beta_max = float(_slip(vehicle.max_steering))
+    eps = beh.speed_epsilon
+    if isinstance(ego_route, np.ndarray) and ego_route.ndim == 2:
+        if ego_route.shape != (steps + 1, n_lanes):
+            raise DimensionError(f"ego_route must have shape ({steps + 1}, {n_lanes}), got shape {ego_route.shape}")
+        ego_lanes = ego_route.astype(bool)
+    else:
+        ego_lanes = np.zeros((steps + 1, n_lanes), dtype=bool)
+        ego_lanes[:, list(ego_route)] = True
+    same = veh_of[:, None] == np.arange(m + 1)[None, :]
+    pair_ok = np.zeros((R, m + 1), dtype=bool)
+    lane_offset = np.full(n_lanes, np.nan)
+    lane_offset[row_lane[fine | alive]] = c[fine | alive]
+    belief_lane = alive.copy()  # the rows of the lanes in the beliefs
+    side_row = road.side_of[row_lane] >= 0
+    same_group = (road.side_of[row_lane][:, None] == road.side_of[None, :]) & side_row[:, None]
+
+    def unit_boxes():
+        """(e, chi) box of every unit: the intersection of its two sound boxes."""
+        lo, hi = np.full((U, 2), np.inf), np.full((U, 2), -np.inf)
+        a = np.flatnonzero(ualive)
+        b_lo, b_hi = _matvec(T[unit_row[a]], uz_lo[a], uz_hi[a])
+        lo[a], hi[a] = np.maximum(b_lo, ui_lo[a]), np.minimum(b_hi, ui_hi[a])
+        return lo, hi
+
+    def row_hull(lo, hi):
+        """Hull over each row's units, (R, 2) each (empty rows: inf, -inf)."""
+        if not has_side:
+            return lo, hi
+        c_lo = lo[R:].reshape(R, 2 * C, 2).min(axis=1)
+        c_hi = hi[R:].reshape(R, 2 * C, 2).max(axis=1)
+        return np.minimum(lo[:R], c_lo), np.maximum(hi[:R], c_hi)
+
+    def lateral_step(idx, v_lo, v_hi):
+        """One step of the units idx: vertex bound plus remainders (v >= V_MIN), hulled with the
+        direct interval step of the bicycle (v < V_MIN); the basis and identity boxes intersected."""
+        rr = unit_row[idx]
+        e_lo, e_hi = eu_lo[idx], eu_hi[idx]
+        vlo, vhi = v_lo[rr], v_hi[rr]
+        f_ok = vhi >= V_MIN
+        l_ok = vlo < V_MIN
+        vf_lo_, vf_hi_ = np.maximum(vlo, V_MIN), np.maximum(vhi, V_MIN)
+        q_lo, q_hi = tb_lo[rr, 1] / vf_hi_, tb_hi[rr, 1] / vf_lo_
+        b1 = (tb_lo[rr, 0], tb_hi[rr, 0])
+        e_box, c_box = (e_lo[:, 0], e_hi[:, 0]), (e_lo[:, 1], e_hi[:, 1])
+        r_e, r_c, _, a_f = lateral_remainder(e_box, c_box, (vf_lo_, vf_hi_), b1, (q_lo, q_hi), dt, vehicle)
+        p_lo_ = np.stack([vf_lo_, b1[0], q_lo], 1)
+        p_hi_ = np.stack([vf_hi_, b1[1], q_hi], 1)
+        rw_lo, rw_hi = np.stack([r_e[0], r_c[0]], 1), np.stack([r_e[1], r_c[1]], 1)
+        zf_lo, zf_hi = _vertex_step(base[rr], uz_lo[idx], uz_hi[idx], p_lo_, p_hi_)
+        w_lo, w_hi = _matvec(Tinv[rr], rw_lo, rw_hi)
+        zf_lo, zf_hi = _out(zf_lo + w_lo, zf_hi + w_hi)
+        if_lo, if_hi = _vertex_step(np.broadcast_to(phi, (len(idx), 3, 2, 2)), e_lo, e_hi, p_lo_, p_hi_)
+        if_lo, if_hi = _out(if_lo + rw_lo, if_hi + rw_hi)
+        sf = _mul(vf_lo_ * dt, vf_hi_ * dt, *cos_interval(*a_f))
+        if not l_ok.any():
+            back_lo, back_hi = _matvec(T[rr], zf_lo, zf_hi)
+            into_lo, into_hi = _matvec(Tinv[rr], if_lo, if_hi)
+            return (np.maximum(zf_lo, into_lo), np.minimum(zf_hi, into_hi), np.maximum(if_lo, back_lo),
+                    np.minimum(if_hi, back_hi), sf[0], sf[1])
+        # low speeds: a direct interval step of the bicycle
+        vl_lo, vl_hi = vlo, np.minimum(vhi, V_MIN)
+        vh_lo, vh_hi = np.maximum(vl_lo, eps), np.maximum(vl_hi, eps)
+        _, _, d_l, a_l = lateral_remainder(
+            e_box, c_box, (vh_lo, vh_hi), b1, (tb_lo[rr, 1] / vh_hi, tb_hi[rr, 1] / vh_lo), dt, vehicle
+        )
+        de = _mul(vl_lo * dt, vl_hi * dt, *sin_interval(*a_l))
+        dc = _mul(2 * vl_lo * dt / length, 2 * vl_hi * dt / length, np.sin(_slip(d_l[0])), np.sin(_slip(d_l[1])))
+        low_e = _out(e_box[0] + de[0], e_box[1] + de[1])
+        low_c = _out(c_box[0] + dc[0], c_box[1] + dc[1])
+        il_lo, il_hi = np.stack([low_e[0], low_c[0]], 1), np.stack([low_e[1], low_c[1]], 1)
+        zl_lo, zl_hi = _matvec(Tinv[rr], il_lo, il_hi)
+        sl = _mul(vl_lo * dt, vl_hi * dt, *cos_interval(*a_l))
+        fo, lo_ = f_ok[:, None], l_ok[:, None]
+        nz_lo = np.minimum(np.where(fo, zf_lo, np.inf), np.where(lo_, zl_lo, np.inf))
+        nz_hi = np.maximum(np.where(fo, zf_hi, -np.inf), np.where(lo_, zl_hi, -np.inf))
+        ni_lo = np.minimum(np.where(fo, if_lo, np.inf), np.where(lo_, il_lo, np.inf))
+        ni_hi = np.maximum(np.where(fo, if_hi, -np.inf), np.where(lo_, il_hi, -np.inf))
+        back_lo, back_hi = _matvec(T[rr], nz_lo, nz_hi)
+        into_lo, into_hi = _matvec(Tinv[rr], ni_lo, ni_hi)
+        nz_lo, nz_hi = np.maximum(nz_lo, into_lo), np.minimum(nz_hi, into_hi)
+        ni_lo, ni_hi = np.maximum(ni_lo, back_lo), np.minimum(ni_hi, back_hi)
+        ds_lo = np.minimum(np.where(f_ok, sf[0], np.inf), np.where(l_ok, sl[0], np.inf))
+        ds_hi = np.maximum(np.where(f_ok, sf[1], -np.inf), np.where(l_ok, sl[1], -np.inf))
+        return nz_lo, nz_hi, ni_lo, ni_hi, ds_lo, ds_hi
+
+    # dead units hold empty boxes (inf, -inf): their arithmetic is masked, never output
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        for n in range(H1):
+            # ------------------------------------------------ world boxes per row
+            eu_lo, eu_hi = unit_boxes()
+            alive = ualive[:R].copy()
+            if has_side:
+                alive |= ualive[R:].reshape(R, 2 * C).any(axis=1)
+            e_lo, e_hi = row_hull(eu_lo, eu_hi)
+            lat_lo, lat_hi = e_lo[:, 0] + c, e_hi[:, 0] + c
+            ch_lo, ch_hi = e_lo[:, 1], e_hi[:, 1]
+            with np.errstate(invalid="ignore"):
+                fx = _lin(origin[:, 0], u[:, 0], -u[:, 1], s_lo, s_hi, lat_lo, lat_hi)
+                fy = _lin(origin[:, 1], u[:, 1], u[:, 0], s_lo, s_hi, lat_lo, lat_hi)
+            cx_lo, cx_hi = np.where(fine, fx[0], x_lo), np.where(fine, fx[1], x_hi)
+            cy_lo, cy_hi = np.where(fine, fy[0], y_lo), np.where(fine, fy[1], y_hi)
+            ps_lo = np.where(fine, h_unw + ch_lo, p_lo)
+            ps_hi = np.where(fine, h_unw + ch_hi, p_hi)
+            dead = ~alive
+            cx_lo[dead] = cy_lo[dead] = ps_lo[dead] = 0.0
+            cx_hi[dead] = cy_hi[dead] = ps_hi[dead] = 0.0
+            foot = footprint_box(np.stack([cx_lo, cy_lo], 1), np.stack([cx_hi, cy_hi], 1), ps_lo, ps_hi, vehicle)
+            if road_edges:
+                foot = np.where(fine[:, None], foot, _clip_to_road(foot, road_boxes))
+            st_lo = np.stack([cx_lo, cy_lo, v_lo, ps_lo], 1)
+            st_hi = np.stack([cx_hi, cy_hi, v_hi, ps_hi], 1)
+            st_lo[dead], st_hi[dead], foot[dead] = np.inf, -np.inf, empty
+            lower[n] = st_lo.reshape(m, P, 4).min(axis=1)
+            upper[n] = st_hi.reshape(m, P, 4).max(axis=1)
+            fb = foot.reshape(m, P, 4)
+            boxes[n] = np.concatenate([fb[..., :2].min(axis=1), fb[..., 2:].max(axis=1)], axis=1)
+            guaranteed[n] = (fine | dead).reshape(m, P).all(axis=1)
+            if n == steps:
+                break
+
+            # ------------------------------------- leave the fine region -> coarse
+            leave = fine & alive & ((np.maximum(-ch_lo, ch_hi) > CHI_MAX) | (s_hi + tau * v_hi > prefix_end))
+
+            # --------------------------------------- the other agents' boxes at step n
+            vb_lo = np.where(alive[:, None], np.stack([cx_lo, cy_lo], 1), np.inf)
+            vb_hi = np.where(alive[:, None], np.stack([cx_hi, cy_hi], 1), -np.inf)
+            k_lo = np.vstack([vb_lo.reshape(m, P, 2).min(axis=1), reach[n, :2]])
+            k_hi = np.vstack([vb_hi.reshape(m, P, 2).max(axis=1), reach[n, 2:]])
+            kfoot = np.vstack([boxes[n], reach[n]])
+            present = np.all(kfoot[:, :2] <= kfoot[:, 2:], axis=1)
+            k_lo[~present], k_hi[~present] = 0.0, 0.0
+            kv_lo = np.append(lower[n, :, 2], max(e_speed[n, 0], 0.0))
+            kv_hi = np.append(upper[n, :, 2], e_speed[n, 1])
+            pk_lo, pk_hi = _lin(
+                -np.sum(origin * u, axis=1)[:, None], u[:, None, 0], u[:, None, 1],
+                k_lo[None, :, 0], k_hi[None, :, 0], k_lo[None, :, 1], k_hi[None, :, 1],
+            )
+            lk_lo, lk_hi = _lin(
+                (-np.sum(origin * nrm, axis=1) - c)[:, None], nrm[:, None, 0], nrm[:, None, 1],
+                k_lo[None, :, 0], k_hi[None, :, 0], k_lo[None, :, 1], k_hi[None, :, 1],
+            )
+            # agents that certainly occupy the row's lane and stay on the road: every hypothesis of
+            # theirs steers to it or has its centre in its strip (the ego: its centre box in the strip)
+            abs_lo, abs_hi = lat_lo, lat_hi
+            lw = road.widths[None, :] / 2
+            with np.errstate(invalid="ignore"):
+                strip_in = (abs_lo[:, None] >= lane_offset[None, :] - lw) & (abs_hi[:, None] <= lane_offset[None, :] + lw)
+            certain_row = ~alive[:, None] | (row_lane[:, None] == np.arange(n_lanes)[None, :]) | (strip_in & same_group)
+            certain_row = (certain_row & fine[:, None]) | ~alive[:, None] | ~side_row[:, None]
+            certain_veh = certain_row.reshape(m, P, n_lanes).all(axis=1)[:, row_lane].T  # (R, m)
+            phys = (lk_lo >= -half_w[:, None]) & (lk_hi <= half_w[:, None])  # centre certainly in the strip
+            certain_k = np.where(side_row[:, None], np.concatenate([certain_veh, phys[:, m:]], axis=1), phys)
+            in_strip = present[None, :] & ~same & certain_k & (pk_hi + length / 2 < exit_s[:, None])
+            # pairs that may both steer to the row's lane after a switch: the later switch accepted the gap
+            # the pair's states at a switch may lie in any row of the vehicle: use its hull over the rows
+            sv_lo = np.where(alive, s_lo, np.inf).reshape(m, P).min(axis=1)[veh_of]
+            sv_hi = np.where(alive, s_hi, -np.inf).reshape(m, P).max(axis=1)[veh_of]
+            vv_lo = np.where(alive, v_lo, np.inf).reshape(m, P).min(axis=1)[veh_of]
+            gap_need = beh.standstill_distance + rules.lane_change_margin + beh.time_headway * np.minimum(
+                vv_lo[:, None], kv_lo[None, :]
+            )
+            pair_ok |= np.maximum(np.abs(pk_lo - sv_hi[:, None]), np.abs(pk_hi - sv_lo[:, None])) - length >= gap_need
+
+            # ------------------------------------------- switching (side lanes)
+            if has_side:
+                slot = (n // block) % C
+                cohort = R + (2 * np.arange(R)[:, None] + np.arange(2)[None, :]) * C + slot  # (R, 2)
+                if n % block == 0 and n > 0:  # the slot's cohorts are >= C block steps old: merge into the row's own box
+                    for d in range(2):
+                        k = cohort[:, d]
+                        old = ualive[k]
+                        for lo_a, hi_a in ((ui_lo, ui_hi), (uz_lo, uz_hi)):
+                            lo_a[:R] = np.where(old[:, None], np.minimum(lo_a[:R], lo_a[k]), lo_a[:R])
+                            hi_a[:R] = np.where(old[:, None], np.maximum(hi_a[:R], hi_a[k]), hi_a[:R])
+                            lo_a[k], hi_a[k] = np.inf, -np.inf
+                        ualive[:R] |= old
+                        ualive[k] = False
+                nat_lo, nat_hi = eu_lo[:R], eu_hi[:R]  # the sources: each row's own box (settled part)
+                new_s = [np.where(alive, a, np.inf if q % 2 == 0 else -np.inf) for q, a in enumerate((s_lo, s_hi, v_lo, v_hi))]
+                to_coarse = np.zeros(R, dtype=bool)
+                xy = [cx_lo.copy(), cx_hi.copy(), cy_lo.copy(), cy_hi.copy(), ps_lo.copy(), ps_hi.copy()]
+                xy = [np.where(alive, a, np.inf if i % 2 == 0 else -np.inf) for i, a in enumerate(xy)]
+                for d in range(2):
+                    nb = nbr[:, d]
+                    ok = nb >= 0
+                    nb = np.maximum(nb, 0)
+                    src_alive = ualive[nb] & ok
+                    fine_pair = fine[nb] & fine & ~leave & ~leave[nb]
+                    je_lo = np.maximum(nat_lo[nb, 0], -settle)
+                    je_hi = np.minimum(nat_hi[nb, 0], settle)
+                    # gap acceptance: blocked by an agent certainly in the target lane whatever the states
+                    d_lo, d_hi = pk_lo - s_hi[nb][:, None], pk_hi - s_lo[nb][:, None]
+                    far = np.maximum(np.abs(d_lo), np.abs(d_hi)) - length
+                    need = beh.standstill_distance + rules.lane_change_margin + beh.time_headway * np.minimum(
+                        v_lo[nb][:, None], kv_lo[None, :]
+                    )
+                    blocked = (in_strip & (far < need)).any(axis=1)
+                    both = src_alive & fine_pair & (je_lo <= je_hi) & ~blocked
+                    coarse_in = ok & alive[nb] & ~fine_pair
+                    shift = c[nb] - c
+                    ii_lo, ii_hi = _out(np.stack([je_lo + shift, nat_lo[nb, 1]], 1), np.stack([je_hi + shift, nat_hi[nb, 1]], 1))
+                    zi_lo, zi_hi = _matvec(Tinv, ii_lo, ii_hi)
+                    k = cohort[:, d]
+                    for lo_a, hi_a, a_lo, a_hi in ((ui_lo, ui_hi, ii_lo, ii_hi), (uz_lo, uz_hi, zi_lo, zi_hi)):
+                        lo_a[k] = np.where(both[:, None], np.minimum(lo_a[k], a_lo), lo_a[k])
+                        hi_a[k] = np.where(both[:, None], np.maximum(hi_a[k], a_hi), hi_a[k])
+                    ualive[k] |= both
+                    grow = both | coarse_in
+                    for q, (arr, op) in enumerate(((s_lo, np.minimum), (s_hi, np.maximum), (v_lo, np.minimum), (v_hi, np.maximum))):
+                        new_s[q] = np.where(grow, op(new_s[q], arr[nb]), new_s[q])
+                    src_xy = (cx_lo, cx_hi, cy_lo, cy_hi, ps_lo, ps_hi)
+                    for q in range(6):
+                        op = np.minimum if q % 2 == 0 else np.maximum
+                        xy[q] = np.where(coarse_in, op(xy[q], src_xy[q][nb]), xy[q])
+                    to_coarse |= coarse_in
+                grown = np.isfinite(new_s[0])
+                s_lo, s_hi, v_lo, v_hi = (np.where(grown, a, b) for a, b in zip(new_s, (s_lo, s_hi, v_lo, v_hi)))
+                leave = leave | (to_coarse & fine)
+                cx_lo, cx_hi, cy_lo, cy_hi, ps_lo, ps_hi = (
+                    np.where(to_coarse, xy[q], a) for q, a in enumerate((cx_lo, cx_hi, cy_lo, cy_hi, ps_lo, ps_hi))
+                )
+                alive = alive | to_coarse | ualive[R:].reshape(R, 2 * C).any(axis=1)
+                eu_lo, eu_hi = unit_boxes()
+                e_lo, e_hi = row_hull(eu_lo, eu_hi)
+                ch_lo, ch_hi = e_lo[:, 1], e_hi[:, 1]
+                # the rows' physical boxes after the switches (a new row holds its source's states)
+                fx = _lin(origin[:, 0], u[:, 0], -u[:, 1], s_lo, s_hi, e_lo[:, 0] + c, e_hi[:, 0] + c)
+                fy = _lin(origin[:, 1], u[:, 1], u[:, 0], s_lo, s_hi, e_lo[:, 0] + c, e_hi[:, 0] + c)
+                upd = fine & ~to_coarse & alive
+                cx_lo, cx_hi = np.where(upd, fx[0], cx_lo), np.where(upd, fx[1], cx_hi)
+                cy_lo, cy_hi = np.where(upd, fy[0], cy_lo), np.where(upd, fy[1], cy_hi)
+                ps_lo, ps_hi = np.where(upd, h_unw + ch_lo, ps_lo), np.where(upd, h_unw + ch_hi, ps_hi)
+            if leave.any():
+                x_lo, x_hi = np.where(leave, cx_lo, x_lo), np.where(leave, cx_hi, x_hi)
+                y_lo, y_hi = np.where(leave, cy_lo, y_lo), np.where(leave, cy_hi, y_hi)
+                p_lo, p_hi = np.where(leave, ps_lo, p_lo), np.where(leave, ps_hi, p_hi)
+                fine = fine & ~leave
+                gone = ~fine[unit_row]
+                ualive[:R] |= alive & ~fine
+                ualive[R:] &= ~gone[R:]
+
+            # ------------------------------------------------- possible leaders
+            in_prefix = ~np.isnan(pre_lo) & (np.nan_to_num(pre_hi, nan=-np.inf) >= s_lo[:, None])
+            row_int = np.where(fine[:, None], in_prefix & (np.nan_to_num(pre_lo, nan=np.inf) <= s_hi[:, None]), route_mask)
+            row_int &= alive[:, None]
+            switched = row_int & ~belief_lane[:, None]  # side lanes steered to only after a switch since the observation
+            foot_now = footprint_box(
+                np.stack([np.where(alive, cx_lo, 0.0), np.where(alive, cy_lo, 0.0)], 1),
+                np.stack([np.where(alive, cx_hi, 0.0), np.where(alive, cy_hi, 0.0)], 1),
+                np.where(alive, ps_lo, 0.0), np.where(alive, ps_hi, 0.0), vehicle,
+            )
+            row_touch = np.all(
+                (foot_now[:, None, :2] <= strips[None, :, 2:]) & (foot_now[:, None, 2:] >= strips[None, :, :2]), -1
+            ) & alive[:, None]
+            # a switched row's rectangle in the lane it switched into: gated by the gap rule like its intention
+            into_own = (alive & ~belief_lane & side_row)[:, None] & (np.arange(n_lanes)[None, :] == row_lane[:, None])
+            occ = np.zeros((m + 1, n_lanes), dtype=bool)
+            occ[:m] = ((row_int & ~switched) | (row_touch & ~into_own)).reshape(m, P, n_lanes).any(axis=1)
+            occ[m] = ego_lanes[n] | np.all(
+                (reach[n, None, :2] <= strips[:, 2:]) & (reach[n, None, 2:] >= strips[:, :2]), axis=-1
+            )
+            occ &= present[:, None]
+            occ_sw = np.zeros((m + 1, n_lanes), dtype=bool)
+            occ_sw[:m] = (switched | (row_touch & into_own)).reshape(m, P, n_lanes).any(axis=1)
+            occ_sw &= present[:, None]
+            interest_pre = in_prefix | (side & (row_touch | (np.arange(n_lanes)[None, :] == row_lane[:, None])))
+            pre = (interest_pre[:, None, :] & occ[None, :, :]).any(axis=-1)
+            pre |= (interest_pre[:, None, :] & occ_sw[None, :, :]).any(axis=-1) & pair_ok
+            pre &= ~same
+            bey = (beyond[:, None, :] & occ[None, :, :]).any(axis=-1) & ~same
+            dist_lo, dist_hi = pk_lo - s_hi[:, None], pk_hi - s_lo[:, None]
+            poss_pre = pre & (dist_hi > 0)
+            gap_cand = np.where(poss_pre, np.maximum(dist_lo, 0.0) - length, np.inf)
+            gap_cand = np.where(bey, -length, gap_cand)
+            kp_lo = np.append(lower[n, :, 3], e_head[n, 0])[None, :] - heading[:, None]
+            kp_hi = np.append(upper[n, :, 3], e_head[n, 1])[None, :] - heading[:, None]
+            with np.errstate(invalid="ignore"):
+                cs_lo, cs_hi = cos_interval(np.nan_to_num(kp_lo), np.nan_to_num(kp_hi))
+            vf_lo = np.minimum(kv_lo[None, :] * cs_lo, kv_hi[None, :] * cs_lo)
+            vf_hi = np.maximum(kv_hi[None, :] * cs_hi, kv_lo[None, :] * cs_hi)
+            vf_lo = np.where(bey, -np.abs(kv_hi)[None, :], vf_lo)  # a lane beyond the prefix: any direction
+            vf_hi = np.where(bey, np.abs(kv_hi)[None, :], vf_hi)
+            certain = poss_pre & in_strip & (dist_lo > 0)
+            gap_hi = np.where(certain, dist_hi - length, np.inf).min(axis=1)
+            # the leader is the nearest candidate: one farther than a certain candidate can be is not it
+            nearest = np.where(certain, dist_hi, np.inf).min(axis=1)
+            any_poss = (poss_pre & (dist_lo <= nearest[:, None])) | bey
+            front_lo = np.where(any_poss, vf_lo, np.inf).min(axis=1)
+            front_hi = np.where(any_poss, vf_hi, -np.inf).max(axis=1)
+            gap_lo = np.where(any_poss, gap_cand, np.inf).min(axis=1)
+            may_stop = ~np.isnan(stop_s) & (s_lo <= np.nan_to_num(stop_s, nan=-np.inf))
+            stop_gap = np.maximum(np.nan_to_num(stop_s, nan=np.inf) - s_hi - length / 2, 0.0)
+            gap_lo = np.where(may_stop, np.minimum(gap_lo, stop_gap), gap_lo)
+            front_lo = np.where(may_stop, np.minimum(front_lo, 0.0), front_lo)
+            front_hi = np.where(may_stop, np.maximum(front_hi, 0.0), front_hi)
+            front_hi = np.where(np.isfinite(gap_hi), front_hi, np.inf)
+            vt_lo = np.where(s_hi >= cap_from, np.minimum(t_lo, cap_speed), t_lo)
+            vt_hi = np.where(s_lo >= cap_from, np.minimum(t_hi, cap_speed), t_hi)
+            coarse = ~fine  # no information on the front object or the curve cap
+            gap_lo = np.where(coarse, -length, gap_lo)
+            front_lo = np.where(coarse, -vmax, front_lo)
+            gap_hi = np.where(coarse, np.inf, gap_hi)
+            front_hi = np.where(coarse, np.inf, front_hi)
+            vt_lo = np.where(coarse, 0.0, vt_lo)
+            vt_hi = np.where(coarse, t_hi, vt_hi)
+            # ----------------------------------------------------- longitudinal
+            nv_lo, nv_hi = longitudinal_bounds(
+                (v_lo, v_hi), (vt_lo, vt_hi), (front_lo, front_hi), (gap_lo, gap_hi), (ta_lo, ta_hi), dt, beh, vmax
+            )
+
+            # ---------------------------------------------------------- lateral
+            idx = np.flatnonzero(ualive & fine[unit_row])
+            if idx.size:
+                nz_lo, nz_hi, ni_lo, ni_hi, ds_lo, ds_hi = lateral_step(idx, v_lo, v_hi)
+                uz_lo[idx], uz_hi[idx], ui_lo[idx], ui_hi[idx] = nz_lo, nz_hi, ni_lo, ni_hi
+                d_lo = np.full(R, np.inf)
+                d_hi = np.full(R, -np.inf)
+                np.minimum.at(d_lo, unit_row[idx], ds_lo)
+                np.maximum.at(d_hi, unit_row[idx], ds_hi)
+                moved = fine & np.isfinite(d_lo) & np.isfinite(d_hi)
+                ns_lo, ns_hi = _out(s_lo + np.where(moved, d_lo, 0.0), s_hi + np.where(moved, d_hi, 0.0))
+                s_lo, s_hi = np.where(moved, ns_lo, s_lo), np.where(moved, ns_hi, s_hi)
+
+            # ----------------------------------------------------------- coarse
+            a_lo, a_hi = p_lo - beta_max, p_hi + beta_max
+            dx = _mul(v_lo * dt, v_hi * dt, *cos_interval(a_lo, a_hi))
+            dy = _mul(v_lo * dt, v_hi * dt, *sin_interval(a_lo, a_hi))
+            turn = 2 * dt / length * np.sin(beta_max)
+            x_lo, x_hi = _out(x_lo + dx[0], x_hi + dx[1])
+            y_lo, y_hi = _out(y_lo + dy[0], y_hi + dy[1])
+            if road_edges:
+                x_lo, y_lo, x_hi, y_hi = _clip_to_road(np.stack([x_lo, y_lo, x_hi, y_hi], 1), road_boxes).T
+            p_lo, p_hi = _out(p_lo - turn * v_hi, p_hi + turn * v_hi)
+            v_lo, v_hi = nv_lo, nv_hi
+
+    if np.isnan(boxes).any() or np.isnan(lower).any() or np.isnan(upper).any():
+        raise FloatingPointError("the forecast produced NaN bounds (a bug: please report it)")
+    return TrafficForecast(boxes, lower, upper, guaranteed, ids, dt)

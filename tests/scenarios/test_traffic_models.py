@@ -1,0 +1,341 @@
+"""The traffic forecast: containment of the world's vehicles, exact feature bounds, footprint boxes, remainders."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from minimaxplan.models import DimensionError, InputError
+from minimaxplan.models.sets import Box
+from minimaxplan.scenarios.road_world import HighwayScenario, TJunctionScenario, make_road_world
+from minimaxplan.scenarios.traffic_models import (
+    TrafficForecast,
+    VehicleBelief,
+    acceleration_feature_bounds,
+    cos_interval,
+    footprint_box,
+    forecast_traffic,
+    lateral_remainder,
+    lateral_system,
+    longitudinal_bounds,
+    prior_belief,
+    sin_interval,
+)
+from minimaxplan.scenarios.vehicles import (
+    BehaviourParameters,
+    TrafficRules,
+    VehicleParameters,
+    acceleration_features,
+    bicycle_step,
+    linear_acceleration,
+    vehicle_corners,
+)
+
+VEHICLE = VehicleParameters()
+BEHAVIOUR = BehaviourParameters()
+TOL = 1e-9
+
+
+class ExtremeDisturbances(np.random.Generator):
+    """The world's dynamics stream with every disturbance at -w_bar or +w_bar (the lane-change draws kept)."""
+
+    def uniform(self, low=0.0, high=1.0, size=None):
+        out = super().uniform(low, high, size)
+        if size is not None and np.ndim(out) == 2 and out.shape[1] == 3:
+            out[:, 2] = np.where(out[:, 2] < 0.5, 0.0, 1.0)
+        return out
+
+
+def _ego_control(kind, state):
+    """A simple admissible controller: lane keeping at a target speed (highway), creeping to a stop (junction)."""
+    if kind == "highway":
+        lane = np.clip(np.round(state[1] / 4.0), 0, 2)
+        e, chi = state[1] - 4.0 * lane, state[3]
+        return np.array([np.clip(2.0 * (25.0 - state[2]), -6, 6), np.clip(-0.5 * chi - 0.05 * e, -1.0, 1.0)])
+    return np.array([np.clip(-1.0 * state[2], -6, 6), 0.0])
+
+
+def _episode(kind, seed, dt, length, rules=None, extreme=True):
+    """Run an episode; return the world, (true states, the ego's route lane) per sub-step, observations, lane changes."""
+    base = HighwayScenario() if kind == "highway" else TJunctionScenario()
+    scenario = dataclasses.replace(base, dt=dt, rules=rules or base.rules)
+    world = make_road_world(kind, seed, scenario=scenario)
+    if extreme:
+        world._dynamics_rng = ExtremeDisturbances(world._dynamics_rng.bit_generator)
+    states, observations, ego_lanes = [], [], []
+    for _ in range(length):
+        observations.append(world.measure())
+        states.append(world.traffic.states.copy())
+        ego_lanes.append(int(world.traffic.lane[0]))
+        if world.done:
+            break
+        world.apply(_ego_control(kind, world.traffic.states[0]))
+    changes = sum(int(r.lane_change.sum()) for r in world.records)
+    # the ego's true route lane at each sub-step (the planner knows its own route position)
+    return world, (states, ego_lanes), observations, changes
+
+
+def _check(world, run, observations, t0, steps, intentions=None):
+    """Forecast at t0 with prior beliefs (or the true intention lanes at t0) and the exact ego.
+
+    Returns (misses, checked vehicle-steps, forecast).
+    """
+    states, ego_lanes = run
+    obs = observations[t0]
+    ego = [states[t0 + n][0] for n in range(steps + 1)]
+    reach = np.array([footprint_box(s[:2], s[:2], s[3], s[3], VEHICLE) for s in ego])
+    speed = np.array([[s[2], s[2]] for s in ego])
+    heading = np.array([[s[3], s[3]] for s in ego])
+    beliefs = {int(i): prior_belief(int(i), obs.vehicles[k], world.road, world.scenario) for k, i in enumerate(obs.ids)}
+    if intentions is not None:  # what elimination may leave: the intention in force now (switches still possible)
+        beliefs = {i: dataclasses.replace(b, lanes=(int(intentions[i]),)) for i, b in beliefs.items()}
+    route = np.zeros((steps + 1, len(world.road)), dtype=bool)
+    last = len(ego_lanes) - 1
+    route[np.arange(steps + 1), [ego_lanes[min(t0 + n, last)] for n in range(steps + 1)]] = True
+    forecast = forecast_traffic(
+        obs, world.road, world.scenario, beliefs, steps=steps, ego_reach=reach, ego_speed=speed, ego_heading=heading,
+        ego_route=route,
+    )
+    misses = checked = 0
+    for n in range(steps + 1):
+        true = states[t0 + n][obs.ids]
+        inside = np.all((true >= forecast.state_lower[n] - TOL) & (true <= forecast.state_upper[n] + TOL), axis=1)
+        corners = vehicle_corners(true, VEHICLE)
+        box = forecast.boxes[n]
+        covered = np.all(
+            (corners >= box[:, None, :2] - TOL) & (corners <= box[:, None, 2:] + TOL), axis=(1, 2)
+        )
+        misses += int(np.sum(~(inside & covered)))
+        checked += len(obs.ids)
+    return misses, checked, forecast
+
+
+# ------------------------------------------------------------------ containment
+@settings(max_examples=25)
+@given(
+    kind=st.sampled_from(["highway", "tjunction"]),
+    seed=st.integers(0, 10_000),
+    dt=st.sampled_from([0.05, 0.1, 0.2]),
+    when=st.floats(0.0, 1.0),
+)
+def test_forecast_contains_every_vehicle(kind, seed, dt, when):
+    steps = 30
+    start = int(round(when * 30))
+    world, run, observations, _ = _episode(kind, seed, dt, start + steps + 1)
+    states = run[0]
+    t0 = min(start, len(states) - 1 - steps)
+    if t0 < 0:  # the episode ended early (the ego reached the goal): forecast from its start
+        t0, steps = 0, len(states) - 1
+    misses, checked, forecast = _check(world, run, observations, t0, steps)
+    assert checked > 0
+    assert misses == 0
+    assert forecast.boxes.shape == (steps + 1, len(observations[t0].ids), 4)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_forecast_contains_lane_changes(seed):
+    """Highway episodes with frequent lane changes (every vehicle tries when its 2-3 s timer fires)."""
+    rules = TrafficRules(lane_change_interval=(2.0, 3.0), lane_change_probability=1.0)
+    world, run, observations, changes = _episode("highway", seed, 0.1, 96, rules=rules)
+    assert changes >= 3, f"only {changes} lane changes in the episode"
+    total_misses = total = 0
+    lanes = world.intentions()
+    for t0 in (0, 20, 40):
+        if t0 + 50 >= len(run[0]):
+            continue
+        for intentions in (None, lanes[t0]):
+            misses, checked, _ = _check(world, run, observations, t0, 50, intentions)
+            total_misses += misses
+            total += checked
+    assert total > 0 and total_misses == 0
+
+
+def test_forecast_contains_turning_vehicles():
+    """T-junction episodes: vehicles on and approaching the arcs (the coarse bound), yields at the stop lines."""
+    total_misses = total = 0
+    turned = False
+    for seed in (0, 3):
+        world, run, observations, _ = _episode("tjunction", seed, 0.1, 120)
+        road = world.road
+        arcs = [i for i in range(len(road)) if road.kinds[i] == 1]
+        turned |= bool(np.isin(world.intentions(), arcs).any())
+        for t0 in (0, 40, 70):
+            if t0 + 50 < len(run[0]):
+                misses, checked, forecast = _check(world, run, observations, t0, 50)
+                total_misses += misses
+                total += checked
+    assert turned, "no vehicle drove on an arc"
+    assert total > 0 and total_misses == 0
+
+
+# --------------------------------------------------------------- exact features
+@given(
+    v=st.tuples(st.floats(0, 30), st.floats(0, 5)),
+    target=st.tuples(st.floats(0, 30), st.floats(0, 5)),
+    front=st.tuples(st.floats(-5, 30), st.floats(0, 5)),
+    gap=st.tuples(st.floats(-5, 80), st.floats(0, 20)),
+)
+def test_feature_bounds_are_exact(v, target, front, gap):
+    boxes = [(a, a + w) for a, w in (v, target, front, gap)]
+    lower, upper = acceleration_feature_bounds(*[(np.array(lo), np.array(hi)) for lo, hi in boxes])
+    grid = np.array(np.meshgrid(*[np.linspace(lo, hi, 5) for lo, hi in boxes])).reshape(4, -1)
+    feats = acceleration_features(grid[0], grid[1], grid[2], grid[3], BEHAVIOUR)
+    assert np.all(feats >= lower - 1e-12) and np.all(feats <= upper + 1e-12)
+    # exact: the bounds are attained (at the box's corners)
+    np.testing.assert_allclose(feats.min(axis=0), lower, atol=1e-9)
+    np.testing.assert_allclose(feats.max(axis=0), upper, atol=1e-9)
+
+
+@given(
+    v=st.tuples(st.floats(0, 30), st.floats(0, 3)),
+    gap=st.tuples(st.floats(-5, 60), st.floats(0, 10)),
+    dt=st.sampled_from([0.05, 0.1, 0.2, 0.4]),
+    seed=st.integers(0, 2**31),
+)
+def test_longitudinal_bounds_contain_the_law(v, gap, dt, seed):
+    rng = np.random.default_rng(seed)
+    v_box = (np.array(v[0]), np.array(v[0] + v[1]))
+    t_box = (np.array(20.0), np.array(25.0))
+    f_box = (np.array(15.0), np.array(24.0))
+    g_box = (np.array(gap[0]), np.array(gap[0] + gap[1]))
+    lo_a, hi_a = BEHAVIOUR.theta_a_prior
+    lo, hi = longitudinal_bounds(v_box, t_box, f_box, g_box, (lo_a, hi_a), dt, BEHAVIOUR, VEHICLE.max_speed)
+    k = 400
+    vs = rng.uniform(v_box[0], v_box[1], k)
+    ts = rng.uniform(20, 25, k)
+    fs = rng.uniform(15, 24, k)
+    gs = rng.uniform(g_box[0], g_box[1], k)
+    theta = rng.uniform(lo_a, hi_a, (k, 3))
+    theta[: k // 2] = np.where(rng.uniform(size=(k // 2, 3)) < 0.5, lo_a, hi_a)  # parameter corners
+    w = np.where(rng.uniform(size=k) < 0.5, -BEHAVIOUR.disturbance_bound, BEHAVIOUR.disturbance_bound)
+    a = linear_acceleration(theta, acceleration_features(vs, ts, fs, gs, BEHAVIOUR), BEHAVIOUR, w)
+    nxt = np.clip(vs + a * dt, 0.0, VEHICLE.max_speed)
+    assert np.all(nxt >= lo) and np.all(nxt <= hi)
+
+
+# ------------------------------------------------------------ lateral remainders
+@given(
+    e=st.tuples(st.floats(-4.5, 4.5), st.floats(0, 1.0)),
+    chi=st.tuples(st.floats(-0.8, 0.8), st.floats(0, 0.2)),
+    v=st.tuples(st.floats(1.0, 30.0), st.floats(0, 3.0)),
+    dt=st.sampled_from([0.05, 0.1, 0.2]),
+    seed=st.integers(0, 2**31),
+)
+def test_lateral_remainder_bounds_the_bicycle(e, chi, v, dt, seed):
+    """True bicycle step on a straight lane minus the linear model's step lies in the remainder box."""
+    rng = np.random.default_rng(seed)
+    lo_b, hi_b = BEHAVIOUR.theta_b_prior
+    e_box = (np.array(e[0]), np.array(e[0] + e[1]))
+    c_box = (np.array(chi[0]), np.array(chi[0] + chi[1]))
+    v_box = (np.array(v[0]), np.array(v[0] + v[1]))
+    q_box = (np.array(lo_b[1] / v_box[1]), np.array(hi_b[1] / v_box[0]))
+    r_e, r_c, _, _ = lateral_remainder(e_box, c_box, v_box, (np.array(lo_b[0]), np.array(hi_b[0])), q_box, dt)
+    k = 300
+    es, cs, vs = (rng.uniform(b[0], b[1], k) for b in (e_box, c_box, v_box))
+    b1, b2 = rng.uniform(lo_b[0], hi_b[0], k), rng.uniform(lo_b[1], hi_b[1], k)
+    length = VEHICLE.length
+    delta = np.clip(-(length / vs) * (b1 * cs + b2 * es / vs), -VEHICLE.max_steering, VEHICLE.max_steering)
+    states = np.stack([np.zeros(k), es, vs, cs], axis=1)  # a lane along +x at y = 0: e = y, chi = psi
+    true = bicycle_step(states, np.zeros(k), delta, dt, VEHICLE)
+    system = lateral_system(dt, Box(lo_b, hi_b), (float(v_box[0]), float(v_box[1])), VEHICLE)
+    for i in range(k):
+        theta = np.array([vs[i], b1[i], b2[i] / vs[i]])
+        lin = system.A(theta) @ np.array([es[i], cs[i]])
+        de, dc = true[i, 1] - lin[0], true[i, 3] - lin[1]
+        assert r_e[0] - 1e-12 <= de <= r_e[1] + 1e-12
+        assert r_c[0] - 1e-12 <= dc <= r_c[1] + 1e-12
+
+
+# ------------------------------------------------------------------- footprints
+@given(
+    x=st.floats(-50, 50),
+    y=st.floats(-50, 50),
+    wx=st.floats(0, 3),
+    wy=st.floats(0, 3),
+    psi=st.floats(-7, 7),
+    wpsi=st.floats(0, 4),
+    seed=st.integers(0, 2**31),
+)
+def test_footprint_box_contains_sampled_rectangles(x, y, wx, wy, psi, wpsi, seed):
+    rng = np.random.default_rng(seed)
+    box = footprint_box(np.array([x, y]), np.array([x + wx, y + wy]), np.array(psi), np.array(psi + wpsi), VEHICLE)
+    k = 500
+    states = np.stack(
+        [rng.uniform(x, x + wx, k), rng.uniform(y, y + wy, k), np.zeros(k), rng.uniform(psi, psi + wpsi, k)], axis=1
+    )
+    states[:4, 0], states[:4, 1] = [x, x + wx, x, x + wx], [y, y, y + wy, y + wy]
+    corners = vehicle_corners(states, VEHICLE).reshape(-1, 2)
+    assert np.all(corners >= box[:2]) and np.all(corners <= box[2:])
+    # tight: the box's sides are reached up to the angular sampling of the heading interval
+    dense = np.stack([np.full(2001, x), np.full(2001, y), np.zeros(2001), np.linspace(psi, psi + wpsi, 2001)], 1)
+    c = vehicle_corners(dense, VEHICLE).reshape(-1, 2)
+    assert box[0] >= c[:, 0].min() - 1e-2 and box[1] >= c[:, 1].min() - 1e-2
+    assert box[2] <= c[:, 0].max() + wx + 1e-2 and box[3] <= c[:, 1].max() + wy + 1e-2
+
+
+@given(lo=st.floats(-20, 20), width=st.floats(0, 8))
+def test_cos_and_sin_intervals_are_exact(lo, width):
+    grid = np.linspace(lo, lo + width, 4001)
+    for fn, ref in ((cos_interval, np.cos), (sin_interval, np.sin)):
+        a, b = fn(np.array(lo), np.array(lo + width))
+        values = ref(grid)
+        assert a <= values.min() + 1e-12 and b >= values.max() - 1e-12
+        assert a >= values.min() - 1e-5 and b <= values.max() + 1e-5
+
+
+# ----------------------------------------------------------------- the API
+def test_prior_belief_and_forecast_shapes():
+    world = make_road_world("highway", 0)
+    obs = world.measure()
+    belief = prior_belief(int(obs.ids[0]), obs.vehicles[0], world.road, world.scenario)
+    assert set(belief.lanes) <= {0, 1, 2} and len(belief.lanes) >= 2
+    np.testing.assert_allclose(belief.theta_a.low, BEHAVIOUR.theta_a_prior[0])
+    empty = np.tile([np.inf, np.inf, -np.inf, -np.inf], (6, 1))
+    forecast = forecast_traffic(obs, world.road, world.scenario, {}, steps=5, ego_reach=empty)
+    assert isinstance(forecast, TrafficForecast)
+    m = len(obs.ids)
+    assert forecast.boxes.shape == (6, m, 4) and forecast.guaranteed.shape == (6, m)
+    assert not forecast.boxes.flags.writeable
+    np.testing.assert_array_equal(forecast.ids, obs.ids)
+    data = forecast.to_dict()
+    assert set(data) == {"boxes", "state_lower", "state_upper", "guaranteed", "ids", "dt"}
+    with pytest.raises(DimensionError):
+        forecast_traffic(obs, world.road, world.scenario, {}, steps=5, ego_reach=empty[:3])
+    with pytest.raises(DimensionError):
+        VehicleBelief(1, Box(np.zeros(2), np.ones(2)), belief.theta_b, (0,), ((0,),))
+    with pytest.raises(InputError):
+        VehicleBelief(1, belief.theta_a, belief.theta_b, (), ((0,),))
+
+
+def test_tjunction_prior_routes():
+    world = make_road_world("tjunction", 0)
+    road = world.road
+    x, y = road.position_at(road.index("west_in"), 20.0)
+    belief = prior_belief(5, np.array([x, y, 8.0, 0.0]), road, world.scenario)
+    assert road.route("west_in", "west_east", "east_out") in belief.routes
+    assert road.route("west_in", "west_south", "south_out") in belief.routes
+
+
+@given(
+    v=st.tuples(st.floats(2.0, 30.0), st.floats(0, 5.0)),
+    e=st.tuples(st.floats(-4.0, 4.0), st.floats(0, 1.0)),
+    chi=st.tuples(st.floats(-0.5, 0.5), st.floats(0, 0.2)),
+    dt=st.sampled_from([0.05, 0.1, 0.2]),
+)
+def test_batched_vertex_bound_is_the_interval_predictors(v, e, chi, dt):
+    """The forecast's batched lateral step is `IntervalPredictor.step` on `lateral_system` (identity basis)."""
+    from minimaxplan.models.prediction import IntervalPredictor
+    from minimaxplan.scenarios.traffic_models import _structure, _vertex_step
+
+    lo_b, hi_b = BEHAVIOUR.theta_b_prior
+    system = lateral_system(dt, Box(lo_b, hi_b), (v[0], v[0] + v[1]), VEHICLE)
+    predictor = IntervalPredictor(system)
+    lo, hi = np.array([e[0], chi[0]]), np.array([e[0] + e[1], chi[0] + chi[1]])
+    ref_lo, ref_hi = predictor.step(lo, hi, np.zeros(1))
+    base = np.broadcast_to(_structure(dt, VEHICLE.length), (1, 3, 2, 2))
+    got_lo, got_hi = _vertex_step(base, lo[None], hi[None], system.theta.low[None], system.theta.high[None])
+    # the predictor adds the disturbance box [-1, 1] of lateral_system and rigorous rounding margins
+    np.testing.assert_allclose(got_lo[0] - 1.0, ref_lo, atol=1e-9)
+    np.testing.assert_allclose(got_hi[0] + 1.0, ref_hi, atol=1e-9)
