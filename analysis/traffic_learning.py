@@ -87,10 +87,10 @@ from minimaxplan.models import Box
 from minimaxplan.scenarios.road import ARC, Road
 from minimaxplan.scenarios.road_world import HighwayScenario, Observation, TJunctionScenario
 from minimaxplan.verify.interval_regression import (
+    INTERVAL_ROUNDING_ALLOWANCE,
     IntervalRows,
     interval_consistency,
     interval_parameter_box,
-    witness_margin,
 )
 
 __all__ = [
@@ -210,30 +210,79 @@ def _cos_interval(lo, hi):
     return np.where(has_pi, -1.0, low), np.where(has_zero, 1.0, high)
 
 
+class _RowStore:
+    """Interval rows in arrays grown by doubling; ``ok`` marks the rows the current witness explains."""
+
+    def __init__(self, d: int) -> None:
+        self.d, self.n = d, 0
+        self.start = np.zeros(16, dtype=int)
+        self.glo, self.ghi = np.zeros((16, d)), np.zeros((16, d))
+        self.ylo, self.yhi = np.zeros(16), np.zeros(16)
+        self.ok = np.zeros(16, dtype=bool)
+
+    def append(self, start: int, glo, ghi, ylo: float, yhi: float) -> None:
+        if self.n == self.start.size:
+            for name in ("start", "glo", "ghi", "ylo", "yhi", "ok"):
+                a = getattr(self, name)
+                setattr(self, name, np.concatenate([a, np.zeros_like(a)]))
+        i = self.n
+        self.start[i], self.glo[i], self.ghi[i], self.ylo[i], self.yhi[i], self.ok[i] = start, glo, ghi, ylo, yhi, False
+        self.n += 1
+
+    def drop_before(self, first: int) -> None:
+        keep = np.flatnonzero(self.start[: self.n] >= first)
+        if keep.size == self.n:
+            return
+        for name in ("start", "glo", "ghi", "ylo", "yhi", "ok"):
+            a = getattr(self, name)
+            a[: keep.size] = a[keep]
+        self.n = keep.size
+
+    def rows(self, extra: IntervalRows | None = None) -> IntervalRows:
+        n = self.n
+        own = IntervalRows(self.glo[:n], self.ghi[:n], self.ylo[:n], self.yhi[:n])
+        return own if extra is None else IntervalRows.stack([extra, own], self.d)
+
+    def explained(self, theta: np.ndarray, scale: np.ndarray) -> bool:
+        """Whether ``theta`` explains the rows not yet marked (marks them if so), as `witness_margin`."""
+        idx = np.flatnonzero(~self.ok[: self.n])
+        if idx.size == 0:
+            return True
+        glo, ghi, ylo, yhi = self.glo[idx], self.ghi[idx], self.ylo[idx], self.yhi[idx]
+        y_abs = np.maximum(np.where(np.isfinite(ylo), np.abs(ylo), 0.0), np.where(np.isfinite(yhi), np.abs(yhi), 0.0))
+        beta = np.maximum(np.abs(glo), np.abs(ghi)) @ scale + y_abs
+        beta = np.where(beta > 0, beta, 1.0)
+        allowance = INTERVAL_ROUNDING_ALLOWANCE * beta
+        with np.errstate(invalid="ignore"):
+            fine = (glo @ theta - yhi <= allowance) & (ylo - ghi @ theta <= allowance)
+        if np.all(fine):
+            self.ok[idx] = True
+            return True
+        return False
+
+
 @dataclass
 class _Hypothesis:
     route: tuple[int, ...]
     tstar: int
     dead_at: int | None = None  # t* of the data that eliminated it
     lat_steps: dict = field(default_factory=dict)  # step -> (glo(2), ghi(2), vR, psi) or None
-    lat_rows: list = field(default_factory=list)  # (start, glo, ghi, ylo, yhi)
+    lat_rows: _RowStore = field(default_factory=lambda: _RowStore(2))
     lat_witness: np.ndarray | None = None
     lat_box: Box | None = None
     lat_fit_rows: int = 0
     lat_fit_start: int = -1
-    lat_new: int = 0  # rows appended since the last verdict (the witness explains the others)
     lon: _Longitudinal | None = None
 
 
 @dataclass
 class _Longitudinal:
     steps: dict = field(default_factory=dict)  # step -> (glo(4), ghi(4)) or None (unusable)
-    rows: list = field(default_factory=list)  # (glo(4), ghi(4), ylo, yhi)
+    rows: _RowStore = field(default_factory=lambda: _RowStore(4))
     witness: np.ndarray | None = None
     box: Box | None = None
     fit_rows: int = 0
     dead: bool = False
-    checked: int = 0
 
 
 @dataclass
@@ -295,6 +344,7 @@ class TrafficLearner:
         self.step = -1
         self.eliminations: list[tuple[int, int, tuple[int, ...]]] = []  # (step, agent, route)
         self.lp_solves = 0
+        self._box_cache: dict = {}
         self._junction = np.asarray(road.conflicts.any(axis=1)) if len(road) else np.zeros(0, bool)
         lanes = np.arange(len(road))
         self._straight = road.kinds[lanes] != ARC
@@ -369,10 +419,21 @@ class TrafficLearner:
         track.theta_a, track.theta_b = self.prior_a, self.prior_b
         return track
 
+    def _all_lanes_box(self, x, y):
+        """`_frenet_box` of one measured point on every lane (cached for the current sub-step)."""
+        key = (float(x), float(y))
+        box = self._box_cache.get(key)
+        if box is None:
+            lanes = np.arange(len(self.road))
+            n = self.noise
+            box = self._frenet_box(lanes, np.full(len(lanes), x), np.full(len(lanes), y), n[0], n[1])
+            self._box_cache[key] = box
+        return box
+
     def _route_positions(self, route, x, y, n):
         """Candidate route indices (the lane the vehicle is on) and the Frenet boxes on each route lane."""
         lanes = np.array(route)
-        s, off, se, oe = self._frenet_box(lanes, np.full(len(lanes), x), np.full(len(lanes), y), n[0], n[1])
+        s, off, se, oe = (a[lanes] for a in self._all_lanes_box(x, y))
         L = self.road.lengths[lanes]
         cands = []
         for k in range(len(route)):
@@ -444,8 +505,7 @@ class TrafficLearner:
         if self.kind == "highway":
             cands = [0]
             group = np.array(road.side_lanes(route[0]) or route)
-            s_i, _, se_i, _ = self._frenet_box(group[:1], x, y, n[0], n[1])
-            s_i, se_i = float(s_i[0]), float(se_i[0])
+            s_i, _, se_i, _ = (float(a[group[0]]) for a in self._all_lanes_box(x, y))
             # every agent ahead in any lane of the group may be the leader (side lanes have aligned s)
             s_o, off_o, se_o, oe_o = self._frenet_box(
                 np.full(len(obs_states), group[0]), obs_states[:, 0], obs_states[:, 1], obs_noise[:, 0], obs_noise[:, 1]
@@ -500,8 +560,8 @@ class TrafficLearner:
             centre_in = (S + SE >= -reach) & (S - SE <= lengths + reach) & (np.abs(OF) - OE <= widths / 2 + reach)
             possible_occ = corner_in | centre_in
             sure_occ = (S - SE >= 0) & (S + SE <= lengths) & (np.abs(OF) + OE <= widths / 2)
-            d_lo = cum[k:][None, :] + S - SE - path_hi
-            d_hi = cum[k:][None, :] + S + SE - path_lo
+            d_lo = cum[k:-1][None, :] + S - SE - path_hi
+            d_hi = cum[k:-1][None, :] + S + SE - path_lo
             dl = np.where(possible_occ & (d_hi > 0), d_lo, np.inf)
             dist_lo = dl.min(axis=1)
             sure_d = np.where(sure_occ & (d_lo > 0), d_hi, np.inf)
@@ -571,6 +631,7 @@ class TrafficLearner:
         """
         step = int(round(observation.time / self.dt))
         self.step = step
+        self._box_cache = {}
         ids = np.asarray(observation.ids, dtype=int)
         vehicles = np.asarray(observation.vehicles, dtype=float).reshape(-1, 4)
         ego = np.asarray(observation.ego, dtype=float)
@@ -599,11 +660,10 @@ class TrafficLearner:
     def _update(self, track: _Track, step: int, state, others, others_noise) -> None:
         prev = track.states.get(step - 1)
         track.states[step] = state.copy()
-        n = self.noise
         # last possible switch (highway): measured settled in a neighbour of the hypothesis' lane
         if self.kind == "highway":
             lanes = np.array([h.route[0] for h in track.hyps])
-            _, off, _, oe = self._frenet_box(lanes, np.full(len(lanes), state[0]), np.full(len(lanes), state[1]), n[0], n[1])
+            _, off, _, oe = (a[lanes] for a in self._all_lanes_box(state[0], state[1]))
             settled = np.abs(off) - oe < self.rules.lane_change_settled
             for h in track.hyps:
                 nb = [j for j, g in enumerate(lanes) if self._adjacent(g, h.route[0])]
@@ -674,8 +734,7 @@ class TrafficLearner:
             y_hi = (L / dt) * (dpsi + 2 * n[3]) + rem
             pad = ROW_ROUNDING * k * (1 + np.abs(glo) + np.abs(ghi))
             ypad = ROW_ROUNDING * k * (1 + abs(y_lo) + abs(y_hi))
-            h.lat_rows.append((start, glo - pad, ghi + pad, y_lo - ypad, y_hi + ypad))
-            h.lat_new += 1
+            h.lat_rows.append(start, glo - pad, ghi + pad, y_lo - ypad, y_hi + ypad)
 
     def _lon_rows(self, lon: _Longitudinal, track: _Track, step: int, linear: bool, single) -> None:
         j = step - 1
@@ -686,7 +745,7 @@ class TrafficLearner:
         lon.steps[j] = (data[0], data[1], linear)
         n, dt, wbar = self.noise, self.dt, self.behaviour.disturbance_bound
         if not linear:
-            lon.rows.append((data[0], data[1], single[0], single[1]))
+            lon.rows.append(j, data[0], data[1], single[0], single[1])
             return
         for k in WINDOWS:
             if step % max(1, k // 4):
@@ -703,29 +762,15 @@ class TrafficLearner:
             pad = ROW_ROUNDING * k * (1 + np.abs(glo) + np.abs(ghi))
             pad[3] = 0.0
             ypad = ROW_ROUNDING * k * (1 + abs(y_lo) + abs(y_hi))
-            lon.rows.append((glo - pad, ghi + pad, y_lo - ypad, y_hi + ypad))
+            lon.rows.append(start, glo - pad, ghi + pad, y_lo - ypad, y_hi + ypad)
 
     # ------------------------------------------------------------------ verdicts
     def _lat_rows_of(self, h: _Hypothesis) -> IntervalRows:
-        rows = [r for r in h.lat_rows if r[0] >= h.tstar]
-        if len(rows) < len(h.lat_rows):
-            h.lat_rows = rows
-        if not rows:
-            return IntervalRows.stack([], 2)
-        return IntervalRows(
-            np.array([r[1] for r in rows]), np.array([r[2] for r in rows]), np.array([r[3] for r in rows]), np.array([r[4] for r in rows])
-        )
+        h.lat_rows.drop_before(h.tstar)
+        return h.lat_rows.rows()
 
     def _lon_rows_of(self, lon: _Longitudinal) -> IntervalRows:
-        parts = [self._vt_rows]
-        if lon.rows:
-            parts.append(
-                IntervalRows(
-                    np.array([r[0] for r in lon.rows]), np.array([r[1] for r in lon.rows]),
-                    np.array([r[2] for r in lon.rows]), np.array([r[3] for r in lon.rows]),
-                )
-            )
-        return IntervalRows.stack(parts, 4)
+        return lon.rows.rows(self._vt_rows)
 
     def _alive(self, h: _Hypothesis) -> bool:
         if h.dead_at is not None and h.tstar > h.dead_at:
@@ -733,63 +778,53 @@ class TrafficLearner:
             h.lat_witness, h.lat_box, h.lat_fit_rows = None, None, 0
         return h.dead_at is None and not h.lon.dead
 
-    def _check(self, rows: IntervalRows, prior: Box, witness, checked: int):
-        """(eliminated?, witness) after a cheap check of the witness on the rows from ``checked`` on,
-        re-solving the LP on every row only if it fails (the rows before ``checked`` are known
-        to be explained by it)."""
-        if rows.nrows == 0:
+    def _check(self, store: _RowStore, prior: Box, witness, extra: IntervalRows | None = None):
+        """(eliminated?, witness): the witness is checked on the rows it has not explained yet (a
+        subset of explained rows stays explained); the LP is re-solved on every row only if it fails."""
+        if store.n == 0:
             return False, witness
-        if witness is not None and 0 <= checked <= rows.nrows:
-            new = IntervalRows(
-                rows.regressor_low[checked:], rows.regressor_high[checked:], rows.target_low[checked:], rows.target_high[checked:]
-            )
-            if new.nrows == 0 or witness_margin(new, prior, witness) <= 0.0:
-                return False, witness
+        if witness is not None and store.explained(witness, np.maximum(np.abs(prior.low), np.abs(prior.high))):
+            return False, witness
         self.lp_solves += 1
-        verdict = interval_consistency(rows, prior)
-        return verdict.eliminated, (verdict.witness if verdict.upper <= 0.0 else None)
+        verdict = interval_consistency(store.rows(extra), prior)
+        good = verdict.upper <= 0.0
+        store.ok[: store.n] = good
+        return verdict.eliminated, (verdict.witness if good else None)
 
     def _verdicts(self, track: _Track, step: int) -> None:
         alive_before = [h for h in track.hyps if self._alive(h)]
-        lat_rows = {}
         for h in alive_before:
-            rows = self._lat_rows_of(h)
-            # a subset of rows explained by the witness stays explained: only the new ones are checked
-            dead, h.lat_witness = self._check(rows, self.prior_b, h.lat_witness, rows.nrows - h.lat_new)
-            h.lat_new = 0
+            h.lat_rows.drop_before(h.tstar)
+            dead, h.lat_witness = self._check(h.lat_rows, self.prior_b, h.lat_witness)
             if dead:
                 h.dead_at = h.tstar
                 self.eliminations.append((step, track.agent, h.route))
                 continue
             if h.lat_fit_start != h.tstar:
                 h.lat_box, h.lat_fit_rows, h.lat_fit_start = None, 0, h.tstar
-            lat_rows[id(h)] = rows
         # the hull over the survivors is informative only if every survivor has rows enough
         alive = [h for h in alive_before if h.dead_at is None]
-        if alive and all(lat_rows[id(h)].nrows >= self.min_rows for h in alive):
+        if alive and all(h.lat_rows.n >= self.min_rows for h in alive):
             for h in alive:
-                rows = lat_rows[id(h)]
-                if rows.nrows >= self.refit_growth * h.lat_fit_rows:
+                if h.lat_rows.n >= self.refit_growth * h.lat_fit_rows:
                     self.lp_solves += 5
-                    h.lat_box = interval_parameter_box(rows, self.prior_b)
-                    h.lat_fit_rows = rows.nrows
+                    h.lat_box = interval_parameter_box(h.lat_rows.rows(), self.prior_b)
+                    h.lat_fit_rows = h.lat_rows.n
         for lon in {id(h.lon): h.lon for h in alive_before}.values():
             if lon.dead:
                 continue
-            rows = self._lon_rows_of(lon)
-            dead, lon.witness = self._check(rows, self.prior_lon, lon.witness, lon.checked)
-            lon.checked = rows.nrows
+            dead, lon.witness = self._check(lon.rows, self.prior_lon, lon.witness, self._vt_rows)
             if dead:
                 lon.dead = True
                 for h in track.hyps:
                     if h.lon is lon:
                         self.eliminations.append((step, track.agent, h.route))
                 continue
-            if rows.nrows - 2 >= max(self.min_rows, self.refit_growth * lon.fit_rows):
+            if lon.rows.n >= max(self.min_rows, self.refit_growth * lon.fit_rows):
                 self.lp_solves += 7
-                box = interval_parameter_box(rows, self.prior_lon, coordinates=(0, 1, 2))
+                box = interval_parameter_box(self._lon_rows_of(lon), self.prior_lon, coordinates=(0, 1, 2))
                 lon.box = Box(box.low[:3], box.high[:3])
-                lon.fit_rows = rows.nrows - 2
+                lon.fit_rows = lon.rows.n
         alive = [h for h in track.hyps if self._alive(h)]
         if not alive:
             return  # only if the world broke a stated assumption: the last beliefs are kept
