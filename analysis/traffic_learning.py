@@ -102,6 +102,9 @@ __all__ = [
     "WINDOWS",
     "remainder_bound",
     "elimination_statistics",
+    "elimination_events",
+    "hold_lane_control",
+    "elimination_study",
 ]
 
 #: Transitions whose speed may be below this (m/s) give no lateral row (1 / v unbounded).
@@ -342,7 +345,8 @@ class TrafficLearner:
         self.min_rows = int(min_rows)
         self.tracks: dict[int, _Track] = {}
         self.step = -1
-        self.eliminations: list[tuple[int, int, tuple[int, ...]]] = []  # (step, agent, route)
+        #: (step, agent, route, first sub-step of the data that eliminated it), in order
+        self.eliminations: list[tuple[int, int, tuple[int, ...], int]] = []
         self.lp_solves = 0
         self._box_cache: dict = {}
         self._junction = np.asarray(road.conflicts.any(axis=1)) if len(road) else np.zeros(0, bool)
@@ -798,7 +802,7 @@ class TrafficLearner:
             dead, h.lat_witness = self._check(h.lat_rows, self.prior_b, h.lat_witness)
             if dead:
                 h.dead_at = h.tstar
-                self.eliminations.append((step, track.agent, h.route))
+                self.eliminations.append((step, track.agent, h.route, h.tstar))
                 continue
             if h.lat_fit_start != h.tstar:
                 h.lat_box, h.lat_fit_rows, h.lat_fit_start = None, 0, h.tstar
@@ -818,7 +822,7 @@ class TrafficLearner:
                 lon.dead = True
                 for h in track.hyps:
                     if h.lon is lon:
-                        self.eliminations.append((step, track.agent, h.route))
+                        self.eliminations.append((step, track.agent, h.route, track.first))
                 continue
             if lon.rows.n >= max(self.min_rows, self.refit_growth * lon.fit_rows):
                 self.lp_solves += 7
@@ -972,3 +976,120 @@ def elimination_statistics(events) -> dict[str, dict]:
             "max": int(max(done)) if done else None,
         }
     return result
+
+
+def hold_lane_control(world) -> np.ndarray:
+    """A simple admissible ego control: highway, keep the lane at 25 m/s; T-junction, stop and wait on the stem.
+
+    Parameters
+    ----------
+    world : RoadWorld
+        The episode (its true ego state is read: the ego knows its own state).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(acceleration, steering)`` inside the world's control bounds.
+    """
+    x, y, v, psi = world.ego_state
+    if world.kind == "highway":
+        width = world.scenario.geometry.lane_width
+        lane_y = round(y / width) * width
+        return np.array([np.clip(2.0 * (25.0 - v), -5.0, 5.0), np.clip(0.1 * (lane_y - y) - psi, -0.5, 0.5)])
+    return np.array([np.clip(-3.0 * v, -5.0, 5.0), 0.0])
+
+
+def _kind_of(world, route, agent: int, step: int) -> str:
+    road = world.road
+    if world.kind == "tjunction":
+        true_route = [int(r) for r in world.traffic.routes[agent] if r >= 0]
+        if any(road.kinds[lane] == ARC for lane in true_route):
+            return "route: other turn (vehicle turns)" if any(road.kinds[lane] == ARC for lane in route) else "route: straight (vehicle turns)"
+        return "route: turn (vehicle goes straight)"
+    records = world.records
+    lane = route[0]
+    for back in range(min(len(records), 80)):
+        rec = records[len(records) - 1 - back]
+        if rec.lane_change[agent] and len(records) - 2 - back >= 0:
+            before = records[len(records) - 2 - back].intention[agent]
+            if before == lane:
+                return "lane being left (mid lane change)"
+            break
+    now = int(world.traffic.lane[agent])
+    group = road.side_lanes(now)
+    if abs(group.index(lane) - group.index(now)) >= 2:
+        return "lane two away"
+    return "neighbour lane (vehicle keeps its lane)"
+
+
+def elimination_events(world, learner: TrafficLearner, start: int = 0) -> list[tuple[str, int]]:
+    """The (kind, transitions until eliminated) of every elimination logged since index ``start``.
+
+    Parameters
+    ----------
+    world : RoadWorld
+        The episode, at the sub-step of the last `TrafficLearner.observe` (ground truth).
+    learner : TrafficLearner
+        Its learner.
+    start : int
+        First index of ``learner.eliminations`` to read.
+
+    Returns
+    -------
+    list of (str, int)
+        Kind of the wrong intention and the transitions from the first sub-step of the
+        data that eliminated it to its elimination.
+    """
+    return [
+        (_kind_of(world, route, agent, step), step - first)
+        for step, agent, route, first in learner.eliminations[start:]
+    ]
+
+
+def elimination_study(kind: str, seeds, *, max_steps: int | None = None) -> dict:
+    """Run episodes with `hold_lane_control` and a `TrafficLearner`; check it against the truth.
+
+    Parameters
+    ----------
+    kind : str
+        "highway" or "tjunction".
+    seeds : iterable of int
+        Episode seeds.
+    max_steps : int, optional
+        Stop each episode after this many sub-steps.
+
+    Returns
+    -------
+    dict
+        ``statistics`` (`elimination_statistics` of every elimination), ``vehicle_steps``
+        checked, ``intention_misses`` (the true intention in force not among the
+        survivors), ``theta_a_misses`` and ``theta_b_misses`` (the true parameters
+        outside the belief's boxes), ``learn_seconds`` and ``substeps``; a miss would be
+        a bug.
+    """
+    import time
+
+    from minimaxplan.scenarios.road_world import make_road_world
+
+    events: list = []
+    out = {"vehicle_steps": 0, "intention_misses": 0, "theta_a_misses": 0, "theta_b_misses": 0, "learn_seconds": 0.0, "substeps": 0}
+    for seed in seeds:
+        world = make_road_world(kind, int(seed))
+        learner = TrafficLearner(world.road, world.scenario)
+        learner.observe(world.measure())
+        while not world.done and (max_steps is None or world.step_index < max_steps):
+            world.apply(hold_lane_control(world))
+            observation = world.measure()
+            start = len(learner.eliminations)
+            t0 = time.perf_counter()
+            learner.observe(observation)
+            out["learn_seconds"] += time.perf_counter() - t0
+            out["substeps"] += 1
+            events += elimination_events(world, learner, start)
+            for agent, belief in learner.beliefs().items():
+                out["vehicle_steps"] += 1
+                out["intention_misses"] += int(world.traffic.lane[agent]) not in belief.lanes
+                out["theta_a_misses"] += not belief.theta_a.contains(world.traffic.theta_a[agent])
+                out["theta_b_misses"] += not belief.theta_b.contains(world.traffic.theta_b[agent])
+    out["statistics"] = elimination_statistics(events)
+    return out
