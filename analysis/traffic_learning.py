@@ -297,6 +297,7 @@ class _Track:
     theta_a: Box | None = None
     theta_b: Box | None = None
     shared_lon: _Longitudinal | None = None
+    hull_key: tuple = ()
 
 
 class TrafficLearner:
@@ -310,8 +311,8 @@ class TrafficLearner:
         The constants (dt, noise, priors, rules, target-speed range).
     refit_growth : float
         LP boxes are refitted when a hypothesis' rows grew by this factor.
-    min_rows : int
-        No LP box is fitted on fewer rows (the prior is used).
+    min_rows : tuple of 2 int
+        No lateral / longitudinal LP box is fitted on fewer rows (the prior is used).
 
     Notes
     -----
@@ -326,7 +327,7 @@ class TrafficLearner:
         scenario: HighwayScenario | TJunctionScenario,
         *,
         refit_growth: float = 2.0,
-        min_rows: int = 12,
+        min_rows: tuple = (16, 40),
     ) -> None:
         self.road = road
         self.scenario = scenario
@@ -342,7 +343,7 @@ class TrafficLearner:
         self.prior_lon = Box(np.append(lo, lo[0] * self.speed_range[0]), np.append(hi, hi[0] * self.speed_range[1]))
         self.prior_b = Box(*b.theta_b_prior)
         self.refit_growth = float(refit_growth)
-        self.min_rows = int(min_rows)
+        self.min_rows_lateral, self.min_rows_longitudinal = (int(m) for m in min_rows)
         self.tracks: dict[int, _Track] = {}
         self.step = -1
         #: (step, agent, route, first sub-step of the data that eliminated it), in order
@@ -808,7 +809,7 @@ class TrafficLearner:
                 h.lat_box, h.lat_fit_rows, h.lat_fit_start = None, 0, h.tstar
         # the hull over the survivors is informative only if every survivor has rows enough
         alive = [h for h in alive_before if h.dead_at is None]
-        if alive and all(h.lat_rows.n >= self.min_rows for h in alive):
+        if alive and all(h.lat_rows.n >= self.min_rows_lateral for h in alive):
             for h in alive:
                 if h.lat_rows.n >= self.refit_growth * h.lat_fit_rows:
                     self.lp_solves += 5
@@ -824,7 +825,7 @@ class TrafficLearner:
                     if h.lon is lon:
                         self.eliminations.append((step, track.agent, h.route, track.first))
                 continue
-            if lon.rows.n >= max(self.min_rows, self.refit_growth * lon.fit_rows):
+            if lon.rows.n >= max(self.min_rows_longitudinal, self.refit_growth * lon.fit_rows):
                 self.lp_solves += 7
                 box = interval_parameter_box(self._lon_rows_of(lon), self.prior_lon, coordinates=(0, 1, 2))
                 lon.box = Box(box.low[:3], box.high[:3])
@@ -834,8 +835,11 @@ class TrafficLearner:
             return  # only if the world broke a stated assumption: the last beliefs are kept
         boxes_b = [h.lat_box or self.prior_b for h in alive]
         boxes_a = [h.lon.box or self.prior_a for h in alive]
-        track.theta_b = _intersect(track.theta_b, _hull(boxes_b))
-        track.theta_a = _intersect(track.theta_a, _hull(boxes_a))
+        key = tuple(id(b) for b in boxes_b + boxes_a)
+        if key != track.hull_key:  # the hulls change only when a box or the survivors do
+            track.hull_key = key
+            track.theta_b = _intersect(track.theta_b, _hull(boxes_b))
+            track.theta_a = _intersect(track.theta_a, _hull(boxes_a))
 
     # ------------------------------------------------------------------ outputs
     def survivors(self, agent: int) -> list[tuple[int, ...]]:
