@@ -84,6 +84,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from minimaxplan.models import Box
+from minimaxplan.models.errors import NoConsistentModel, SolverFailure
 from minimaxplan.scenarios.road import ARC, Road
 from minimaxplan.scenarios.road_world import HighwayScenario, Observation, TJunctionScenario
 from minimaxplan.verify.interval_regression import (
@@ -349,6 +350,8 @@ class TrafficLearner:
         #: (step, agent, route, first sub-step of the data that eliminated it), in order
         self.eliminations: list[tuple[int, int, tuple[int, ...], int]] = []
         self.lp_solves = 0
+        #: HiGHS failures (the hypothesis is kept, the last box stays): should stay 0
+        self.solver_failures = 0
         self._box_cache: dict = {}
         self._junction = np.asarray(road.conflicts.any(axis=1)) if len(road) else np.zeros(0, bool)
         lanes = np.arange(len(road))
@@ -791,10 +794,23 @@ class TrafficLearner:
         if witness is not None and store.explained(witness, np.maximum(np.abs(prior.low), np.abs(prior.high))):
             return False, witness
         self.lp_solves += 1
-        verdict = interval_consistency(store.rows(extra), prior)
+        try:
+            verdict = interval_consistency(store.rows(extra), prior)
+        except SolverFailure:
+            self.solver_failures += 1
+            return False, None  # undecided: kept (sound)
         good = verdict.upper <= 0.0
         store.ok[: store.n] = good
         return verdict.eliminated, (verdict.witness if good else None)
+
+    def _box(self, rows: IntervalRows, prior: Box, old: Box | None, coordinates=None) -> Box | None:
+        """The LP box, or ``old`` if HiGHS fails (a solver failure is counted, never hidden)."""
+        try:
+            return interval_parameter_box(rows, prior, coordinates=coordinates)
+        except (SolverFailure, NoConsistentModel):
+            # NoConsistentModel here would contradict the witness just checked: counted as a failure
+            self.solver_failures += 1
+            return old
 
     def _verdicts(self, track: _Track, step: int) -> None:
         alive_before = [h for h in track.hyps if self._alive(h)]
@@ -813,7 +829,7 @@ class TrafficLearner:
             for h in alive:
                 if h.lat_rows.n >= self.refit_growth * h.lat_fit_rows:
                     self.lp_solves += 5
-                    h.lat_box = interval_parameter_box(h.lat_rows.rows(), self.prior_b)
+                    h.lat_box = self._box(h.lat_rows.rows(), self.prior_b, h.lat_box)
                     h.lat_fit_rows = h.lat_rows.n
         for lon in {id(h.lon): h.lon for h in alive_before}.values():
             if lon.dead:
@@ -827,8 +843,9 @@ class TrafficLearner:
                 continue
             if lon.rows.n >= max(self.min_rows_longitudinal, self.refit_growth * lon.fit_rows):
                 self.lp_solves += 7
-                box = interval_parameter_box(self._lon_rows_of(lon), self.prior_lon, coordinates=(0, 1, 2))
-                lon.box = Box(box.low[:3], box.high[:3])
+                box = self._box(self._lon_rows_of(lon), self.prior_lon, None, coordinates=(0, 1, 2))
+                if box is not None:
+                    lon.box = Box(box.low[:3], box.high[:3])
                 lon.fit_rows = lon.rows.n
         alive = [h for h in track.hyps if self._alive(h)]
         if not alive:
@@ -1068,15 +1085,24 @@ def elimination_study(kind: str, seeds, *, max_steps: int | None = None) -> dict
         ``statistics`` (`elimination_statistics` of every elimination), ``vehicle_steps``
         checked, ``intention_misses`` (the true intention in force not among the
         survivors), ``theta_a_misses`` and ``theta_b_misses`` (the true parameters
-        outside the belief's boxes), ``learn_seconds`` and ``substeps``; a miss would be
-        a bug.
+        outside the belief's boxes), ``learn_seconds``, ``substeps``, ``lp_solves`` and
+        ``solver_failures``; a miss would be a bug.
     """
     import time
 
     from minimaxplan.scenarios.road_world import make_road_world
 
     events: list = []
-    out = {"vehicle_steps": 0, "intention_misses": 0, "theta_a_misses": 0, "theta_b_misses": 0, "learn_seconds": 0.0, "substeps": 0}
+    out = {
+        "vehicle_steps": 0,
+        "intention_misses": 0,
+        "theta_a_misses": 0,
+        "theta_b_misses": 0,
+        "learn_seconds": 0.0,
+        "substeps": 0,
+        "lp_solves": 0,
+        "solver_failures": 0,
+    }
     for seed in seeds:
         world = make_road_world(kind, int(seed))
         learner = TrafficLearner(world.road, world.scenario)
@@ -1095,5 +1121,7 @@ def elimination_study(kind: str, seeds, *, max_steps: int | None = None) -> dict
                 out["intention_misses"] += int(world.traffic.lane[agent]) not in belief.lanes
                 out["theta_a_misses"] += not belief.theta_a.contains(world.traffic.theta_a[agent])
                 out["theta_b_misses"] += not belief.theta_b.contains(world.traffic.theta_b[agent])
+        out["lp_solves"] += learner.lp_solves
+        out["solver_failures"] += learner.solver_failures
     out["statistics"] = elimination_statistics(events)
     return out

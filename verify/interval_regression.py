@@ -153,7 +153,20 @@ class IntervalRows:
 
     @staticmethod
     def stack(parts: list[IntervalRows], nparams: int) -> IntervalRows:
-        """The rows of several `IntervalRows` of ``nparams`` parameters, in order (an empty list gives no rows)."""
+        """The rows of several `IntervalRows`, in order.
+
+        Parameters
+        ----------
+        parts : list of IntervalRows
+            Rows with ``nparams`` parameters each.
+        nparams : int
+            The number of parameters (the size of an empty result).
+
+        Returns
+        -------
+        IntervalRows
+            Every row of ``parts`` (no rows for an empty list).
+        """
         if not parts:
             return IntervalRows(np.zeros((0, nparams)), np.zeros((0, nparams)), np.zeros(0), np.zeros(0))
         return IntervalRows(
