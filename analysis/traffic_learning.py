@@ -1020,27 +1020,27 @@ def hold_lane_control(world) -> np.ndarray:
     return np.array([np.clip(-3.0 * v, -5.0, 5.0), 0.0])
 
 
-def _kind_of(world, route, agent: int, step: int) -> str:
+def _kind_of(world, route, agent: int, first: int) -> tuple[str, int]:
+    """The kind of a wrong intention just eliminated, and the sub-step since which it was wrong and observed."""
     road = world.road
     if world.kind == "tjunction":
         true_route = [int(r) for r in world.traffic.routes[agent] if r >= 0]
         if any(road.kinds[lane] == ARC for lane in true_route):
-            return "route: other turn (vehicle turns)" if any(road.kinds[lane] == ARC for lane in route) else "route: straight (vehicle turns)"
-        return "route: turn (vehicle goes straight)"
+            turn = any(road.kinds[lane] == ARC for lane in route)
+            return ("route: other turn (vehicle turns)" if turn else "route: straight (vehicle turns)"), first
+        return "route: turn (vehicle goes straight)", first
     records = world.records
     lane = route[0]
-    for back in range(min(len(records), 80)):
-        rec = records[len(records) - 1 - back]
-        if rec.lane_change[agent] and len(records) - 2 - back >= 0:
-            before = records[len(records) - 2 - back].intention[agent]
-            if before == lane:
-                return "lane being left (mid lane change)"
+    for i in range(len(records) - 1, max(len(records) - 200, 0), -1):
+        if records[i].lane_change[agent]:
+            if i >= 1 and records[i - 1].intention[agent] == lane:
+                return "lane being left (mid lane change)", max(i, first)
             break
     now = int(world.traffic.lane[agent])
     group = road.side_lanes(now)
     if abs(group.index(lane) - group.index(now)) >= 2:
-        return "lane two away"
-    return "neighbour lane (vehicle keeps its lane)"
+        return "lane two away", first
+    return "neighbour lane (vehicle keeps its lane)", first
 
 
 def elimination_events(world, learner: TrafficLearner, start: int = 0) -> list[tuple[str, int]]:
@@ -1058,13 +1058,15 @@ def elimination_events(world, learner: TrafficLearner, start: int = 0) -> list[t
     Returns
     -------
     list of (str, int)
-        Kind of the wrong intention and the transitions from the first sub-step of the
-        data that eliminated it to its elimination.
+        Kind of the wrong intention and the transitions observed from the moment it was
+        wrong (the start of the lane change for the lane being left; otherwise the first
+        sub-step of the data that eliminated it) to its elimination.
     """
-    return [
-        (_kind_of(world, route, agent, step), step - first)
-        for step, agent, route, first in learner.eliminations[start:]
-    ]
+    out = []
+    for step, agent, route, first in learner.eliminations[start:]:
+        kind, since = _kind_of(world, route, agent, first)
+        out.append((kind, step - since))
+    return out
 
 
 def elimination_study(kind: str, seeds, *, max_steps: int | None = None) -> dict:
