@@ -314,6 +314,10 @@ class TrafficLearner:
         LP boxes are refitted when a hypothesis' rows grew by this factor.
     min_rows : tuple of 2 int
         No lateral / longitudinal LP box is fitted on fewer rows (the prior is used).
+        Lateral boxes are fitted only while every surviving hypothesis has rows (in
+        practice during lane changes, when the neighbours of the lane steered to are
+        eliminated): a single row is then worth a fit, since the hull is otherwise the
+        prior.
 
     Notes
     -----
@@ -328,7 +332,7 @@ class TrafficLearner:
         scenario: HighwayScenario | TJunctionScenario,
         *,
         refit_growth: float = 2.0,
-        min_rows: tuple = (16, 40),
+        min_rows: tuple = (1, 40),
     ) -> None:
         self.road = road
         self.scenario = scenario
