@@ -104,6 +104,7 @@ __all__ = [
     "remainder_bound",
     "elimination_statistics",
     "elimination_events",
+    "censored_events",
     "hold_lane_control",
     "elimination_study",
 ]
@@ -1073,6 +1074,37 @@ def elimination_events(world, learner: TrafficLearner, start: int = 0) -> list[t
     return out
 
 
+def censored_events(world, learner: TrafficLearner) -> list[tuple[str, None]]:
+    """``(kind, None)`` for every wrong intention still alive at each vehicle's last observation.
+
+    Parameters
+    ----------
+    world : RoadWorld
+        The episode at its end (ground truth).
+    learner : TrafficLearner
+        Its learner.
+
+    Returns
+    -------
+    list of (str, None)
+        Wrong intentions never eliminated while observed (their kind as in
+        `elimination_events`); on the highway these include the side neighbours of a
+        settled vehicle's lane, which cannot be eliminated by design (a lane change may
+        start at any sub-step).
+    """
+    out = []
+    for agent, track in learner.tracks.items():
+        true_lane = int(world.traffic.lane[agent])
+        true_route = tuple(int(r) for r in world.traffic.routes[agent] if r >= 0)
+        for h in track.hyps:
+            if not learner._alive(h):
+                continue
+            wrong = true_lane not in h.route if world.kind == "highway" else true_route[-len(h.route) :] != h.route
+            if wrong:
+                out.append((_kind_of(world, h.route, agent, track.first)[0], None))
+    return out
+
+
 def elimination_study(kind: str, seeds, *, max_steps: int | None = None) -> dict:
     """Run episodes with `hold_lane_control` and a `TrafficLearner`; check it against the truth.
 
@@ -1127,6 +1159,7 @@ def elimination_study(kind: str, seeds, *, max_steps: int | None = None) -> dict
                 out["intention_misses"] += int(world.traffic.lane[agent]) not in belief.lanes
                 out["theta_a_misses"] += not belief.theta_a.contains(world.traffic.theta_a[agent])
                 out["theta_b_misses"] += not belief.theta_b.contains(world.traffic.theta_b[agent])
+        events += censored_events(world, learner)
         out["lp_solves"] += learner.lp_solves
         out["solver_failures"] += learner.solver_failures
     out["statistics"] = elimination_statistics(events)
