@@ -11,15 +11,25 @@
 * `eliminate_models`, `ModelSelector`, `feasible_parameter_box`: LP feasibility of
   structural hypotheses against observed transitions (HiGHS through scipy), with
   certificates of inconsistency.
+* `interval_consistency`, `interval_parameter_box` (`IntervalRows`): the same LP test
+  for models whose regressors are intervals (noisy measured inputs, e.g. a leader's
+  speed in a follower's law), verdicts proven both ways, and the LP box of theta.
 
 Modules: `lmi` (the SDPs and their exact re-checks); `regions` (conflicts and region maps); `selection` (the public model-elimination
-API); `certificates` (`EliminationCertificate`, `SelectionResult`); and, internal,
+API); `interval_regression` (interval rows); `certificates` (`EliminationCertificate`, `SelectionResult`); and, internal,
 `_regression` (input checks and the per-hypothesis regression data), `_highs` (the
 only `linprog` call and its status map) and `_generation` (constraint generation and
 the weak-duality bound).
 """
 
 from .certificates import EliminationCertificate, SelectionResult
+from .interval_regression import (
+    IntervalCertificate,
+    IntervalRows,
+    IntervalVerdict,
+    interval_consistency,
+    interval_parameter_box,
+)
 from .lmi import DualCertificate, LMIResult, LMIStatus, check_assumption4, lmi_matrix
 from .regions import ConflictSet, RegionMap, RegionPiece, certified_region, conflicting_vertices
 from .selection import ModelSelector, eliminate_models, feasible_parameter_box
@@ -40,4 +50,9 @@ __all__ = [
     "feasible_parameter_box",
     "SelectionResult",
     "EliminationCertificate",
+    "IntervalRows",
+    "IntervalVerdict",
+    "IntervalCertificate",
+    "interval_consistency",
+    "interval_parameter_box",
 ]

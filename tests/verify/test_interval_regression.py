@@ -1,0 +1,134 @@
+"""The interval-regression LP: sound verdicts proven both ways, sound parameter boxes, units invariance."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from minimaxplan.models import Box
+from minimaxplan.models.errors import DimensionError, InputError, NoConsistentModel
+from minimaxplan.verify import (
+    IntervalRows,
+    interval_consistency,
+    interval_parameter_box,
+)
+from minimaxplan.verify.interval_regression import INTERVAL_ELIMINATION_MARGIN, witness_margin
+
+PRIOR = Box([0.15, 0.15, 1.0], [0.45, 0.45, 3.0])
+
+
+def _rows(rng, theta, k, *, extreme: bool, width: float = 0.5, noise: float = 0.2):
+    """Rows explained by theta: true g inside [g_lo, g_hi], true y inside [y_lo, y_hi] (at an end if extreme)."""
+    g = rng.normal(size=(k, theta.size)) * 5
+    below, above = rng.uniform(0, width, size=(2, k, theta.size))
+    if extreme:  # the true regressor at a corner of its interval
+        corner = rng.integers(0, 2, size=(k, theta.size)).astype(bool)
+        below, above = np.where(corner, 0.0, below), np.where(corner, above, 0.0)
+    y = g @ theta
+    lo, hi = rng.uniform(0, noise, size=(2, k))
+    if extreme:
+        side = rng.integers(0, 2, size=k).astype(bool)
+        lo, hi = np.where(side, 0.0, lo), np.where(side, hi, 0.0)
+    return IntervalRows(g - below, g + above, y - lo, y + hi)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 60), extreme=st.booleans())
+def test_true_parameter_never_eliminated_and_inside_the_box(seed, k, extreme):
+    rng = np.random.default_rng(seed)
+    theta = rng.uniform(PRIOR.low, PRIOR.high)
+    rows = _rows(rng, theta, k, extreme=extreme)
+    verdict = interval_consistency(rows, PRIOR)
+    assert verdict.status != "inconsistent"
+    assert PRIOR.contains(verdict.witness)
+    box = interval_parameter_box(rows, PRIOR, verdict=verdict)
+    assert box.contains(theta)
+    assert np.all(box.low >= PRIOR.low) and np.all(box.high <= PRIOR.high)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_one_sided_rows_and_true_parameter(seed):
+    """Rows through a saturation keep one side only (the other infinite): still sound."""
+    rng = np.random.default_rng(seed)
+    theta = rng.uniform(PRIOR.low, PRIOR.high)
+    rows = _rows(rng, theta, 30, extreme=True)
+    ylo, yhi = rows.target_low.copy(), rows.target_high.copy()
+    ylo[::3] = -np.inf
+    yhi[1::3] = np.inf
+    one_sided = IntervalRows(rows.regressor_low, rows.regressor_high, ylo, yhi)
+    assert one_sided.nrows == 30
+    assert interval_parameter_box(one_sided, PRIOR).contains(theta)
+
+
+def test_a_clear_inconsistency_is_certified_and_rechecked():
+    rng = np.random.default_rng(1)
+    theta = np.array([0.3, 0.3, 2.0])
+    rows = _rows(rng, theta, 40, extreme=False)
+    shifted = IntervalRows(rows.regressor_low, rows.regressor_high, rows.target_low + 50, rows.target_high + 50)
+    verdict = interval_consistency(shifted, PRIOR)
+    assert verdict.status == "inconsistent" and verdict.eliminated
+    assert verdict.lower > INTERVAL_ELIMINATION_MARGIN
+    assert verdict.certificate.recheck(shifted, PRIOR) == pytest.approx(verdict.lower, rel=1e-9)
+    # the same multipliers prove nothing about consistent rows
+    assert verdict.certificate.recheck(rows, PRIOR) <= INTERVAL_ELIMINATION_MARGIN
+    with pytest.raises(NoConsistentModel):
+        interval_parameter_box(shifted, PRIOR)
+    assert verdict.to_dict()["status"] == "inconsistent"
+
+
+def test_consistent_verdict_has_a_rechecked_witness():
+    rng = np.random.default_rng(2)
+    rows = _rows(rng, np.array([0.2, 0.4, 1.5]), 50, extreme=True)
+    verdict = interval_consistency(rows, PRIOR)
+    assert verdict.status == "consistent" and verdict.certificate is None
+    assert witness_margin(rows, PRIOR, verdict.witness) <= INTERVAL_ELIMINATION_MARGIN
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), shift=st.sampled_from([0.0, 3.0, 50.0]))
+def test_verdicts_and_boxes_do_not_depend_on_units(seed, shift):
+    """Rows scaled by 1e-3..1e3 each and parameters by 1e-2..1e2: same verdict, box scaled alike."""
+    rng = np.random.default_rng(seed)
+    theta = rng.uniform(PRIOR.low, PRIOR.high)
+    rows = _rows(rng, theta, 25, extreme=True)
+    rows = IntervalRows(rows.regressor_low, rows.regressor_high, rows.target_low + shift, rows.target_high + shift)
+    r = 10.0 ** rng.uniform(-3, 3, size=rows.nrows)
+    c = 10.0 ** rng.uniform(-2, 2, size=3)
+    scaled_prior = Box(PRIOR.low * c, PRIOR.high * c)
+    a = interval_consistency(rows, PRIOR)
+    b = interval_consistency(rows.scaled(r, c), scaled_prior)
+    assert a.status == b.status
+    if not a.eliminated:
+        box_a = interval_parameter_box(rows, PRIOR, verdict=a)
+        box_b = interval_parameter_box(rows.scaled(r, c), scaled_prior, verdict=b)
+        np.testing.assert_allclose(box_b.low / c, box_a.low, rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(box_b.high / c, box_a.high, rtol=1e-6, atol=1e-9)
+
+
+def test_point_regressors_allow_any_sign_and_linear_relations():
+    """c = theta_1 v with v in [20, 25]: two exact rows on a point regressor with a negative entry."""
+    prior = Box([0.15, 0.0], [0.45, 20.0])
+    relation = IntervalRows([[-20.0, 1.0], [-25.0, 1.0]], [[-20.0, 1.0], [-25.0, 1.0]], [0.0, -np.inf], [np.inf, 0.0])
+    box = interval_parameter_box(relation, prior)
+    assert box.low[1] == pytest.approx(0.15 * 20, rel=1e-6) and box.high[1] == pytest.approx(0.45 * 25, rel=1e-6)
+    bad = IntervalRows([[-20.0, 1.0], [-25.0, 1.0], [1.0, 0.0]], [[-20.0, 1.0], [-25.0, 1.0], [1.0, 0.0]], [0.0, -np.inf, 0.5], [np.inf, 0.0, 0.6])
+    assert interval_consistency(bad, prior).eliminated  # theta_1 > 0.45
+
+
+def test_bad_inputs_are_rejected():
+    with pytest.raises(DimensionError, match="regressor_high"):
+        IntervalRows(np.zeros((2, 3)), np.zeros((2, 2)), np.zeros(2), np.zeros(2))
+    with pytest.raises(InputError, match="NaN"):
+        IntervalRows(np.zeros((1, 2)), np.zeros((1, 2)), [np.nan], [1.0])
+    with pytest.raises(InputError, match="regressor_low > regressor_high"):
+        IntervalRows(np.ones((1, 2)), np.zeros((1, 2)), [0.0], [1.0])
+    with pytest.raises(InputError, match="finite"):
+        IntervalRows([[np.inf, 0.0]], [[np.inf, 0.0]], [0.0], [1.0])
+    rows = IntervalRows([[0.0, 1.0]], [[1.0, 1.0]], [0.0], [1.0])
+    with pytest.raises(InputError, match="below 0"):
+        interval_consistency(rows, Box([-1.0, 0.0], [1.0, 1.0]))
+    with pytest.raises(DimensionError, match="dimension"):
+        interval_consistency(rows, PRIOR)
+    # rows infinite on both sides say nothing and are dropped
+    assert IntervalRows([[0.0, 1.0]], [[1.0, 1.0]], [-np.inf], [np.inf]).nrows == 0
