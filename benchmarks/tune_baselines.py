@@ -14,8 +14,8 @@ The driving baselines (the bicycle DWA and TEB of the road worlds, "highway" and
 "tjunction", run through the registry's episode loop) are tuned the same way, ranked by
 failures (collisions + off-road + timeouts), then collisions, then mean travel time:
 
-    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py road-dwa 20 1
-    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py road-teb 10 1
+    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py road-dwa 10 1
+    OMP_NUM_THREADS=1 python benchmarks/tune_baselines.py road-teb 5 1
 """
 
 from __future__ import annotations
@@ -73,11 +73,9 @@ ROAD_DWA_ROUND1 = [
     {},
     {"horizon": 3.0},
     {"horizon": 1.5},
-    {"safety_margin": 0.8},
-    {"lane_weight": 10.0},
     {"lateral_acceleration": 6.0},
+    {"lane_weight": 10.0},
     {"heading_weight": 30.0},
-    {"clearance_weight": 5.0},
 ]
 
 ROAD_TEB_ROUND1 = [
@@ -85,7 +83,6 @@ ROAD_TEB_ROUND1 = [
     {"lane_weight": 10.0},
     {"lane_weight": 10.0, "obstacle_margin": 0.5},
     {"lane_weight": 10.0, "lookahead_time": 3.0},
-    {"lane_weight": 10.0, "lookahead_time": 6.0},
 ]
 
 ROUNDS = {

@@ -627,6 +627,9 @@ class VehicleDWAParameters:
     safety_margin
         Clearance (lower bound, disc covers) demanded of admissible samples along the
         held rollout, m.
+    road_margin
+        Admissible rollouts keep the footprint grown by this on every side on the road
+        (the measured state is noisy), m.
     clearance_cap
         Clearances above this count as "free" in the clearance score, m.
     progress_weight, lane_weight, heading_weight, clearance_weight, speed_weight
@@ -639,6 +642,7 @@ class VehicleDWAParameters:
     horizon: float = 2.0
     lateral_acceleration: float = 4.0
     safety_margin: float = 0.3
+    road_margin: float = 0.3
     clearance_cap: float = 10.0
     progress_weight: float = 24.0
     lane_weight: float = 40.0
@@ -653,6 +657,7 @@ class VehicleDWAParameters:
             as_positive_scalar(name, getattr(self, name))
         for name in (
             "safety_margin",
+            "road_margin",
             "progress_weight",
             "lane_weight",
             "heading_weight",
@@ -689,7 +694,7 @@ class VehicleDynamicWindow:
     Every sample ``(a, delta)`` of the window (``a`` over the whole acceleration range,
     ``delta`` within `steering_window` of the current speed) is held for ``horizon``
     seconds through ``dynamics``. It is *admissible* when its rollout stays on the road
-    (every corner) and keeps ``safety_margin`` from every other vehicle moved at its
+    (every corner of the footprint grown by ``road_margin``) and keeps ``safety_margin`` from every other vehicle moved at its
     measured speed and heading (the disc covers of `rectangle_discs`), and its speed
     after one period does not exceed the scene's speed limit unless it slows down. The
     score of an admissible sample (all terms in [0, 1] but progress, about [-1, 1]):
@@ -786,10 +791,11 @@ class VehicleDynamicWindow:
         held = self.rollout(x, controls, self._steps)
         times = self.dt * np.arange(1, self._steps + 1)
         gaps = _road_clearance(held, times, scene, self.length, self.width)  # (k, T)
-        off = _off_road(held, scene, self.length, self.width)  # (k, T)
+        grow = 2 * p.road_margin
+        off = _off_road(held, scene, self.length + grow, self.width + grow)  # (k, T)
         clearance = gaps.min(axis=1)
         violation = np.maximum(p.safety_margin - gaps, 0.0).sum(axis=1) + off.sum(axis=1)
-        admissible = (violation == 0.0) & np.all(gaps >= p.safety_margin, axis=1)
+        admissible = violation == 0.0
         speed_after = held[:, self.substeps - 1, 2]
         admissible &= (speed_after <= scene.speed_limit) | (speed_after < x[2])
         progress0, _, _ = scene.reference(x[None, :2])

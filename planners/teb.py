@@ -594,10 +594,16 @@ class VehicleTEBParameters:
         Weight of the squared offset from the nearest lane centre at every inner pose, 1/m^2.
     lateral_acceleration
         The steering tried to track the band lies within `steering_window` of this, m/s^2.
-    steering_samples
-        Steering values tried to track the band (odd: holds 0).
-    feasibility_time
-        Each tried control is held this long to check that the footprint stays on the road, s.
+    acceleration_samples, steering_samples
+        The grid of controls tried to track the band (odd counts hold 0).
+    tracking_time
+        Each tried control is held this long; the one ending nearest to the band's
+        position at that time (with the footprint on the road) is applied, s.
+    road_margin
+        The tracking rollouts keep the footprint grown by this on every side on the road, m.
+    switching_hysteresis
+        A fresh band replaces the warm one (another lane, TEB's homotopy class) only
+        when its cost is below this fraction of the warm band's.
     reinit_violation
         A warm band whose clearance shortfall exceeds this is not kept, m.
     max_iterations
@@ -620,8 +626,11 @@ class VehicleTEBParameters:
     kinematics_weight: float = 1000.0
     lane_weight: float = 1.0
     lateral_acceleration: float = 6.0
+    acceleration_samples: int = 13
     steering_samples: int = 41
-    feasibility_time: float = 1.5
+    tracking_time: float = 1.0
+    road_margin: float = 0.3
+    switching_hysteresis: float = 0.9
     reinit_violation: float = 0.05
     max_iterations: int = 25
 
@@ -637,12 +646,20 @@ class VehicleTEBParameters:
             "input_weight",
             "obstacle_weight",
             "lateral_acceleration",
-            "feasibility_time",
+            "tracking_time",
+            "switching_hysteresis",
         ):
             as_positive_scalar(name, getattr(self, name))
-        for name in ("resize_hysteresis", "obstacle_margin", "kinematics_weight", "lane_weight", "reinit_violation"):
+        for name in (
+            "resize_hysteresis",
+            "obstacle_margin",
+            "kinematics_weight",
+            "lane_weight",
+            "reinit_violation",
+            "road_margin",
+        ):
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
-        for name in ("min_poses", "max_poses", "max_iterations", "steering_samples"):
+        for name in ("min_poses", "max_poses", "max_iterations", "acceleration_samples", "steering_samples"):
             as_count(name, getattr(self, name))
         if self.min_poses > self.max_poses:
             raise InputError(f"min_poses must be <= max_poses, got {self.min_poses} > {self.max_poses}")
@@ -819,43 +836,36 @@ class VehicleElasticBand:
         return float(np.max(np.maximum(required - gap, 0.0)))
 
     def _control(self, state: np.ndarray, X: np.ndarray, dT: np.ndarray, scene: RoadScene) -> np.ndarray:
-        """The admissible ``(a, delta)`` that tracks the band over the next period.
+        """The admissible ``(a, delta)`` that tracks the band.
 
-        The acceleration reaches the band's speed at the period's end; every steering of
-        the window is rolled out through ``dynamics`` for ``feasibility_time`` and those
-        whose footprint stays on the road are *feasible* (ROS TEB's feasibility check of
-        the band's first poses); the feasible steering whose rollout is nearest, after
-        one period, to the band's position at that time wins. Without one, the same at
-        full braking; without one either, the nearest.
+        Every control of an ``acceleration_samples x steering_samples`` grid (the whole
+        acceleration range, the steering within `steering_window`) is held for
+        ``tracking_time`` through ``dynamics``; those whose footprint stays on the road
+        are *feasible* (ROS TEB's feasibility check of the band's first poses), and the
+        feasible control whose rollout ends nearest to the band's position at that time
+        wins (the nearest of all if none is feasible).
         """
         p = self.params
-        period = self.substeps * self.dt
         T = np.concatenate([[0.0], np.cumsum(dT)])
-        segment = min(int(np.searchsorted(T, period, side="right")) - 1, len(dT) - 1)
-        fraction = float(np.clip((period - T[segment]) / dT[segment], 0.0, 1.0))
+        horizon = min(p.tracking_time, float(T[-1]))
+        segment = min(int(np.searchsorted(T, horizon, side="right")) - 1, len(dT) - 1)
+        fraction = float(np.clip((horizon - T[segment]) / dT[segment], 0.0, 1.0))
         target = X[segment] + fraction * (X[segment + 1] - X[segment])
-        speed = float(np.linalg.norm(X[segment + 1] - X[segment]) / dT[segment])
-        a = float(np.clip((speed - state[2]) / period, -self.acceleration_bound, self.acceleration_bound))
         window = steering_window(state[2], p.lateral_acceleration, self.max_steering, self.length)
-        steering = np.linspace(-1.0, 1.0, p.steering_samples) * window
-        steps = max(self.substeps, int(round(p.feasibility_time / self.dt)))
-        choices = []
-        for accel in (a, -self.acceleration_bound):
-            k = steering.shape[0]
-            x = np.broadcast_to(state, (k, 4)).copy()
-            on_road = np.ones(k, dtype=bool)
-            for n in range(steps):
-                x = np.asarray(self.dynamics(x, np.full(k, accel), steering, self.dt), dtype=float)
-                on_road &= _off_road(x[:, None], scene, self.length, self.width)[:, 0] == 0
-                if n == self.substeps - 1:
-                    miss = np.linalg.norm(x[:, :2] - target, axis=1)
-            choices.append((accel, on_road, miss))
-        for accel, feasible, miss in choices:
-            if feasible.any():
-                best = int(np.argmin(np.where(feasible, miss, np.inf)))
-                return np.array([accel, float(steering[best])])
-        accel, _, miss = choices[0]
-        return np.array([accel, float(steering[int(np.argmin(miss))])])
+        grid_a = np.linspace(-1.0, 1.0, p.acceleration_samples) * self.acceleration_bound
+        grid_d = np.linspace(-1.0, 1.0, p.steering_samples) * window
+        controls = np.stack(np.meshgrid(grid_a, grid_d, indexing="ij"), axis=-1).reshape(-1, 2)
+        k = controls.shape[0]
+        steps = max(self.substeps, int(round(p.tracking_time / self.dt)))
+        x = np.broadcast_to(state, (k, 4)).copy()
+        off = np.zeros(k, dtype=int)
+        for _ in range(steps):
+            x = np.asarray(self.dynamics(x, controls[:, 0], controls[:, 1], self.dt), dtype=float)
+            off += _off_road(x[:, None], scene, self.length + 2 * p.road_margin, self.width + 2 * p.road_margin)[:, 0]
+        miss = np.linalg.norm(x[:, :2] - target, axis=1)
+        feasible = off == 0
+        best = int(np.argmin(np.where(feasible, miss, np.inf))) if feasible.any() else int(np.argmin(miss))
+        return controls[best].copy()
 
     def optimise(self, state, scene: RoadScene) -> TEBPlan:
         """Optimise the bands from the measured ego ``state`` and return the best with the control.
@@ -884,7 +894,8 @@ class VehicleElasticBand:
         discs = self._discs(scene)
         extra = self._extra(scene, float(x[3]))
         candidates = [self._fresh(start, goal, float(x[2]), scene.speed_limit) for goal in goals]
-        if self._band is not None and len(self._band[1]) >= 1:
+        warm = self._band is not None and len(self._band[1]) >= 1
+        if warm:
             X, dT = self._band
             look = min(len(dT), 4)
             nearest = min(int(np.argmin(np.linalg.norm(X[: look + 1] - start, axis=1))), len(dT) - 1)
@@ -893,9 +904,11 @@ class VehicleElasticBand:
             X[-1] = goals[int(np.argmin(np.linalg.norm(goals - X[-1], axis=1)))]
             candidates.insert(0, _resize_band(X, dT, band))
         best, best_key = None, None
-        for X, dT in candidates:
+        for index, (X, dT) in enumerate(candidates):
             trial = self._optimise(X, dT, velocity, discs, band, extra)
-            key = (self._violation(trial[0], trial[1], discs) > p.reinit_violation, trial[2])
+            # The warm band (first, if any) keeps its class unless a fresh one is clearly cheaper.
+            scale = 1.0 if warm and index == 0 else 1.0 / p.switching_hysteresis
+            key = (self._violation(trial[0], trial[1], discs) > p.reinit_violation, trial[2] * scale)
             if best_key is None or key < best_key:
                 best, best_key = trial, key
         assert best is not None  # at least one local goal
