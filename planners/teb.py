@@ -591,7 +591,8 @@ class VehicleTEBParameters:
     kinematics_weight
         Weight of `turning_cost` (Table 2: non-holonomic kinematics 1000).
     lane_weight
-        Weight of the squared offset from the nearest lane centre at every inner pose, 1/m^2.
+        Weight of the squared offset from the nearest lane centre at every inner pose,
+        1/m^2 (tuned: 10; 1 let the band cut into the crossing lanes at the junction).
     lateral_acceleration
         The steering tried to track the band lies within `steering_window` of this, m/s^2.
     acceleration_samples, steering_samples
@@ -624,7 +625,7 @@ class VehicleTEBParameters:
     input_weight: float = 10.0
     obstacle_weight: float = 2200.0
     kinematics_weight: float = 1000.0
-    lane_weight: float = 1.0
+    lane_weight: float = 10.0
     lateral_acceleration: float = 6.0
     acceleration_samples: int = 13
     steering_samples: int = 41
