@@ -80,7 +80,13 @@ class RoadBaselineMethod(Method[DrivingWorld]):
         self.params = params
 
     def start(self, world: DrivingWorld) -> None:
-        """Keep the world and build the planner on the ego's bicycle."""
+        """Keep the world and build the planner on the ego's bicycle.
+
+        Parameters
+        ----------
+        world : DrivingWorld
+            The episode's world.
+        """
         self.world = world
         road_scenario = world.world.scenario
         vehicle = road_scenario.vehicle
@@ -96,15 +102,35 @@ class RoadBaselineMethod(Method[DrivingWorld]):
         self.calls = 0
 
     def make_planner(self, dynamics, **kwargs):  # pragma: no cover - abstract
-        """The planner for this episode."""
+        """The planner for this episode.
+
+        Parameters
+        ----------
+        dynamics : callable
+            The ego's bicycle step (`VehicleDynamics`).
+        **kwargs
+            dt, substeps, control bounds and the ego's rectangle.
+        """
         raise NotImplementedError
 
     def lookahead(self, observation: Observation) -> float:
-        """Distance of the local goals ahead, m (0: none)."""
+        """Distance of the local goals ahead, m (0: none).
+
+        Parameters
+        ----------
+        observation : Observation
+            The current measurement.
+        """
         return 0.0
 
     def decide(self, measurement: Observation) -> Policy:
-        """Plan on the measured ego and vehicles; hold the control for the decision period."""
+        """Plan on the measured ego and vehicles; hold the control for the decision period.
+
+        Parameters
+        ----------
+        measurement : Observation
+            The current measurement.
+        """
         scene = self.world.scene(measurement, self.lookahead(measurement))
         self.calls += 1
         return _HeldControl(self.planner.plan(measurement.ego, scene))
@@ -118,6 +144,15 @@ class RoadDWAMethod(RoadBaselineMethod):
     """`VehicleDynamicWindow` on the ego's bicycle."""
 
     def make_planner(self, dynamics, **kwargs) -> VehicleDynamicWindow:
+        """`VehicleDynamicWindow` with the frozen parameters of the scenario's kind.
+
+        Parameters
+        ----------
+        dynamics : callable
+            The ego's bicycle step.
+        **kwargs
+            See `RoadBaselineMethod.make_planner`.
+        """
         params = self.params or ROAD_DWA_PARAMETERS[self.scenario.kind]
         return VehicleDynamicWindow(dynamics, params=params, **kwargs)
 
@@ -126,10 +161,26 @@ class RoadTEBMethod(RoadBaselineMethod):
     """`VehicleElasticBand` on the ego's bicycle, towards local goals ahead in each usable lane."""
 
     def make_planner(self, dynamics, **kwargs) -> VehicleElasticBand:
+        """`VehicleElasticBand` with the frozen parameters of the scenario's kind.
+
+        Parameters
+        ----------
+        dynamics : callable
+            The ego's bicycle step.
+        **kwargs
+            See `RoadBaselineMethod.make_planner`.
+        """
         params = self.params or ROAD_TEB_PARAMETERS[self.scenario.kind]
         return VehicleElasticBand(dynamics, params=params, **kwargs)
 
     def lookahead(self, observation: Observation) -> float:
+        """``max(v, min_speed) * lookahead_time`` ahead of the measured ego, m.
+
+        Parameters
+        ----------
+        observation : Observation
+            The current measurement.
+        """
         p = self.planner.params
         return max(float(observation.ego[2]), p.min_speed) * p.lookahead_time
 

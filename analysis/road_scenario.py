@@ -94,7 +94,15 @@ class RoadFrame:
         return progress, np.take_along_axis(offset, best, axis=-1)[..., 0], heading
 
     def point(self, lane_position: int, progress: float) -> np.ndarray:
-        """The centre-line point (2,) of ``lanes[lane_position]`` at ``progress`` (m), clipped to the lane."""
+        """The centre-line point (2,) of a lane at a progress, clipped to the lane.
+
+        Parameters
+        ----------
+        lane_position : int
+            Position of the lane in ``lanes``.
+        progress : float
+            Progress, m.
+        """
         lane = int(self.lanes[lane_position])
         s = float(np.clip(progress - self.progress_offsets[lane_position], 0.0, self.road.lengths[lane]))
         return np.asarray(self.road.position_at(lane, s), dtype=float)
@@ -224,7 +232,13 @@ class DrivingWorld:
         return self.world.measure()
 
     def apply(self, u: np.ndarray) -> str:
-        """Hold ``u = (acceleration, steering)`` for one sub-step; returns the outcome."""
+        """Hold ``u`` for one sub-step; returns the outcome.
+
+        Parameters
+        ----------
+        u : numpy.ndarray, shape (2,)
+            ``(acceleration m/s^2, steering rad)`` in the admissible box.
+        """
         outcome = self.world.apply(u)
         self._record_paths()
         return outcome
@@ -260,8 +274,16 @@ class DrivingWorld:
             self._paths.setdefault(int(i), []).append([step, float(x), float(y)])
 
     def local_goals(self, progress: float, lookahead: float) -> np.ndarray:
-        """Candidate local goals ``lookahead`` m ahead of ``progress``: one per lane of the
-        highway, one on the route at the T-junction (never past the goal's lane end), (g, 2)."""
+        """Candidate local goals ahead: one per lane of the highway, one on the route at
+        the T-junction (never past the last lane's end), shape (g, 2).
+
+        Parameters
+        ----------
+        progress : float
+            The ego's progress, m.
+        lookahead : float
+            How far ahead, m.
+        """
         ahead = progress + lookahead
         if self.world.kind == "highway":
             return np.stack([self.frame.point(k, ahead) for k in range(len(self.frame.lanes))])
@@ -319,6 +341,13 @@ class RoadScenario(Scenario[DrivingWorld]):
 
     def make_world(self, seed: int, config: LoopConfig) -> DrivingWorld:
         """`make_road_world` of ``kind`` and ``seed`` behind `DrivingWorld` (bounded uniform noise only).
+
+        Parameters
+        ----------
+        seed : int
+            The episode's seed.
+        config : LoopConfig
+            The loop settings (``measurement`` must be "uniform").
 
         Raises
         ------

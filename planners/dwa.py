@@ -1,4 +1,4 @@
-"""Dynamic Window Approach (Fox, Burgard & Thrun 1997) for a point mass with friction.
+"""Dynamic Window Approach (Fox, Burgard & Thrun 1997) for a point mass with friction and a car.
 
 A baseline, not a robust planner: it plans with the *nominal* model (a point estimate of
 theta, no disturbance) and the pedestrians' announced velocities, and has no guarantee.
@@ -12,6 +12,13 @@ reachable set after one period is the image of the control box, so the window is
 sampled as a grid of accelerations ``u in [-1, 1]^2``; each is held for the prediction
 horizon (the analogue of DWA's constant-velocity arcs) to score it, and admissibility
 is checked by holding it for one decision period and then braking at full power.
+
+For a car-like ego on a road (`VehicleDynamicWindow`), the window is a grid of
+``(acceleration, steering)`` controls, each held through a given vectorised dynamics
+(the worlds' kinematic bicycle, passed in by the analysis layer: planners never import
+`scenarios`); the road comes as a `RoadScene` (a lane frame and a road test as
+callables, the other vehicles' measured states, predicted at constant velocity).
+Both planners choose by the same rule (`_choose`).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Timed Elastic Band (Rösmann et al. 2015) for a point mass with friction.
+"""Timed Elastic Band (Rösmann et al. 2015) for a point mass with friction and a car.
 
 A baseline, not a robust planner: it plans with the nominal model (a point estimate of
 the friction, no disturbance) and the pedestrians' announced velocities.
@@ -26,6 +26,11 @@ the shortest grid path of a `NavigationFunction` around the static discs (the gl
 plan TEB follows in ROS), then, if that one still violates a clearance, bent to either
 side (a lateral bump); the cheapest band wins. The control for the next decision period makes the
 nominal model reach the band's velocity at the end of the period.
+
+For a car-like ego on a road (`VehicleElasticBand`) the same `band_cost` is used with
+an extra penalty on the poses (`turning_cost`, the car's kinematics, and lane keeping),
+one band per local goal (lane) as the homotopy classes, and the band is tracked by
+sampled rollouts of a given vectorised dynamics (the worlds' kinematic bicycle).
 """
 
 from __future__ import annotations
@@ -184,9 +189,25 @@ def band_cost(
 ) -> tuple[float, np.ndarray]:
     """The band's cost and its gradient with respect to ``z = (X_1..X_{n-1} flattened, dT_0..dT_{n-1})``.
 
-    ``discs = (centers (k, 2), velocities (k, 2), radii (k,), required clearance (k,))``;
-    ``extra(X) -> (cost, gradient (n + 1, 2))``, when given, adds penalties on the poses
-    ``X`` (n + 1, 2) (the vehicle band's lane keeping and turning radius).
+    Parameters
+    ----------
+    z : numpy.ndarray, shape (2 (n - 1) + n,)
+        The free poses, flattened, then the intervals.
+    start, velocity, goal : numpy.ndarray, shape (2,)
+        ``X_0``, the measured velocity there and ``X_n``.
+    n : int
+        Number of intervals.
+    friction : numpy.ndarray, shape (2,)
+        Per-axis friction of the input-limit term (0 for no friction).
+    discs : tuple of numpy.ndarray
+        ``(centers (k, 2), velocities (k, 2), radii (k,), required clearance (k,))``.
+    params : TEBParameters
+        The weights and limits.
+    control_bound : float
+        The per-axis input limit.
+    extra : callable, optional
+        ``extra(X) -> (cost, gradient (n + 1, 2))`` adds penalties on the poses ``X``
+        (n + 1, 2) (the vehicle band's lane keeping and turning radius); None for none.
     """
     inner = z[: 2 * (n - 1)].reshape(n - 1, 2)
     dT = z[2 * (n - 1) :]
@@ -668,7 +689,13 @@ class VehicleTEBParameters:
             raise InputError(f"need dt_min < dt_ref < dt_max, got {self.dt_min}, {self.dt_ref}, {self.dt_max}")
 
     def band_parameters(self, max_speed: float) -> TEBParameters:
-        """The `TEBParameters` that `band_cost` reads, with the scene's speed limit."""
+        """The `TEBParameters` that `band_cost` reads, with the scene's speed limit.
+
+        Parameters
+        ----------
+        max_speed : float
+            The speed limit, m/s.
+        """
         return TEBParameters(
             dt_ref=self.dt_ref,
             resize_hysteresis=self.resize_hysteresis,
