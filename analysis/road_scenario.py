@@ -48,6 +48,8 @@ __all__ = [
 HIGHWAY_SPEED_LIMIT = 30.0
 #: v_max of the T-junction (the top of the ego's target speeds {0, 4.5, 9}), m/s.
 TJUNCTION_SPEED_LIMIT = 9.0
+#: Colour of the other vehicles' paths in the road figures.
+_TRAFFIC_COLOR = "tab:brown"
 #: Rounding of the recorded vehicle paths, m.
 _PATH_DECIMALS = 2
 
@@ -371,7 +373,7 @@ def _draw_road(ax, road: Road) -> None:
     for lane in range(len(road)):
         right, left = road.lane_edges(lane)
         for edge in (right, left):
-            ax.plot(edge[:, 0], edge[:, 1], color="0.55", lw=0.8, zorder=1, gid="lane edge")
+            ax.plot(edge[:, 0], edge[:, 1], color="0.7", lw=0.8, zorder=1, gid="lane edge")
 
 
 def road_trajectory_figure(records: Sequence[EpisodeRecord], *, title: str = "") -> Any:
@@ -392,11 +394,12 @@ def road_trajectory_figure(records: Sequence[EpisodeRecord], *, title: str = "")
         longest episode of the seed (thin black, a triangle at their first position), one
         line per method for the ego (`minimaxplan.analysis.plots.METHOD_STYLES`, labelled
         with the outcome), a square at the ego's start and a cross where an episode ended
-        in a collision or off the road. The view spans the ego's paths with 30 m around.
+        in a collision or off the road. The view spans the ego's paths with 30 m around
+        (8 m across the highway).
     """
     from matplotlib.lines import Line2D
 
-    from .plots import _legend_below, _pyplot, method_style
+    from .plots import _pyplot, method_style
 
     plt = _pyplot()
     seeds = sorted({r.seed for r in records})
@@ -406,14 +409,14 @@ def road_trajectory_figure(records: Sequence[EpisodeRecord], *, title: str = "")
         group = [r for r in records if r.seed == seed]
         world = group[0].extra.get("world", {})
         _draw_road(ax, _road_of(world))
-        handles.setdefault("lane edges", Line2D([], [], color="0.55", lw=0.8))
+        handles.setdefault("lane edges", Line2D([], [], color="0.7", lw=0.8))
         longest = max(group, key=lambda r: len(r.trajectory))
         for rows in longest.extra.get("world", {}).get("traffic_paths", {}).values():
             path = np.asarray(rows, dtype=float)[:, 1:]
-            ax.plot(path[:, 0], path[:, 1], color="k", lw=0.6, alpha=0.6, zorder=2, gid="vehicle path")
-            ax.plot(*path[0], "k^", ms=3, zorder=2)
-        handles.setdefault("other vehicles (true paths)", Line2D([], [], color="k", lw=0.6, alpha=0.6))
-        handles.setdefault("vehicle first seen", Line2D([], [], color="k", marker="^", ms=4, ls="none"))
+            ax.plot(path[:, 0], path[:, 1], color=_TRAFFIC_COLOR, lw=0.9, ls="--", zorder=2, gid="vehicle path")
+            ax.plot(*path[0], "^", color=_TRAFFIC_COLOR, ms=4, zorder=2)
+        handles.setdefault("other vehicles (true paths)", Line2D([], [], color=_TRAFFIC_COLOR, lw=0.9, ls="--"))
+        handles.setdefault("vehicle first seen", Line2D([], [], color=_TRAFFIC_COLOR, marker="^", ms=4, ls="none"))
         spans = []
         for r in group:
             path = np.asarray(r.trajectory, dtype=float)
@@ -429,7 +432,8 @@ def road_trajectory_figure(records: Sequence[EpisodeRecord], *, title: str = "")
             points = np.concatenate(spans)
             ax.plot(*points[0], "ks", ms=6, zorder=8)
             handles.setdefault("ego start", Line2D([], [], color="k", marker="s", ls="none"))
-            low, high = points.min(axis=0) - 30.0, points.max(axis=0) + 30.0
+            around = np.array([30.0, 8.0 if world.get("kind") == "highway" else 30.0])
+            low, high = points.min(axis=0) - around, points.max(axis=0) + around
             ax.set_xlim(low[0], high[0])
             ax.set_ylim(low[1], high[1])
         if world.get("kind") == "tjunction":
@@ -440,9 +444,13 @@ def road_trajectory_figure(records: Sequence[EpisodeRecord], *, title: str = "")
             f"{group[0].scenario} world, seed {seed}: " + ", ".join(f"{r.method}: {r.outcome}" for r in group),
             fontsize=9,
         )
-    _legend_below(fig, handles, ncol=4, height=3.6 * max(1, len(seeds)))
+    height = 3.6 * max(1, len(seeds))
+    labels = [label.removeprefix("method ") for label in handles]
+    rows = -(-len(labels) // 4)
+    fig.legend(list(handles.values()), labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
     if title:
         fig.suptitle(title)
+    fig.tight_layout(rect=(0, min(0.5, (0.22 * rows + 0.1) / height), 1, 0.95 if title else 1))
     return fig
 
 
