@@ -1,4 +1,4 @@
-"""Dynamic Window Approach (Fox, Burgard & Thrun 1997) for a point mass with friction.
+"""Dynamic Window Approach (Fox, Burgard & Thrun 1997) for a point mass with friction and a car.
 
 A baseline, not a robust planner: it plans with the *nominal* model (a point estimate of
 theta, no disturbance) and the pedestrians' announced velocities, and has no guarantee.
@@ -12,10 +12,18 @@ reachable set after one period is the image of the control box, so the window is
 sampled as a grid of accelerations ``u in [-1, 1]^2``; each is held for the prediction
 horizon (the analogue of DWA's constant-velocity arcs) to score it, and admissibility
 is checked by holding it for one decision period and then braking at full power.
+
+For a car-like ego on a road (`VehicleDynamicWindow`), the window is a grid of
+``(acceleration, steering)`` controls, each held through a given vectorised dynamics
+(the worlds' kinematic bicycle, passed in by the analysis layer: planners never import
+`scenarios`); the road comes as a `RoadScene` (a lane frame and a road test as
+callables, the other vehicles' measured states, predicted at constant velocity).
+Both planners choose by the same rule (`_choose`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -26,7 +34,18 @@ from minimaxplan.models.validation import as_count, as_finite_array, as_positive
 
 from .navigation import NavigationFunction
 
-__all__ = ["NavigationScene", "DWAParameters", "DWAEvaluation", "DynamicWindowPlanner", "planar_robot_model"]
+__all__ = [
+    "NavigationScene",
+    "DWAParameters",
+    "DWAEvaluation",
+    "DynamicWindowPlanner",
+    "planar_robot_model",
+    "RoadScene",
+    "VehicleDWAParameters",
+    "VehicleDynamicWindow",
+    "rectangle_discs",
+    "steering_window",
+]
 
 
 # ------------------------------------------------------------------ the scene
@@ -138,6 +157,20 @@ def _discs(center_name, centers, radius_name, radii) -> tuple[np.ndarray, np.nda
 
 def _validated_state(state, nstates: int) -> np.ndarray:
     return as_finite_array("state", state, (nstates,))
+
+
+def _choose(controls: np.ndarray, score, admissible, violation, clearance) -> DWAEvaluation:
+    """DWA's choice: the best admissible sample, or (nothing admissible, e.g. already
+    inside the margin) the sample whose path violates the clearance least in total,
+    the best escape (flagged as a fallback)."""
+    scores = np.where(admissible, score, -np.inf)
+    if np.any(admissible):
+        control = controls[int(np.argmax(scores))].copy()
+        fallback = False
+    else:
+        control = controls[int(np.argmin(violation))].copy()
+        fallback = True
+    return DWAEvaluation(controls.copy(), scores, admissible, clearance, control, fallback)
 
 
 # ------------------------------------------------------------------ DWA
@@ -383,16 +416,7 @@ class DynamicWindowPlanner:
             + p.clearance_weight * np.clip(clearance, 0.0, p.clearance_cap) / p.clearance_cap
             + p.velocity_weight * np.minimum(speed_end / p.max_speed, 1.0)
         )
-        scores = np.where(admissible, score, -np.inf)
-        if np.any(admissible):
-            control = self.controls[int(np.argmax(scores))].copy()
-            fallback = False
-        else:
-            # Nothing admissible (e.g. already inside the margin): the sample whose stopping
-            # path violates the clearance least in total (summed over its points), the best escape.
-            control = self.controls[int(np.argmin(violation))].copy()
-            fallback = True
-        return DWAEvaluation(self.controls.copy(), scores, admissible, clearance, control, fallback)
+        return _choose(self.controls, score, admissible, violation, clearance)
 
     def _navigation(self, scene: NavigationScene, points: np.ndarray) -> NavigationFunction:
         """The navigation function of this scene's goal and static discs (cached; rebuilt
@@ -429,5 +453,379 @@ class DynamicWindowPlanner:
             The measured robot state (position, velocity).
         scene : NavigationScene
             The goal and the discs to avoid, as seen now.
+        """
+        return self.evaluate(state, scene).control
+
+
+# ------------------------------------------------------------ DWA on the bicycle
+#: ``dynamics(states (k, 4), acceleration (k,), steering (k,), dt) -> states (k, 4)``:
+#: one vectorised sub-step of a car-like model (the analysis layer passes the worlds'
+#: kinematic bicycle, `minimaxplan.scenarios.vehicles.bicycle_step`).
+VehicleDynamics = Callable[[np.ndarray, np.ndarray, np.ndarray, float], np.ndarray]
+
+#: ``reference(points (..., 2)) -> (progress, offset, heading)``, each shape (...): the
+#: arc length along the ego's route (m), the signed lateral offset from the nearest
+#: lane centre the ego may drive on (m, positive to the left) and that lane's heading (rad).
+RoadReference = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+#: ``on_road(points (..., 2)) -> bool (...)``: whether each point lies on the road.
+RoadTest = Callable[[np.ndarray], np.ndarray]
+
+#: Discs per rectangle in the footprint cover of `rectangle_discs`.
+FOOTPRINT_DISCS = 3
+
+
+def rectangle_discs(states: np.ndarray, length: float, width: float) -> tuple[np.ndarray, float]:
+    """Centres (..., 3, 2) and radius of three discs covering each L x W rectangle along psi.
+
+    Parameters
+    ----------
+    states : numpy.ndarray, shape (..., 4)
+        ``(x, y, v, psi)``; the rectangle is centred on ``(x, y)``, its long side along psi.
+    length, width : float
+        L and W, m.
+
+    Returns
+    -------
+    centres : numpy.ndarray, shape (..., 3, 2)
+        Disc centres at ``-L/3, 0, L/3`` along the heading.
+    radius : float
+        ``sqrt((L/6)^2 + (W/2)^2)``: each disc holds one third of the rectangle, so the
+        union of the discs contains it (distances between covers are lower bounds of the
+        distances between the rectangles).
+    """
+    offsets = np.array([-1.0, 0.0, 1.0]) * (length / FOOTPRINT_DISCS)
+    heading = np.stack([np.cos(states[..., 3]), np.sin(states[..., 3])], axis=-1)
+    centres = states[..., None, :2] + offsets[:, None] * heading[..., None, :]
+    return centres, float(np.hypot(length / (2 * FOOTPRINT_DISCS), width / 2))
+
+
+@dataclass(frozen=True, eq=False)
+class RoadScene:
+    """What a baseline planner knows of the road at one decision, as arrays and callables.
+
+    Parameters
+    ----------
+    reference
+        A `RoadReference`: progress along the route, offset from the nearest lane centre
+        the ego may use, and its heading, at any points.
+    on_road
+        A `RoadTest`: whether points lie on the road.
+    vehicles
+        The other vehicles' measured states ``(x, y, v, psi)``, shape (m, 4); m = 0 allowed.
+    goal_progress
+        The progress (m, as `reference` measures it) at which the goal is reached.
+    speed_limit
+        The speed the ego should not exceed, m/s (the reward's v_max).
+    lane_width
+        Lane width, m (normalises the lane-keeping terms).
+    local_goals
+        Candidate local goals for an elastic band, shape (g, 2), e.g. one per lane
+        ahead; g = 0 allowed (a planner that needs one raises).
+    vehicle_length, vehicle_width
+        The other vehicles' rectangle, m.
+    """
+
+    reference: RoadReference
+    on_road: RoadTest
+    vehicles: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    goal_progress: float = np.inf
+    speed_limit: float = 30.0
+    lane_width: float = 4.0
+    local_goals: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vehicle_length: float = 5.0
+    vehicle_width: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("reference", "on_road"):
+            if not callable(getattr(self, name)):
+                raise InputError(f"{name} must be callable, got {type(getattr(self, name)).__name__}")
+        vehicles = np.zeros((0, 4)) if self.vehicles is None else as_finite_array("vehicles", self.vehicles)
+        if vehicles.size == 0:
+            vehicles = vehicles.reshape(0, 4)
+        check_shape("vehicles", vehicles, (None, 4))
+        object.__setattr__(self, "vehicles", vehicles)
+        object.__setattr__(self, "local_goals", _points("local_goals", self.local_goals))
+        goal = float(self.goal_progress)
+        if np.isnan(goal):
+            raise InputError("goal_progress must not be NaN")
+        object.__setattr__(self, "goal_progress", goal)
+        for name in ("speed_limit", "lane_width", "vehicle_length", "vehicle_width"):
+            object.__setattr__(self, name, as_positive_scalar(name, getattr(self, name)))
+
+    def predicted(self, times: np.ndarray) -> np.ndarray:
+        """The vehicles at constant velocity (speed and heading held), shape (T, m, 4).
+
+        Parameters
+        ----------
+        times : numpy.ndarray, shape (T,)
+            Seconds after the measurement.
+        """
+        v = self.vehicles
+        t = np.asarray(times, dtype=float)[:, None]
+        out = np.broadcast_to(v, (t.shape[0],) + v.shape).copy()
+        out[..., 0] = v[:, 0] + v[:, 2] * np.cos(v[:, 3]) * t
+        out[..., 1] = v[:, 1] + v[:, 2] * np.sin(v[:, 3]) * t
+        return out
+
+
+def _road_clearance(
+    ego: np.ndarray, times: np.ndarray, scene: RoadScene, length: float, width: float
+) -> np.ndarray:
+    """Lower bound of the gap between the ego's rectangles ``ego`` (k, T, 4) and every other
+    vehicle at constant velocity at ``times`` (T,): the smallest disc-cover gap, (k, T) (inf
+    without vehicles)."""
+    if scene.vehicles.shape[0] == 0:
+        return np.full(ego.shape[:2], np.inf)
+    mine, r_ego = rectangle_discs(ego, length, width)  # (k, T, 3, 2)
+    theirs, r_other = rectangle_discs(scene.predicted(times), scene.vehicle_length, scene.vehicle_width)  # (T, m, 3, 2)
+    rel = mine[:, :, None, :, None, :] - theirs[None, :, :, None, :, :]  # (k, T, m, 3, 3, 2)
+    gaps = np.sqrt(np.einsum("...i,...i->...", rel, rel)) - (r_ego + r_other)
+    return gaps.min(axis=(2, 3, 4))
+
+
+def _off_road(ego: np.ndarray, scene: RoadScene, length: float, width: float) -> np.ndarray:
+    """How many rectangle corners of the ego states (k, T, 4) are off the road, (k, T)."""
+    c, s = np.cos(ego[..., 3]), np.sin(ego[..., 3])
+    forward = np.stack([c, s], axis=-1)[..., None, :] * (length / 2)
+    left = np.stack([-s, c], axis=-1)[..., None, :] * (width / 2)
+    signs_f = np.array([1.0, 1.0, -1.0, -1.0])[:, None]
+    signs_l = np.array([1.0, -1.0, -1.0, 1.0])[:, None]
+    corners = ego[..., None, :2] + signs_f * forward + signs_l * left  # (k, T, 4, 2)
+    return (~np.asarray(scene.on_road(corners), dtype=bool)).sum(axis=-1)
+
+
+def steering_window(speed: float, lateral_acceleration: float, max_steering: float, length: float) -> float:
+    """The steering magnitude at which the bicycle's lateral acceleration reaches a bound.
+
+    ``v^2 sin(beta) / (L / 2) = a_lat`` with ``beta = arctan(tan(delta) / 2)``, capped at
+    ``max_steering`` (and below 0.5 m/s the cap itself).
+
+    Parameters
+    ----------
+    speed : float
+        m/s.
+    lateral_acceleration : float
+        m/s^2 (> 0).
+    max_steering : float
+        rad.
+    length : float
+        The bicycle's L, m.
+    """
+    v = max(float(speed), 0.5)
+    sin_beta = min(1.0, lateral_acceleration * (length / 2) / (v * v))
+    delta = float(np.arctan(2.0 * np.tan(np.arcsin(sin_beta)))) if sin_beta < 1.0 else np.pi / 2
+    return min(delta, float(max_steering))
+
+
+@dataclass(frozen=True)
+class VehicleDWAParameters:
+    """Tuned weights and limits of `VehicleDynamicWindow` (see docs/baselines.md, driving).
+
+    Attributes
+    ----------
+    acceleration_samples, steering_samples
+        The window is sampled on an ``acceleration_samples x steering_samples`` grid
+        (odd counts hold 0; the paper's Table 1 "(10, 0, 10)" samples).
+    horizon
+        Prediction horizon over which a sample is held to score it, s.
+    lateral_acceleration
+        The steering window at speed v is the steering whose lateral acceleration is this, m/s^2.
+    safety_margin
+        Clearance (lower bound, disc covers) demanded of admissible samples along the
+        held rollout, m.
+    road_margin
+        Admissible rollouts keep the footprint grown by this on every side on the road
+        (the measured state is noisy), m.
+    clearance_cap
+        Clearances above this count as "free" in the clearance score, m.
+    progress_weight, lane_weight, heading_weight, clearance_weight, speed_weight
+        Weights of the normalised terms of the objective (started from Table 1:
+        reaching the local goal 24, closest point 40, avoiding obstacles 0.25; tuning
+        lowered the lane weight to 10).
+    """
+
+    acceleration_samples: int = 11
+    steering_samples: int = 11
+    horizon: float = 2.0
+    lateral_acceleration: float = 4.0
+    safety_margin: float = 0.3
+    road_margin: float = 0.3
+    clearance_cap: float = 10.0
+    progress_weight: float = 24.0
+    lane_weight: float = 10.0
+    heading_weight: float = 10.0
+    clearance_weight: float = 0.25
+    speed_weight: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("acceleration_samples", "steering_samples"):
+            as_count(name, getattr(self, name), minimum=2)
+        for name in ("horizon", "lateral_acceleration", "clearance_cap"):
+            as_positive_scalar(name, getattr(self, name))
+        for name in (
+            "safety_margin",
+            "road_margin",
+            "progress_weight",
+            "lane_weight",
+            "heading_weight",
+            "clearance_weight",
+            "speed_weight",
+        ):
+            as_positive_scalar(name, getattr(self, name), allow_zero=True)
+
+    def to_dict(self) -> dict:
+        """The parameters as a plain dict (JSON-ready)."""
+        return asdict(self)
+
+
+class VehicleDynamicWindow:
+    """DWA for a car-like ego: a sampled (acceleration, steering) window on a given dynamics.
+
+    Parameters
+    ----------
+    dynamics
+        A `VehicleDynamics` (one vectorised sub-step); the planner has no model of its own.
+    dt
+        Its sub-step, s.
+    substeps
+        Sub-steps per decision period (a control is held that long).
+    acceleration_bound, max_steering
+        The admissible controls ``[-a, a] x [-max_steering, max_steering]`` (m/s^2, rad).
+    length, width
+        The ego's rectangle, m (L is also the bicycle's length in the steering window).
+    params
+        `VehicleDWAParameters`.
+
+    Notes
+    -----
+    Every sample ``(a, delta)`` of the window (``a`` over the whole acceleration range,
+    ``delta`` within `steering_window` of the current speed) is held for ``horizon``
+    seconds through ``dynamics``. It is *admissible* when its rollout stays on the road
+    (every corner of the footprint grown by ``road_margin``) and keeps ``safety_margin`` from every other vehicle moved at its
+    measured speed and heading (the disc covers of `rectangle_discs`), and its speed
+    after one period does not exceed the scene's speed limit unless it slows down. The
+    score of an admissible sample (all terms in [0, 1] but progress, about [-1, 1]):
+    ``progress_weight * (p_end - p_0) / (speed_limit * horizon)
+    + lane_weight * (1 - min(|offset_end| / (lane_width / 2), 1))
+    + heading_weight * (1 + cos(psi_end - heading_end)) / 2
+    + clearance_weight * min(clearance, cap) / cap
+    + speed_weight * min(v_end / speed_limit, 1)``, with the scene's `RoadReference`
+    (progress, offset from the nearest lane centre, its heading) at the rollout's end.
+    Without an admissible sample DWA takes the one whose rollout violates the clearance
+    and the road least (`DWAEvaluation.fallback`).
+    """
+
+    def __init__(
+        self,
+        dynamics: VehicleDynamics,
+        *,
+        dt: float,
+        substeps: int = 5,
+        acceleration_bound: float = 6.0,
+        max_steering: float = float(np.pi / 3),
+        length: float = 5.0,
+        width: float = 2.0,
+        params: VehicleDWAParameters = VehicleDWAParameters(),
+    ):
+        if not callable(dynamics):
+            raise InputError(f"dynamics must be callable, got {type(dynamics).__name__}")
+        check_instance("params", params, VehicleDWAParameters)
+        self.dynamics = dynamics
+        self.dt = as_positive_scalar("dt", dt)
+        self.substeps = as_count("substeps", substeps)
+        self.acceleration_bound = as_positive_scalar("acceleration_bound", acceleration_bound)
+        self.max_steering = as_positive_scalar("max_steering", max_steering)
+        self.length = as_positive_scalar("length", length)
+        self.width = as_positive_scalar("width", width)
+        self.params = params
+        self._steps = max(self.substeps, int(round(params.horizon / self.dt)))
+
+    def window(self, speed: float) -> np.ndarray:
+        """The sampled controls ``(a, delta)`` at this speed, shape (k, 2), all admissible for the ego.
+
+        Parameters
+        ----------
+        speed : float
+            The ego's speed, m/s.
+        """
+        p = self.params
+        a = np.linspace(-1.0, 1.0, p.acceleration_samples) * self.acceleration_bound
+        width = steering_window(speed, p.lateral_acceleration, self.max_steering, self.length)
+        d = np.linspace(-1.0, 1.0, p.steering_samples) * width
+        return np.stack(np.meshgrid(a, d, indexing="ij"), axis=-1).reshape(-1, 2)
+
+    def rollout(self, state: np.ndarray, controls: np.ndarray, steps: int) -> np.ndarray:
+        """States (k, steps, 4) after holding each control (k, 2) from ``state`` (4,) through ``dynamics``.
+
+        Parameters
+        ----------
+        state : numpy.ndarray, shape (4,)
+            ``(x, y, v, psi)``.
+        controls : numpy.ndarray, shape (k, 2)
+            ``(acceleration, steering)``.
+        steps : int
+            Sub-steps.
+        """
+        k = controls.shape[0]
+        out = np.empty((k, steps, 4))
+        x = np.broadcast_to(state, (k, 4)).copy()
+        for n in range(steps):
+            x = np.asarray(self.dynamics(x, controls[:, 0], controls[:, 1], self.dt), dtype=float)
+            if x.shape != (k, 4):
+                raise DimensionError(f"dynamics must return states of shape {(k, 4)}, got shape {x.shape}")
+            out[:, n] = x
+        return out
+
+    def evaluate(self, state, scene: RoadScene) -> DWAEvaluation:
+        """Score every sample of the window from the measured ego ``state``.
+
+        Parameters
+        ----------
+        state : array_like, shape (4,)
+            The ego's ``(x, y, v, psi)``.
+        scene : RoadScene
+            The road and the other vehicles, as seen now.
+
+        Returns
+        -------
+        DWAEvaluation
+            Every sample's score, admissibility and clearance, and the chosen control.
+        """
+        check_instance("scene", scene, RoadScene)
+        x = _validated_state(state, 4)
+        p = self.params
+        controls = self.window(float(x[2]))
+        held = self.rollout(x, controls, self._steps)
+        times = self.dt * np.arange(1, self._steps + 1)
+        gaps = _road_clearance(held, times, scene, self.length, self.width)  # (k, T)
+        grow = 2 * p.road_margin
+        off = _off_road(held, scene, self.length + grow, self.width + grow)  # (k, T)
+        clearance = gaps.min(axis=1)
+        violation = np.maximum(p.safety_margin - gaps, 0.0).sum(axis=1) + off.sum(axis=1)
+        admissible = violation == 0.0
+        speed_after = held[:, self.substeps - 1, 2]
+        admissible &= (speed_after <= scene.speed_limit) | (speed_after < x[2])
+        progress0, _, _ = scene.reference(x[None, :2])
+        end = held[:, -1]
+        progress, offset, heading = scene.reference(end[:, :2])
+        score = (
+            p.progress_weight * (progress - float(progress0[0])) / (scene.speed_limit * p.horizon)
+            + p.lane_weight * (1.0 - np.minimum(np.abs(offset) / (scene.lane_width / 2), 1.0))
+            + p.heading_weight * (1.0 + np.cos(end[:, 3] - heading)) / 2.0
+            + p.clearance_weight * np.clip(clearance, 0.0, p.clearance_cap) / p.clearance_cap
+            + p.speed_weight * np.minimum(end[:, 2] / scene.speed_limit, 1.0)
+        )
+        return _choose(controls, score, admissible, violation, clearance)
+
+    def plan(self, state, scene: RoadScene) -> np.ndarray:
+        """The control ``(acceleration, steering)`` to hold for the next decision period.
+
+        Parameters
+        ----------
+        state : array_like, shape (4,)
+            The ego's ``(x, y, v, psi)``.
+        scene : RoadScene
+            The road and the other vehicles, as seen now.
         """
         return self.evaluate(state, scene).control

@@ -194,3 +194,120 @@ def test_purely_local_variant_reaches_the_goal_in_an_empty_arena():
     planner = DynamicWindowPlanner(robot_system(), params=DWAParameters(navigation_function=False))
     world, _ = run_episode(planner, [3.0, 3.0], [15.0, 13.0], np.zeros((0, 2)), np.zeros(0), (0.4, 0.6), 4)
     assert world.outcome == "goal"
+
+
+# ------------------------------------------------------------ DWA on the bicycle
+from functools import partial  # noqa: E402
+
+from minimaxplan.planners.dwa import (  # noqa: E402
+    RoadScene,
+    VehicleDWAParameters,
+    VehicleDynamicWindow,
+    rectangle_discs,
+    steering_window,
+)
+from minimaxplan.scenarios.road_world import rectangles_collide  # noqa: E402
+from minimaxplan.scenarios.vehicles import VehicleParameters, bicycle_step  # noqa: E402
+
+CAR = VehicleParameters()
+BICYCLE = partial(bicycle_step, vehicle=CAR)
+
+
+def three_lanes(points):
+    """A straight 3-lane road along +x, lanes centred at y = 0, 4, 8 (the highway's frame)."""
+    p = np.asarray(points, dtype=float)
+    nearest = np.clip(np.round(p[..., 1] / 4.0), 0, 2)
+    return p[..., 0], p[..., 1] - 4.0 * nearest, np.zeros(p.shape[:-1])
+
+
+def on_three_lanes(points):
+    return np.abs(np.asarray(points, dtype=float)[..., 1] - 4.0) <= 6.0
+
+
+def road_scene(vehicles=None, **kwargs):
+    return RoadScene(reference=three_lanes, on_road=on_three_lanes, vehicles=vehicles, **kwargs)
+
+
+def vehicle_dwa(**params):
+    return VehicleDynamicWindow(
+        BICYCLE, dt=0.1, acceleration_bound=6.0, max_steering=CAR.max_steering, params=VehicleDWAParameters(**params)
+    )
+
+
+@given(
+    x=st.tuples(st.floats(-5, 5, **finite), st.floats(-6, 6, **finite), st.floats(0, 35, **finite)),
+    heading=st.floats(-0.5, 0.5, **finite),
+)
+@settings(max_examples=20)
+def test_vehicle_window_and_rollouts_are_admissible_bicycle_motion(x, heading):
+    planner = vehicle_dwa()
+    state = np.array([x[0], x[1], x[2], heading])
+    controls = planner.window(state[2])
+    assert np.all(np.abs(controls[:, 0]) <= 6.0) and np.all(np.abs(controls[:, 1]) <= CAR.max_steering)
+    assert np.any(np.all(controls == 0.0, axis=1))  # odd grids hold "keep going"
+    held = planner.rollout(state, controls, 7)
+    expected = np.broadcast_to(state, controls.shape[:1] + (4,))
+    for n in range(7):  # the planner's rollout is the given dynamics, step by step, bit for bit
+        expected = bicycle_step(expected, controls[:, 0], controls[:, 1], 0.1, CAR)
+        np.testing.assert_array_equal(held[:, n], expected)
+    evaluation = planner.evaluate(state, road_scene())
+    assert np.all(np.abs(evaluation.control) <= [6.0, CAR.max_steering])
+
+
+def test_steering_window_bounds_the_lateral_acceleration():
+    for v in (2.0, 9.0, 25.0):
+        delta = steering_window(v, 4.0, CAR.max_steering, CAR.length)
+        beta = np.arctan(np.tan(delta) / 2)
+        assert v * v * np.sin(beta) / (CAR.length / 2) <= 4.0 + 1e-9
+    assert steering_window(0.0, 4.0, CAR.max_steering, CAR.length) == pytest.approx(CAR.max_steering)
+
+
+@given(
+    state=st.tuples(st.floats(-20, 20, **finite), st.floats(-20, 20, **finite), st.floats(-np.pi, np.pi, **finite)),
+)
+@settings(max_examples=30)
+def test_the_disc_cover_contains_the_rectangle(state):
+    x = np.array([state[0], state[1], 0.0, state[2]])
+    centres, radius = rectangle_discs(x, CAR.length, CAR.width)
+    c, s = np.cos(x[3]), np.sin(x[3])
+    u = np.linspace(-0.5, 0.5, 21)
+    grid = np.stack(np.meshgrid(u * CAR.length, u * CAR.width, indexing="ij"), axis=-1).reshape(-1, 2)
+    points = x[:2] + grid @ np.array([[c, s], [-s, c]])
+    distance = np.linalg.norm(points[:, None] - centres[None], axis=-1).min(axis=1)
+    assert np.all(distance <= radius + 1e-9)
+
+
+def test_vehicle_dwa_rejects_samples_that_meet_a_stopped_car_and_keeps_clear_in_closed_loop():
+    planner = vehicle_dwa()
+    stopped = np.array([[60.0, 0.0, 0.0, 0.0]])
+    scene = road_scene(stopped, speed_limit=30.0)
+    state = np.array([0.0, 0.0, 20.0, 0.0])
+    for _ in range(30):  # 15 s of closed loop at 0.5 s decisions
+        evaluation = planner.evaluate(state, scene)
+        assert not evaluation.fallback
+        for _ in range(5):
+            state = bicycle_step(state[None], [evaluation.control[0]], [evaluation.control[1]], 0.1, CAR)[0]
+            assert not rectangles_collide(state, stopped[0], CAR)
+            assert on_three_lanes(state[None, :2])[0]
+    assert state[0] > 60.0 or state[2] < 0.5  # past the stopped car in another lane, or stopped behind it
+
+
+def test_vehicle_dwa_falls_back_when_every_sample_meets_a_vehicle():
+    planner = vehicle_dwa()
+    head_on = np.array([[8.0, 0.0, 20.0, np.pi], [8.0, 4.0, 20.0, np.pi], [8.0, -3.0, 20.0, np.pi]])
+    evaluation = planner.evaluate(np.array([0.0, 0.0, 20.0, 0.0]), road_scene(head_on))
+    assert evaluation.fallback and not evaluation.admissible.any()
+    assert np.all(np.abs(evaluation.control) <= [6.0, CAR.max_steering])
+
+
+def test_road_scene_and_vehicle_dwa_reject_bad_input():
+    with pytest.raises(InputError, match="reference must be callable"):
+        RoadScene(reference=None, on_road=on_three_lanes)
+    with pytest.raises(DimensionError):
+        road_scene(np.zeros((2, 3)))
+    with pytest.raises(InputError, match="dynamics must be callable"):
+        VehicleDynamicWindow(None, dt=0.1)
+    with pytest.raises(DimensionError):
+        vehicle_dwa().plan(np.zeros(3), road_scene())
+    with pytest.raises(DimensionError, match="dynamics must return"):
+        VehicleDynamicWindow(lambda x, a, d, dt: x[:, :3], dt=0.1).plan(np.array([0, 0, 10.0, 0]), road_scene())

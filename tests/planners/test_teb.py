@@ -169,3 +169,108 @@ def test_a_goal_that_slides_keeps_the_warm_band_and_a_jump_starts_afresh():
     jumped = planner.optimise(state, NavigationScene([3.0, 8.0]))
     assert np.array_equal(jumped.positions[-1], [3.0, 8.0])
     assert np.max(jumped.positions[:, 1]) > 7.0
+
+
+# ------------------------------------------------------------ TEB on the bicycle
+from functools import partial  # noqa: E402
+
+from minimaxplan.planners.dwa import RoadScene  # noqa: E402
+from minimaxplan.planners.teb import VehicleElasticBand, VehicleTEBParameters, turning_cost  # noqa: E402
+from minimaxplan.scenarios.road_world import rectangles_collide  # noqa: E402
+from minimaxplan.scenarios.vehicles import VehicleParameters, bicycle_step  # noqa: E402
+
+CAR = VehicleParameters()
+
+
+def three_lanes(points):
+    """A straight 3-lane road along +x, lanes centred at y = 0, 4, 8."""
+    p = np.asarray(points, dtype=float)
+    nearest = np.clip(np.round(p[..., 1] / 4.0), 0, 2)
+    return p[..., 0], p[..., 1] - 4.0 * nearest, np.zeros(p.shape[:-1])
+
+
+def on_three_lanes(points):
+    return np.abs(np.asarray(points, dtype=float)[..., 1] - 4.0) <= 6.0
+
+
+def lane_goals(x: float) -> np.ndarray:
+    return np.array([[x, 0.0], [x, 4.0], [x, 8.0]])
+
+
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 10))
+@settings(max_examples=40)
+def test_turning_cost_gradient_matches_finite_differences(seed, n):
+    rng = np.random.default_rng(seed)
+    X = np.cumsum(rng.uniform(0.5, 3.0, (n + 1, 2)) * [1.0, 0.6] + rng.normal(0, 1.0, (n + 1, 2)), axis=0)
+    heading, curvature = rng.uniform(-1, 1), rng.uniform(0.01, 0.5)
+
+    def cost(flat):
+        return turning_cost(flat.reshape(-1, 2), heading, curvature, 1000.0)[0]
+
+    _, grad = turning_cost(X, heading, curvature, 1000.0)
+    numeric = approx_fprime(X.ravel(), cost, 1e-7)
+    assert np.max(np.abs(grad.ravel() - numeric)) <= 1e-3 * max(1.0, np.max(np.abs(numeric)))
+
+
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 10), k=st.integers(0, 4))
+@settings(max_examples=30)
+def test_band_cost_with_the_vehicle_terms_has_the_exact_gradient(seed, n, k):
+    rng = np.random.default_rng(seed)
+    start, goal, velocity = np.array([0.0, 0.0]), np.array([60.0, rng.uniform(-4, 4)]), np.array([20.0, 0.0])
+    X = start + np.linspace(0, 1, n + 1)[:, None] * (goal - start) + rng.normal(0, 1.0, (n + 1, 2))
+    dT = rng.uniform(0.3, 0.8, n)
+    z = np.concatenate([X[1:-1].ravel(), dT])
+    discs = (rng.uniform(0, 60, (k, 2)), rng.uniform(-20, 20, (k, 2)), np.full(k, 2.6), np.full(k, 0.1))
+    planner = VehicleElasticBand(partial(bicycle_step, vehicle=CAR), dt=0.1)
+    scene = RoadScene(reference=three_lanes, on_road=on_three_lanes, local_goals=lane_goals(60.0))
+    extra = planner._extra(scene, 0.1)
+    band = planner.params.band_parameters(30.0)
+
+    def cost(v):
+        return band_cost(v, start, velocity, goal, n, np.zeros(2), discs, band, 6.0, extra)[0]
+
+    _, grad = band_cost(z, start, velocity, goal, n, np.zeros(2), discs, band, 6.0, extra)
+    numeric = approx_fprime(z, cost, 1e-6)
+    assert np.max(np.abs(grad - numeric)) <= 1e-3 * max(1.0, np.max(np.abs(numeric)))
+
+
+@pytest.mark.parametrize("lane_weight", [1.0, 10.0])
+def test_vehicle_band_behind_a_slow_car_stays_clear_with_admissible_bicycle_controls(lane_weight):
+    # A weak lane term lets the band overtake in the next lane; the tuned one (10) follows.
+    params = VehicleTEBParameters(lane_weight=lane_weight)
+    planner = VehicleElasticBand(partial(bicycle_step, vehicle=CAR), dt=0.1, max_steering=CAR.max_steering, params=params)
+    slow = np.array([40.0, 0.0, 10.0, 0.0])
+    state = np.array([0.0, 0.0, 20.0, 0.0])
+    for _ in range(16):  # 8 s at 0.5 s decisions
+        ahead = slow.copy()
+        lookahead = max(state[2], 5.0) * planner.params.lookahead_time
+        scene = RoadScene(
+            reference=three_lanes,
+            on_road=on_three_lanes,
+            vehicles=ahead[None],
+            speed_limit=30.0,
+            local_goals=lane_goals(state[0] + lookahead),
+        )
+        plan = planner.optimise(state, scene)
+        assert plan.status in {"converged", "iteration_limit", "line_search_stopped"}
+        u = plan.control
+        assert abs(u[0]) <= 6.0 and abs(u[1]) <= CAR.max_steering
+        for _ in range(5):
+            state = bicycle_step(state[None], [u[0]], [u[1]], 0.1, CAR)[0]
+            slow = bicycle_step(slow[None], [0.0], [0.0], 0.1, CAR)[0]
+            assert not rectangles_collide(state, slow, CAR)
+            assert on_three_lanes(state[None, :2])[0]
+    if lane_weight < 10:
+        assert state[0] > slow[0]  # it overtook
+    else:
+        assert state[0] < slow[0] - CAR.length and abs(state[2] - 10.0) < 1.0  # it follows at the car's speed
+
+
+def test_vehicle_band_needs_a_local_goal():
+    planner = VehicleElasticBand(partial(bicycle_step, vehicle=CAR), dt=0.1)
+    with pytest.raises(InputError, match="local goal"):
+        planner.plan(np.array([0.0, 0.0, 10.0, 0.0]), RoadScene(reference=three_lanes, on_road=on_three_lanes))
+    with pytest.raises(InputError, match="dynamics must be callable"):
+        VehicleElasticBand(None, dt=0.1)
+    with pytest.raises(InputError, match="min_poses"):
+        VehicleTEBParameters(min_poses=9, max_poses=3)
