@@ -397,7 +397,7 @@ def summarise_sweep(records: Sequence[EpisodeRecord], cells: dict[str, tuple[int
             time_ci = [float(times.mean()) - half, float(times.mean()) + half]
         else:
             time_ci = [math.nan, math.nan]
-        missed = [r.extra.get("boxes_missed") for r in group if "boxes_missed" in r.extra]
+        missed = [int(r.extra["boxes_missed"]) for r in group if "boxes_missed" in r.extra]
         rows.append(
             {
                 "pedestrians": n,
