@@ -675,13 +675,19 @@ class SelectionReport:
         j = e.violated
         label = f"`{self.state_label(j)}` (state {j})"
         n = e.first_transition
+        # Where the contradiction is exact the bound is only relative to the row's rounding
+        # scale: the report says that it holds, not a number that reads as "barely".
+        bound = (
+            f"re-checked: bound above the tolerance {_num(e.certificate.tolerance, 3)}"
+            if e.exact
+            else f"re-checked bound {_num(e.recheck_bound, 6)} > {_num(e.certificate.tolerance, 3)}"
+        )
         before = f"transitions 0..{n - 1} do not" if n > 0 else "no shorter prefix does"
         text = (
             f"**{self.names[e.hypothesis]}**: transitions 0..{n} already contradict it ({before}; "
             f"bisection over prefixes, {e.prefixes_checked} LPs, each verdict proven by a re-checked "
             f"certificate). The dual witness of that prefix (transitions "
-            f"{_transitions_text(e.certificate.transitions)}, re-checked bound {_num(e.recheck_bound, 6)} > "
-            f"{_num(e.certificate.tolerance, 3)}) rests on {label}"
+            f"{_transitions_text(e.certificate.transitions)}, {bound}) rests on {label}"
         )
         others = [
             f"`{self.state_label(k)}` {100 * e.weights[k]:.0f}%"

@@ -156,8 +156,11 @@ def test_exact_contradiction_wording_in_the_markdown_and_json(tmp_path, capsys):
     assert "| **eliminated** | contradicted exactly | contradicted exactly |" in row
     assert "| x0 (state 0) | no disturbance reaches it |" in row
     assert "the data **contradicts it exactly** (no disturbance bound, however large, explains it)" in out
-    small = eliminate_models(load_model_file(model).systems, *np.load(data).values()).margins[1]
-    assert f"{small:.6g}" not in row
+    direct = eliminate_models(load_model_file(model).systems, *np.load(data).values())
+    states, controls = np.load(data).values()
+    prefix = first_inconsistency(load_model_file(model).systems[1], states, controls)
+    for small in (direct.margins[1], direct.eliminated[1].lower_bound, prefix.recheck_bound, prefix.prefix_margin):
+        assert small < 0.01 and f"{small:.6g}" not in out and f"{small:.4g}" not in out
     code, out, _ = run(capsys, "select", model, data, "--json")
     entry = json.loads(out)["hypotheses"][1]
     assert entry["explanation"]["contradicted_exactly"] is True and entry["explanation"]["violated_state"] == 0
