@@ -27,7 +27,15 @@ for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 
 #: Modules of minimaxplan.analysis that provide a subcommand, in help order.
-SUBCOMMAND_MODULES = ("demo", "lmi_command", "select_command", "experiment_command", "suboptimality", "animate")
+SUBCOMMAND_MODULES = (
+    "demo",
+    "lmi_command",
+    "select_command",
+    "experiment_command",
+    "suboptimality",
+    "sweep",
+    "animate",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -22,11 +22,13 @@ import pathlib
 import re
 import sys
 import time
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from .arguments import output_file, report_error
 
 if TYPE_CHECKING:
+    from minimaxplan.models import Box
     from minimaxplan.verify import RegionMap
 
     from .model_file import ModelHypothesis
@@ -36,6 +38,8 @@ __all__ = [
     "register",
     "run",
     "check_model",
+    "check_parameter_box",
+    "check_subsystem",
     "draw_region_map",
     "save_region_map",
     "EXIT_HOLDS",
@@ -180,6 +184,124 @@ def check_model(
     wall_time = time.perf_counter() - started
     region_map = certified_region(system, form=form, D=D, max_depth=depth, solver=solver) if regions else None
     return LMIReport(model.name, form, matrices, parameters, D, result, wall_time, vertices, region_map)
+
+
+def check_subsystem(model: ModelHypothesis, states: Sequence[int], *, form: str | None = None) -> list[int]:
+    """Check that ``states`` index an invariant subsystem of a model; return them as a list.
+
+    Parameters
+    ----------
+    model : ModelHypothesis
+        One model of a model file.
+    states : sequence of int
+        State indices.
+    form : {"discrete", "continuous"}, optional
+        The time domain whose matrices are checked (default: the model's own).
+
+    Returns
+    -------
+    list of int
+        ``states``, in the order given.
+
+    Raises
+    ------
+    InputError
+        If an index repeats or lies outside ``0..p-1``, or a state outside ``states``
+        enters the rows of ``states`` in ``A(theta)`` at some vertex of the prior box
+        (then it does somewhere in every open part of the box: the entries are affine in
+        theta).
+    """
+    import numpy as np
+
+    from minimaxplan.models import InputError
+
+    system = model.system_for(form or model.time)
+    p = system.nstates
+    chosen = [int(i) for i in states]
+    if not chosen or len(set(chosen)) != len(chosen) or min(chosen) < 0 or max(chosen) >= p:
+        raise InputError(f"states must be distinct state indices in 0..{p - 1}, got {chosen}")
+    rest = [i for i in range(p) if i not in chosen]
+    coupling = system.A(system.theta.vertices())[:, chosen][:, :, rest]
+    if np.any(coupling != 0):
+        entering = sorted({rest[j] for j in np.nonzero(coupling)[2].tolist()})
+        raise InputError(
+            f"states {chosen} are not an invariant subsystem of model {model.name!r}: "
+            f"states {entering} enter their rows of A(theta)"
+        )
+    return chosen
+
+
+def check_parameter_box(
+    model: ModelHypothesis,
+    box: Box,
+    *,
+    form: str | None = None,
+    states: Sequence[int] | None = None,
+    solver: str = "CLARABEL",
+) -> LMIReport:
+    """Check Assumption 4 over a parameter box of one model (e.g. its data-consistent box).
+
+    Parameters
+    ----------
+    model : ModelHypothesis
+        One model of a model file.
+    box : Box
+        The parameter box, dimension d = the model's number of parameters (e.g.
+        `minimaxplan.verify.feasible_parameter_box` of the model on observed data).
+    form : {"discrete", "continuous"}, optional
+        Which LMI to check; defaults to the model's time domain.
+    states : sequence of int, optional
+        Check only the subsystem of these state indices (e.g. the velocities of a
+        robot whose positions integrate them). It must be invariant: no state outside
+        it enters the rows of the states in it, at any vertex.
+    solver : {"CLARABEL", "SCS"}
+        The conic solver.
+
+    Returns
+    -------
+    LMIReport
+        The 2^d vertex matrices of ``box`` (restricted to ``states``), checked with one
+        common P, and the re-checked `LMIResult`.
+
+    Raises
+    ------
+    DimensionError
+        If ``box`` does not have the model's parameter dimension.
+    InputError
+        If ``states`` is not an invariant subsystem (`check_subsystem`).
+    ModelFileError
+        If the continuous form is asked of a discrete-time model.
+
+    Notes
+    -----
+    ``A(theta)`` is affine in theta (eq. (2)), so the vertex matrices span every
+    ``A(theta)`` of the box, and one common P for them is Assumption 4 over the box.
+    """
+    import numpy as np
+
+    from minimaxplan.models import DimensionError
+    from minimaxplan.verify import check_assumption4
+
+    from .reports import LMIReport
+
+    form = form or model.time
+    system = model.system_for(form)
+    if box.dim != system.nparams:
+        raise DimensionError(
+            f"box must have the model's {system.nparams} parameters (theta of shape ({system.nparams},)), "
+            f"got a box of dimension {box.dim}"
+        )
+    parameters = box.vertices()
+    matrices = system.A(parameters)
+    D = np.array(system.D)
+    if states is not None:
+        chosen = check_subsystem(model, states, form=form)
+        matrices = matrices[:, chosen][:, :, chosen]
+        D = D[chosen]
+    started = time.perf_counter()
+    result = check_assumption4(list(matrices), form=form, D=D, solver=solver)
+    wall_time = time.perf_counter() - started
+    return LMIReport(model.name, form, matrices, parameters, D, result, wall_time, vertices=True)
 
 
 def draw_region_map(regions: RegionMap, ax: Any, *, names: tuple[str, ...] | None = None) -> Any:

@@ -11,18 +11,22 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from minimaxplan.models import Box
 from minimaxplan.verify import LMIResult, LMIStatus, RegionMap, SelectionResult, lmi_matrix
 
+if TYPE_CHECKING:
+    from .elimination_history import EliminationHistory, InconsistencyExplanation
+
 __all__ = [
     "LMIReport",
     "SelectionReport",
+    "proof_status",
     "render_lmi_reports",
     "render_region_map",
     "lmi_reports_to_dict",
@@ -427,9 +431,31 @@ def render_lmi_reports(reports: Sequence[LMIReport], *, source: str) -> str:
 
 
 # ---------------------------------------------------------- selection reports
+def proof_status(result: LMIResult) -> str:
+    """How an Assumption 4 verdict is proven, in one phrase.
+
+    Parameters
+    ----------
+    result : LMIResult
+        A result of `check_assumption4`.
+
+    Returns
+    -------
+    str
+        "primal certificate re-checked exactly" (feasible), "dual certificate re-checked
+        exactly" (infeasible), or "no proof either way: REASON" (inconclusive).
+    """
+    if result.holds:
+        return "primal certificate re-checked exactly"
+    if result.status is LMIStatus.INFEASIBLE and result.dual is not None:
+        return "dual certificate re-checked exactly"
+    reason = getattr(result, "reason", "")
+    return f"no proof either way: {reason}" if reason else "no proof either way"
+
+
 @dataclass(frozen=True, eq=False)
 class SelectionReport:
-    """The outcome of model elimination on one data set.
+    """The outcome of model elimination on one data set, with an explanation of each verdict.
 
     Parameters
     ----------
@@ -447,6 +473,24 @@ class SelectionReport:
         The measurement-noise bound used, or None.
     elimination_time, box_time
         Wall-clock seconds spent in `eliminate_models` and in `feasible_parameter_box`.
+    explanations
+        For each eliminated hypothesis (by index), its `InconsistencyExplanation`: the
+        first inconsistent transition, the violated state and the margin per state.
+    history
+        The margins of every hypothesis against the number N of transitions
+        (`EliminationHistory`), or None.
+    state_names, state_units
+        One name and one unit per state (default ``x0, x1, ...`` and "state units").
+    margin_image
+        File name (relative to the report) of the PNG of the margins against N, or None.
+    lmi
+        For each survivor (by index), the `LMIReport` of Assumption 4 over its feasible
+        parameter box (``select --lmi``); empty when not asked for.
+    lmi_states
+        The state indices of the subsystem the LMI was checked on, or None (all states).
+    explain_time, lmi_time
+        Wall-clock seconds spent in the explanations (bisection and history) and in the
+        LMI checks.
     """
 
     names: tuple[str, ...]
@@ -460,10 +504,27 @@ class SelectionReport:
     measurement_noise: np.ndarray | None
     elimination_time: float
     box_time: float
+    explanations: Mapping[int, InconsistencyExplanation] = field(default_factory=dict)
+    history: EliminationHistory | None = None
+    state_names: tuple[str, ...] | None = None
+    state_units: tuple[str, ...] | None = None
+    margin_image: str | None = None
+    lmi: Mapping[int, LMIReport] = field(default_factory=dict)
+    lmi_states: tuple[int, ...] | None = None
+    explain_time: float = 0.0
+    lmi_time: float = 0.0
 
     @property
     def survivors(self) -> list[int]:
         return list(self.result.survivors)
+
+    def state_label(self, j: int) -> str:
+        """The name of state ``j`` (``x<j>`` when the model file names none)."""
+        return self.state_names[j] if self.state_names is not None else f"x{j}"
+
+    def state_unit(self, j: int) -> str:
+        """The unit of state ``j`` ("state units" when the model file gives none)."""
+        return self.state_units[j] if self.state_units is not None else "state units"
 
     def to_dict(self) -> dict:
         return {
@@ -475,6 +536,7 @@ class SelectionReport:
             "measurement_noise": None
             if self.measurement_noise is None
             else np.asarray(self.measurement_noise).tolist(),
+            "states": [{"name": self.state_label(j), "unit": self.state_unit(j)} for j in range(self.nstates)],
             "hypotheses": [
                 {
                     "index": i,
@@ -482,15 +544,58 @@ class SelectionReport:
                     "survives": i in self.survivors,
                     "margin": float(self.result.margins[i]),
                     "certificate": None if i in self.survivors else _plain(self.result.eliminated[i]),
+                    "explanation": self.explanations[i].to_dict() if i in self.explanations else None,
                     "feasible_box": self.feasible_boxes[i].to_dict() if i in self.feasible_boxes else None,
+                    "assumption4": self._lmi_entry(i),
                 }
                 for i, name in enumerate(self.names)
             ],
             "survivors": [self.names[i] for i in self.survivors],
             "eliminated": [self.names[i] for i in sorted(self.result.eliminated)],
-            "timing": {"elimination": self.elimination_time, "feasible_boxes": self.box_time},
+            "margin_history": None if self.history is None else self.history.to_dict(),
+            "margin_image": self.margin_image,
+            "lmi_states": None if self.lmi_states is None else list(self.lmi_states),
+            "timing": {
+                "elimination": self.elimination_time,
+                "feasible_boxes": self.box_time,
+                "explanations": self.explain_time,
+                "lmi": self.lmi_time,
+            },
             "result": _plain(self.result),
         }
+
+    def _lmi_entry(self, i: int) -> dict | None:
+        if i not in self.lmi:
+            return None
+        report = self.lmi[i]
+        return {
+            "status": report.result.status.value,
+            "holds": report.holds,
+            "certified": bool(report.result.certified),
+            "proof": proof_status(report.result),
+            "verdict": report.verdict,
+            "report": report.to_dict(),
+        }
+
+    def _margin_cells(self, i: int) -> tuple[str, str, str, str, str]:
+        """Margin, certified bound, first transition, violated state, margin in state units."""
+        certificate = self.result.eliminated[i]
+        explanation = self.explanations.get(i)
+        if explanation is None:
+            return (_num(self.result.margins[i], 6), _num(certificate.lower_bound, 6), "-", "-", "-")
+        j = explanation.violated
+        state = f"{self.state_label(j)} (state {j})"
+        if explanation.exact:
+            exact = "contradicted exactly"
+            return (exact, exact, str(explanation.first_transition), state, "no disturbance reaches it")
+        excess = explanation.margin_in_state_units()[j]
+        return (
+            _num(self.result.margins[i], 6),
+            _num(certificate.lower_bound, 6),
+            str(explanation.first_transition),
+            state,
+            f"{_num(excess, 4)} {self.state_unit(j)}",
+        )
 
     def to_markdown(self) -> str:
         lines = [
@@ -508,28 +613,36 @@ class SelectionReport:
             "with a disturbance inside its bounds (an LP). Its inconsistency margin is the least "
             "inflation of the disturbance set (in units of its radius) that explains the data: 0 "
             "when consistent. A hypothesis is eliminated only with a certificate: a lower bound on "
-            "the margin recomputed with numpy (weak duality) from the transitions that force it.",
+            "the margin recomputed with numpy (weak duality). The first inconsistent transition n "
+            "is the smallest n such that transitions 0..n already contradict the hypothesis (each "
+            "prefix's verdict proven the same way); the margin per state is the margin times that "
+            "state's disturbance radius, in the state's unit.",
             "",
         ]
         rows: list[tuple[str, ...]] = []
         for i, name in enumerate(self.names):
             margin = _num(self.result.margins[i], 6)
             if i in self.survivors:
-                rows.append((str(i), name, "survives", margin, "-", "-"))
+                rows.append((str(i), name, "survives", margin, "-", "-", "-", "-"))
             else:
-                certificate = self.result.eliminated[i]
-                rows.append(
-                    (
-                        str(i),
-                        name,
-                        "**eliminated**",
-                        margin,
-                        _num(certificate.lower_bound, 6),
-                        _transitions_text(certificate.transitions),
-                    )
-                )
-        header = ("#", "hypothesis", "verdict", "margin", "certified margin >=", "forcing transitions")
+                rows.append((str(i), name, "**eliminated**", *self._margin_cells(i)))
+        header = (
+            "#",
+            "hypothesis",
+            "verdict",
+            "margin",
+            "certified margin >=",
+            "first inconsistent transition",
+            "violated state",
+            "margin on that state (its unit)",
+        )
         lines += _table(header, rows) + [""]
+        if self.explanations:
+            lines += ["## Why each eliminated hypothesis fails", ""]
+            for i in sorted(self.explanations):
+                lines += [self._explanation_text(self.explanations[i]), ""]
+        if self.margin_image is not None:
+            lines += [f"![inconsistency margins against N]({self.margin_image})", ""]
         if self.survivors:
             lines += ["## Feasible parameter boxes of the survivors", ""]
             rows = []
@@ -548,11 +661,83 @@ class SelectionReport:
             lines += _table(("hypothesis", "parameter", "low", "high", "width"), rows) + [""]
         else:
             lines += ["**No hypothesis is consistent with the data.**", ""]
-        lines += [
-            f"Time: elimination {_num(self.elimination_time)} s, feasible boxes {_num(self.box_time)} s.",
+        if self.lmi:
+            lines += self._lmi_markdown()
+        timing = f"Time: elimination {_num(self.elimination_time)} s, feasible boxes {_num(self.box_time)} s"
+        if self.explanations or self.history is not None:
+            timing += f", explanations {_num(self.explain_time)} s"
+        if self.lmi:
+            timing += f", Assumption 4 {_num(self.lmi_time)} s"
+        lines += [timing + ".", ""]
+        return "\n".join(lines)
+
+    def _explanation_text(self, e: InconsistencyExplanation) -> str:
+        j = e.violated
+        label = f"`{self.state_label(j)}` (state {j})"
+        n = e.first_transition
+        # Where the contradiction is exact the bound is only relative to the row's rounding
+        # scale: the report says that it holds, not a number that reads as "barely".
+        bound = (
+            f"re-checked: bound above the tolerance {_num(e.certificate.tolerance, 3)}"
+            if e.exact
+            else f"re-checked bound {_num(e.recheck_bound, 6)} > {_num(e.certificate.tolerance, 3)}"
+        )
+        before = f"transitions 0..{n - 1} do not" if n > 0 else "no shorter prefix does"
+        text = (
+            f"**{self.names[e.hypothesis]}**: transitions 0..{n} already contradict it ({before}; "
+            f"bisection over prefixes, {e.prefixes_checked} LPs, each verdict proven by a re-checked "
+            f"certificate). The dual witness of that prefix (transitions "
+            f"{_transitions_text(e.certificate.transitions)}, {bound}) rests on {label}"
+        )
+        others = [
+            f"`{self.state_label(k)}` {100 * e.weights[k]:.0f}%"
+            for k in np.argsort(-e.weights, kind="stable")
+            if k != j and e.weights[k] >= 0.005
+        ]
+        text += f" ({100 * e.weights[j]:.0f}% of its weight" + (f"; {', '.join(others)})" if others else ")")
+        if e.exact:
+            return (
+                text + f". Neither the disturbance nor the measurement noise reaches {label}: the hypothesis "
+                "gives an exact equation for it, and the data **contradicts it exactly** (no disturbance "
+                "bound, however large, explains it)."
+            )
+        unit = self.state_unit(j)
+        prefix, full = e.margin_in_state_units("prefix")[j], e.margin_in_state_units("full")[j]
+        return text + (
+            f". Margin: {_num(e.prefix_margin, 4)} disturbance radii on transitions 0..{n}, "
+            f"{_num(e.margin, 4)} on all {self.ntransitions}; on {label}, whose disturbance radius is "
+            f"{_num(e.unit_radius[j], 4)} {unit}, the disturbance would have to exceed its bound by "
+            f"{_num(prefix, 4)} {unit} (transitions 0..{n}) and {_num(full, 4)} {unit} (all)."
+        )
+
+    def _lmi_markdown(self) -> list[str]:
+        where = (
+            "all states"
+            if self.lmi_states is None
+            else "the subsystem of states " + ", ".join(f"`{self.state_label(j)}`" for j in self.lmi_states)
+        )
+        lines = [
+            "## Assumption 4 on each survivor's feasible parameter box",
+            "",
+            f"Checked over the 2^d vertices of each survivor's feasible parameter box with one common P, on {where}.",
             "",
         ]
-        return "\n".join(lines)
+        rows = []
+        for i in sorted(self.lmi):
+            report = self.lmi[i]
+            rows.append(
+                (
+                    self.names[i],
+                    report.form,
+                    str(len(report.matrices)),
+                    report.result.status.value,
+                    str(bool(report.result.certified)),
+                    proof_status(report.result),
+                    report.verdict,
+                )
+            )
+        lines += _table(("survivor", "form", "vertices", "status", "certified", "proof", "verdict"), rows)
+        return lines + [""]
 
 
 def _transitions_text(transitions, limit: int = 12) -> str:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
@@ -24,14 +25,25 @@ from .arguments import count, count_list, output_directory, report_error
 if TYPE_CHECKING:
     from .episode import LoopConfig
 
-__all__ = ["suboptimality_study", "fit_trend", "plot_study", "markdown", "register", "DEFAULT_SAMPLES"]
+__all__ = [
+    "suboptimality_study",
+    "fit_trend",
+    "degenerate_fit",
+    "plot_study",
+    "markdown",
+    "register",
+    "DEFAULT_SAMPLES",
+    "TREND_PARAMETERS",
+]
 
 #: The values of N of the default study.
 DEFAULT_SAMPLES = (2, 5, 10, 20, 50, 100, 200, 400)
+#: The number of parameters (a, b) of the trend ``a + b log(N) / N``.
+TREND_PARAMETERS = 2
 
 
 def fit_trend(ns: Sequence[float], values: Sequence[float]) -> dict:
-    """Least-squares fit of ``a + b log(N) / N`` to suboptimality values.
+    """Least-squares fit of ``a + b log(N) / N`` to suboptimality values, or why there is none.
 
     Parameters
     ----------
@@ -43,7 +55,8 @@ def fit_trend(ns: Sequence[float], values: Sequence[float]) -> dict:
     Returns
     -------
     dict
-        ``{"a": a, "b": b}``.
+        ``{"a": a, "b": b, "warning": None}``; for a degenerate fit ``{"a": None, "b":
+        None, "warning": REASON}``, where REASON says why (`degenerate_fit`).
 
     Notes
     -----
@@ -51,10 +64,49 @@ def fit_trend(ns: Sequence[float], values: Sequence[float]) -> dict:
     """
     import numpy as np
 
+    warning = degenerate_fit(ns, values)
+    if warning is not None:
+        return {"a": None, "b": None, "warning": warning}
     n = np.asarray(ns, dtype=float)
     design = np.stack([np.ones_like(n), np.log(n) / n], axis=1)
     coef, *_ = np.linalg.lstsq(design, np.asarray(values, dtype=float), rcond=None)
-    return {"a": float(coef[0]), "b": float(coef[1])}
+    return {"a": float(coef[0]), "b": float(coef[1]), "warning": None}
+
+
+def degenerate_fit(ns: Sequence[float], values: Sequence[float]) -> str | None:
+    """Why the trend ``a + b log(N) / N`` cannot be fitted to these points, or None if it can.
+
+    Parameters
+    ----------
+    ns : sequence of float
+        The numbers of samples N.
+    values : sequence of float
+        The suboptimality observed at each N.
+
+    Returns
+    -------
+    str or None
+        A sentence when the fit is degenerate: fewer distinct values of N than the
+        fit's `TREND_PARAMETERS` parameters (the least-squares problem has no unique
+        solution), or every value zero (the robust planner matched the oracle at every
+        N: nothing to fit, and "0 + 0 log(N)/N" would read as a measured trend).
+    """
+    import numpy as np
+
+    n = np.asarray(ns, dtype=float)
+    v = np.asarray(values, dtype=float)
+    distinct = np.unique(n).size
+    if distinct < TREND_PARAMETERS:
+        return (
+            f"no trend fitted: {distinct} distinct value(s) of N, fewer than the {TREND_PARAMETERS} "
+            "parameters of a + b log(N)/N"
+        )
+    if not np.any(v):
+        return (
+            f"no trend fitted: the suboptimality is exactly 0 at all {v.size} values of N "
+            "(the robust planner matched the oracle's return every time)"
+        )
+    return None
 
 
 def suboptimality_study(
@@ -95,7 +147,8 @@ def suboptimality_study(
     dict
         ``scenario``, ``episodes``, ``horizon_decisions``, ``seed``, ``rows`` (per N:
         ``mean``, ``max``, ``min``, ``per_episode`` suboptimality and ``failures``) and
-        ``fit`` (`fit_trend` of the means).
+        ``fit`` (`fit_trend` of the means; its ``warning`` says why when no trend
+        can be fitted).
 
     Raises
     ------
@@ -188,9 +241,12 @@ def plot_study(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot(n, [r["mean"] for r in study["rows"]], "o-", label="mean over episodes")
     ax.plot(n, [r["max"] for r in study["rows"]], "s--", label="max over episodes")
-    grid = np.geomspace(n.min(), n.max(), 200)
     fit = study["fit"]
-    ax.plot(grid, fit["a"] + fit["b"] * np.log(grid) / grid, "k:", label="fit a + b log(N)/N")
+    if fit.get("warning") is None:
+        grid = np.geomspace(n.min(), n.max(), 200)
+        ax.plot(grid, fit["a"] + fit["b"] * np.log(grid) / grid, "k:", label="fit a + b log(N)/N")
+    else:
+        ax.text(0.02, 0.02, fit["warning"], transform=ax.transAxes, fontsize="small", color="tab:red", wrap=True)
     ax.set_xscale("log")
     ax.set_xlabel("N, transitions observed before planning")
     ax.set_ylabel("oracle return - robust return")
@@ -222,7 +278,10 @@ def markdown(study: dict) -> str:
             f"| {r['n']} | {r['mean']:.4f} | {r['max']:.4f} | {r['min']:.4f} | {r['failures']}/{study['episodes']} |"
         )
     fit = study["fit"]
-    lines.append(f"\nTrend fit: suboptimality ~ {fit['a']:.4f} + {fit['b']:.4f} log(N)/N")
+    if fit.get("warning") is None:
+        lines.append(f"\nTrend fit: suboptimality ~ {fit['a']:.4f} + {fit['b']:.4f} log(N)/N")
+    else:
+        lines.append(f"\n**Warning: {fit['warning']}.**")
     return "\n".join(lines) + "\n"
 
 
@@ -245,6 +304,8 @@ def _run(args: argparse.Namespace) -> int:
     (out / "suboptimality.json").write_text(json.dumps(study, indent=2) + "\n")
     (out / "suboptimality.md").write_text(markdown(study))
     plot_study(study, out / "suboptimality.png")
+    if study["fit"].get("warning") is not None:
+        print(f"minimaxplan suboptimality: warning: {study['fit']['warning']}", file=sys.stderr)
     print(markdown(study))
     print(f"outputs written to {out}/")
     return 0
