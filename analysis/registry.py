@@ -68,7 +68,13 @@ Factory = Callable[..., Any] | str
 
 #: Modules that register the built-in scenarios and methods when imported (loaded on the
 #: first use of a registry, so that ``import minimaxplan.analysis`` stays light).
-BUILTIN_MODULES = ("minimaxplan.analysis.robot_scenario", "minimaxplan.analysis.robot_methods")
+BUILTIN_MODULES = (
+    "minimaxplan.analysis.robot_scenario",
+    "minimaxplan.analysis.robot_methods",
+    "minimaxplan.analysis.road_scenario",
+    "minimaxplan.analysis.road_methods",
+    "minimaxplan.analysis.road_planning",
+)
 
 _QUALIFIED_NAME = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
 

@@ -249,6 +249,15 @@ class DrivingWorld:
         """`road_reward` of the current state."""
         return road_reward(self)
 
+    def true_states(self) -> dict[str, np.ndarray]:
+        """The true states for the run-time check: ``"ego"`` and ``"vehicle j"`` (agent j on the road), ``(x, y, v, psi)``."""
+        traffic = self.world.traffic
+        states = {"ego": traffic.states[0].copy()}
+        for j in np.flatnonzero(traffic.active):
+            if j:
+                states[f"vehicle {int(j)}"] = traffic.states[j].copy()
+        return states
+
     def to_dict(self) -> dict:
         """The world's setup, the other vehicles' true paths and, after a collision, whom the ego hit.
 

@@ -87,6 +87,7 @@ from minimaxplan.models import Box
 from minimaxplan.models.errors import NoConsistentModel, SolverFailure
 from minimaxplan.scenarios.road import ARC, Road
 from minimaxplan.scenarios.road_world import HighwayScenario, Observation, TJunctionScenario
+from minimaxplan.scenarios.traffic_models import VehicleBelief
 from minimaxplan.verify.interval_regression import (
     INTERVAL_ROUNDING_ALLOWANCE,
     IntervalRows,
@@ -95,7 +96,6 @@ from minimaxplan.verify.interval_regression import (
 )
 
 __all__ = [
-    "VehicleBelief",
     "NominalEstimate",
     "TrafficLearner",
     "LATERAL_MIN_SPEED",
@@ -119,33 +119,6 @@ OCCUPANCY_REACH = 1.0
 WINDOWS = (4, 16, 64)
 #: Relative outward rounding applied to every computed row.
 ROW_ROUNDING = 1e-10
-
-
-# TODO(lead): replace by `minimaxplan.scenarios.traffic_models.VehicleBelief` at merge
-# (the "traffic" helper's dataclass, with exactly these fields).
-@dataclass(frozen=True)
-class VehicleBelief:
-    """What is known of one other vehicle (stand-in for ``scenarios.traffic_models.VehicleBelief``).
-
-    Attributes
-    ----------
-    agent : int
-        Its agent index (as `Observation.ids`).
-    theta_a : Box
-        Box (3) of the acceleration gains.
-    theta_b : Box
-        Box (2) of the steering gains.
-    lanes : tuple of int
-        The lanes it may be steering to now.
-    routes : tuple of tuple of int
-        Its possible remaining routes (lane sequences from the lane it was first seen on).
-    """
-
-    agent: int
-    theta_a: Box
-    theta_b: Box
-    lanes: tuple[int, ...]
-    routes: tuple[tuple[int, ...], ...]
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,523 @@
+"""The tree-search methods of the road worlds: robust, nominal, oracle (Table 4, Figure 6).
+
+Importing this module registers ``robust``, ``nominal`` and ``oracle`` for the road
+scenarios (`minimaxplan.analysis.road_scenario`); the robot's factories of the same
+names raise `UnsupportedScenario` for them, and these for the robot's.
+
+All three plan with `RobustTreePlanner` (K = 100, gamma = 0.9 by default) over the
+same ego model, `BicycleModel`: the ego knows its own state exactly and has no
+disturbance, so its predicted trajectory is a point, computed by the compiled bicycle
+and controllers that the world steps the ego with (bit for bit). The actions are the
+paper's (`HIGHWAY_ACTIONS`, `TJUNCTION_ACTIONS`), each a saturated low-level controller
+held for one decision (5 sub-steps of 0.1 s). The reward is `DrivingReward` (the
+paper's vehicle cost flipped into [0, 1]) with, as obstacles, a table of boxes of the
+other vehicles over the next `FORECAST_STEPS` sub-steps; beyond them the reward is 0,
+so no plan relies on what is not forecast. The methods differ only in that table:
+
+robust
+    `forecast_traffic` of every measured vehicle under its `VehicleBelief` from the
+    `TrafficLearner` (LP elimination of its intentions, LP boxes of its parameters):
+    boxes that contain the vehicle for every parameter, intention, switch time,
+    disturbance and measurement noise the data allow. The ego is a possible leader of
+    the vehicles behind it: its reach over any action sequence (`ego_reach`) enters
+    the forecast.
+nominal
+    Certainty equivalence: the other vehicles simulated from their measured states
+    under the LinearVehicle law with the least-squares parameters and the
+    minimum-error route (`TrafficLearner.nominal`), no disturbance and no future lane
+    change, the ego holding its current speed level and lane; their rectangles' boxes.
+oracle
+    The same simulation from the true states with the true parameters, target speeds
+    and intentions (the reference of the suboptimality study).
+
+The robust method's policy is a `PredictingPolicy`: after every sub-step of an
+executed decision, the episode loop checks that the true ego equals its predicted
+point and that every forecast vehicle lies in its state box (``boxes_checked``,
+``boxes_missed``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from minimaxplan.kernels.bicycle import apply_action, ego_control
+from minimaxplan.models import InputError
+from minimaxplan.planners import RobustTreePlanner
+from minimaxplan.planners.bicycle_model import (
+    HIGHWAY_ACTIONS,
+    HIGHWAY_TARGET_SPEEDS,
+    TJUNCTION_ACTIONS,
+    TJUNCTION_TARGET_SPEEDS,
+    BicycleModel,
+    ego_controller,
+)
+from minimaxplan.scenarios.driving_reward import DrivingReward
+from minimaxplan.scenarios.road import lane_geometry
+from minimaxplan.scenarios.road_world import Observation, RoadWorld
+from minimaxplan.scenarios.traffic_models import TrafficForecast, VehicleBelief, forecast_traffic
+from minimaxplan.scenarios.vehicles import BehaviourParameters, TrafficRules, traffic_step, vehicle_corners
+
+from .episode import LoopConfig
+from .registry import Method, Policy, Transition, UnsupportedScenario, register_method
+from .road_scenario import DrivingWorld, RoadScenario
+from .traffic_learning import TrafficLearner
+
+__all__ = [
+    "FORECAST_STEPS",
+    "RoadPlanningMethod",
+    "RoadRobustMethod",
+    "RoadNominalMethod",
+    "RoadOracleMethod",
+    "EgoSetup",
+    "ego_setup",
+    "ego_reach",
+    "point_forecast",
+]
+
+#: Sub-steps of the other vehicles' forecast (5 s at dt = 0.1 s): the planner's
+#: reward is 0 beyond them.
+FORECAST_STEPS = 50
+
+
+class EgoSetup:
+    """The ego of one road episode: its controllers, actions, reward and initial speed level and lane.
+
+    Parameters
+    ----------
+    world : RoadWorld
+        The episode (with an ego).
+
+    Attributes
+    ----------
+    controller : EgoController
+        The compiled controllers (`ego_controller`) on the road's lanes (with the ego's
+        route at the T-junction).
+    actions : tuple
+        `HIGHWAY_ACTIONS` or `TJUNCTION_ACTIONS`.
+    speeds : tuple of float
+        The speed levels' target speeds, m/s.
+    reward : DrivingReward
+        The reward with an empty obstacle table (`DrivingReward.with_obstacles` gives
+        each decision's).
+    level, lane : int
+        The speed level nearest to the ego's initial speed, and its lane.
+    """
+
+    def __init__(self, world: RoadWorld) -> None:
+        road, scenario = world.road, world.scenario
+        vehicle = scenario.vehicle
+        state = world.ego_state
+        if world.kind == "highway":
+            self.actions: tuple = HIGHWAY_ACTIONS
+            self.speeds: tuple = HIGHWAY_TARGET_SPEEDS
+            lanes = lane_geometry(road)
+            route: tuple[int, ...] = ()
+        else:
+            self.actions = TJUNCTION_ACTIONS
+            self.speeds = TJUNCTION_TARGET_SPEEDS
+            route = tuple(int(lane) for lane in world.traffic.routes[0] if lane >= 0)
+            lanes = lane_geometry(road, route)
+        self.route = route
+        self.controller = ego_controller(
+            lanes,
+            self.speeds,
+            acceleration_bound=scenario.ego_acceleration_bound,
+            length=vehicle.length,
+            max_speed=vehicle.max_speed,
+            max_steering=vehicle.max_steering,
+            dt=scenario.dt,
+        )
+        empty = np.zeros((1, 0, 4))
+        if world.kind == "highway":
+            self.reward = DrivingReward.highway(
+                empty, 0, road, off_road_margin=scenario.off_road_margin, length=vehicle.length, width=vehicle.width
+            )
+        else:
+            goal_lane = world.goal_lanes[0]
+            goal = np.asarray(road.position_at(goal_lane, world.goal_s), dtype=float)
+            scale = float(np.hypot(*(goal - state[:2])))
+            self.reward = DrivingReward.tjunction(
+                empty,
+                0,
+                road,
+                goal,
+                scale,
+                off_road_margin=scenario.off_road_margin,
+                length=vehicle.length,
+                width=vehicle.width,
+            )
+        self.level = int(np.argmin(np.abs(np.asarray(self.speeds) - state[2])))
+        self.lane = int(world.traffic.lane[0])
+
+
+def ego_setup(world: RoadWorld) -> EgoSetup:
+    """`EgoSetup` of ``world``."""
+    return EgoSetup(world)
+
+
+def ego_reach(state: np.ndarray, speed_bounds: tuple[float, float], steps: int, dt: float, half_diagonal: float):
+    """Boxes that contain the ego's whole rectangle at each sub-step under any action sequence.
+
+    Parameters
+    ----------
+    state : numpy.ndarray
+        The ego's ``(x, y, v, psi)`` now.
+    speed_bounds : tuple of 2 float
+        ``(low, high)`` that contain the ego's speed at every future sub-step whatever
+        its actions: the controllers track a target speed without overshoot (the gain
+        times dt is below 1 and the acceleration is clipped), so the speed stays
+        between ``min(v, lowest target)`` and ``max(v, highest target)``.
+    steps : int
+        H.
+    dt : float
+        Sub-step, s.
+    half_diagonal : float
+        Half the rectangle's diagonal, m.
+
+    Returns
+    -------
+    reach : numpy.ndarray, shape (steps + 1, 4)
+        ``[x_lo, y_lo, x_hi, y_hi]``: the centre moves at most ``high * dt`` per
+        sub-step in any direction, plus the rectangle around it.
+    speed : numpy.ndarray, shape (steps + 1, 2)
+        ``speed_bounds`` at every sub-step.
+    """
+    low, high = speed_bounds
+    radius = high * dt * np.arange(steps + 1) + half_diagonal
+    reach = np.empty((steps + 1, 4))
+    reach[:, 0] = np.nextafter(state[0] - radius, -np.inf)
+    reach[:, 1] = np.nextafter(state[1] - radius, -np.inf)
+    reach[:, 2] = np.nextafter(state[0] + radius, np.inf)
+    reach[:, 3] = np.nextafter(state[1] + radius, np.inf)
+    speed = np.empty((steps + 1, 2))
+    speed[:, 0], speed[:, 1] = low, high
+    return reach, speed
+
+
+def _rectangle_boxes(states: np.ndarray, active: np.ndarray, vehicle) -> np.ndarray:
+    """Axis-aligned boxes ``[x_lo, y_lo, x_hi, y_hi]`` of the rectangles of ``states`` (m, 4); empty where inactive."""
+    corners = vehicle_corners(states, vehicle)  # (m, 4, 2)
+    boxes = np.concatenate([corners.min(axis=1), corners.max(axis=1)], axis=1)
+    boxes[~active] = (np.inf, np.inf, -np.inf, -np.inf)
+    return boxes
+
+
+def point_forecast(world: RoadWorld, traffic, ego: EgoSetup, level: int, lane: int, steps: int) -> np.ndarray:
+    """Boxes of the other vehicles' rectangles along one simulated future (nominal and oracle).
+
+    The world's own law (`traffic_step`) from ``traffic`` with no disturbance and no
+    lane-change decision, the ego driven by its controllers at speed level ``level``
+    towards ``lane``.
+
+    Parameters
+    ----------
+    world : RoadWorld
+        The episode (road, constants, the current sub-step).
+    traffic : TrafficState
+        The state to simulate from (the truth for the oracle, the estimates for nominal).
+    ego : EgoSetup
+        The ego's controllers.
+    level, lane : int
+        The ego's speed level and target lane, held.
+    steps : int
+        H.
+
+    Returns
+    -------
+    numpy.ndarray, shape (steps + 1, m, 4)
+        Rows for the agents ``1 .. n-1`` (every other vehicle, in agent order).
+    """
+    scenario = world.scenario
+    behaviour = BehaviourParameters(**{**scenario.behaviour.to_dict(), "disturbance_bound": 0.0})
+    rules = TrafficRules(**{**scenario.rules.to_dict(), "lane_change_probability": 0.0})
+    rng = np.random.default_rng(0)  # drawn from but unused: no disturbance, no lane change
+    vehicle = scenario.vehicle
+    out = np.empty((steps + 1, len(traffic) - 1, 4))
+    out[0] = _rectangle_boxes(traffic.states[1:], traffic.active[1:], vehicle)
+    controls = np.zeros((len(traffic), 2))
+    for n in range(steps):
+        controls[0], lane = ego_control(ego.controller, traffic.states[0], level, lane)
+        traffic, _ = traffic_step(
+            traffic,
+            world.road,
+            controls,
+            dt=scenario.dt,
+            step_index=world.step_index + n,
+            rng=rng,
+            behaviour=behaviour,
+            rules=rules,
+            vehicle=vehicle,
+        )
+        out[n + 1] = _rectangle_boxes(traffic.states[1:], traffic.active[1:], vehicle)
+    return out
+
+
+class _EgoPolicy:
+    """The ego's controllers at one speed level and target lane for one decision (a `PredictingPolicy`)."""
+
+    def __init__(self, controller, level: int, lane: int, predicted: Mapping[int, Mapping[str, tuple]]) -> None:
+        self.controller = controller
+        self.level = level
+        self.lane = lane
+        self._predicted = predicted
+
+    def control(self, measurement: Observation) -> np.ndarray:
+        """``(acceleration, steering)`` of the ego's controllers at its (exactly measured) state."""
+        control, self.lane = ego_control(self.controller, measurement.ego, self.level, self.lane)
+        return control
+
+    def predicted_boxes(self, substep: int) -> Mapping[str, tuple]:
+        """The ego's predicted point and the forecast vehicles' state boxes after ``substep`` (1-based)."""
+        return self._predicted.get(substep, {})
+
+
+class RoadPlanningMethod(Method[DrivingWorld]):
+    """What robust, nominal and oracle share: the ego model, the planner, the policy.
+
+    Parameters
+    ----------
+    scenario
+        A `RoadScenario`; anything else raises `UnsupportedScenario`.
+    config
+        The loop settings (``budget``, ``gamma``).
+    """
+
+    def __init__(self, scenario: Any, config: LoopConfig) -> None:
+        if not isinstance(scenario, RoadScenario):
+            raise UnsupportedScenario(
+                f"{type(self).__name__} drives only RoadScenario worlds, got {type(scenario).__name__}"
+            )
+        self.scenario = scenario
+        self.config = config
+
+    def start(self, world: DrivingWorld) -> None:
+        """Build the ego model of the episode.
+
+        Parameters
+        ----------
+        world : DrivingWorld
+            The episode.
+        """
+        self.world = world
+        self.ego = EgoSetup(world.world)
+        self.model = BicycleModel(self.ego.controller, self.ego.reward, self.ego.actions, substeps=world.substeps)
+        self.level, self.lane = self.ego.level, self.ego.lane
+        self.decisions: list[dict] = []
+
+    def obstacles(self, observation: Observation) -> tuple[np.ndarray, dict]:
+        """The obstacle table (H+1, m, 4) of this decision and the state boxes to check (abstract)."""
+        raise NotImplementedError
+
+    def decide(self, measurement: Observation) -> Policy:
+        """Plan on this decision's obstacle table; the policy holds the chosen action's controllers.
+
+        Parameters
+        ----------
+        measurement : Observation
+            The current measurement (the ego exact, the others noisy).
+        """
+        world = self.world.world
+        t = world.step_index
+        table, checked = self.obstacles(measurement)
+        model = self.model.with_reward(self.ego.reward.with_obstacles(table, t))
+        planner = RobustTreePlanner([model], model.actions, gamma=self.config.gamma, budget=self.config.budget)
+        root = model.initial_state(measurement.ego, level=self.level, lane=self.lane, time=t)
+        decision = planner.plan(root)
+        states, _, after = model.predict(root, decision.action)
+        predicted: dict[int, dict[str, tuple]] = {}
+        for k in range(1, states.shape[0] + 1):
+            boxes = {"ego": (states[k - 1], states[k - 1])}
+            boxes.update(checked.get(k, {}))
+            predicted[k] = boxes
+        _, speed_change, lane_change = self.ego.actions[decision.action]
+        level, lane = apply_action(self.ego.controller, self.level, self.lane, speed_change, lane_change)
+        policy = _EgoPolicy(self.ego.controller, int(level), int(lane), predicted)
+        self.level, self.lane = after.level, after.lane
+        self.decisions.append(
+            {
+                "step": int(t),
+                "action": self.ego.actions[decision.action][0],
+                "lower_bound": float(decision.lower_bound) if hasattr(decision, "lower_bound") else None,
+            }
+        )
+        return policy
+
+    def observe(self, transition: Transition) -> None:
+        """Nothing to learn (the robust method learns)."""
+
+    def report(self) -> dict:
+        """The decisions' actions."""
+        return {"decisions": self.decisions}
+
+
+class RoadRobustMethod(RoadPlanningMethod):
+    """The proposed planner on the road: elimination, sound forecasts, robust tree search (see the module docstring)."""
+
+    def start(self, world: DrivingWorld) -> None:
+        """Build the ego model and the traffic learner, and feed it the first measurement.
+
+        Parameters
+        ----------
+        world : DrivingWorld
+            The episode.
+        """
+        super().start(world)
+        road_world = world.world
+        self.learner = TrafficLearner(road_world.road, road_world.scenario)
+        self._last_step = -1
+        self.guaranteed_lost = 0
+
+    def _learn(self, observation: Observation) -> None:
+        step = int(round(observation.time / self.world.world.scenario.dt))
+        if step != self._last_step:
+            self.learner.observe(observation)
+            self._last_step = step
+
+    def obstacles(self, observation: Observation) -> tuple[np.ndarray, dict]:
+        """`forecast_traffic` under the learner's beliefs; the state boxes of the decision's sub-steps to check."""
+        self._learn(observation)
+        road_world = self.world.world
+        scenario = road_world.scenario
+        speeds = np.asarray(self.ego.speeds)
+        v = float(observation.ego[2])
+        bounds = (min(v, float(speeds.min())), max(v, float(speeds.max())))
+        half_diagonal = 0.5 * float(np.hypot(scenario.vehicle.length, scenario.vehicle.width))
+        reach, speed = ego_reach(observation.ego, bounds, FORECAST_STEPS, scenario.dt, half_diagonal)
+        beliefs: dict[int, VehicleBelief] = self.learner.beliefs()
+        forecast: TrafficForecast = forecast_traffic(
+            observation,
+            road_world.road,
+            scenario,
+            beliefs,
+            steps=FORECAST_STEPS,
+            ego_reach=reach,
+            ego_speed=speed,
+            ego_route=self.ego.route or None,
+        )
+        self.guaranteed_lost += int(
+            (~np.asarray(forecast.guaranteed[: self.world.substeps + 1], dtype=bool)).any(axis=0).sum()
+        )
+        checked: dict[int, dict[str, tuple]] = {}
+        substeps = self.world.substeps
+        last = forecast.boxes[substeps]
+        corners = np.stack(
+            [last[:, [0, 1]], last[:, [0, 3]], last[:, [2, 1]], last[:, [2, 3]]], axis=1
+        )  # (m, 4, 2): a vehicle whose box stays on the road cannot have left it (exited) during the decision
+        finite = np.all(np.isfinite(last), axis=1)
+        stays = np.zeros(len(last), dtype=bool)
+        if finite.any():
+            stays[finite] = road_world.road.on_road(corners[finite], scenario.off_road_margin).all(axis=1)
+        for k in range(1, substeps + 1):
+            checked[k] = {
+                f"vehicle {int(agent)}": (forecast.state_lower[k, j], forecast.state_upper[k, j])
+                for j, agent in enumerate(forecast.ids)
+                if stays[j]
+            }
+        return forecast.boxes, checked
+
+    def observe(self, transition: Transition) -> None:
+        """Feed the learner the sub-step's measurement."""
+        self._learn(transition.next_measured)
+
+    def report(self) -> dict:
+        """The decisions, the learner's eliminations and LP counts, and the coarse-box count."""
+        learner = self.learner
+        return {
+            "decisions": self.decisions,
+            "eliminations": [
+                list(map(lambda v: list(v) if isinstance(v, tuple) else v, e)) for e in learner.eliminations
+            ],
+            "lp_solves": learner.lp_solves,
+            "solver_failures": learner.solver_failures,
+            "coarse_vehicle_decisions": self.guaranteed_lost,
+        }
+
+
+class RoadOracleMethod(RoadPlanningMethod):
+    """Tree search on the true traffic (true states, parameters, target speeds, intentions; no disturbance)."""
+
+    def obstacles(self, observation: Observation) -> tuple[np.ndarray, dict]:
+        """`point_forecast` from the world's true traffic."""
+        world = self.world.world
+        return point_forecast(world, world.traffic, self.ego, self.level, self.lane, FORECAST_STEPS), {}
+
+
+class RoadNominalMethod(RoadPlanningMethod):
+    """Certainty equivalence: the least-squares parameters and minimum-error routes of the learner."""
+
+    def start(self, world: DrivingWorld) -> None:
+        """Build the ego model and the traffic learner.
+
+        Parameters
+        ----------
+        world : DrivingWorld
+            The episode.
+        """
+        super().start(world)
+        self.learner = TrafficLearner(world.world.road, world.world.scenario)
+        self._last_step = -1
+
+    def _learn(self, observation: Observation) -> None:
+        step = int(round(observation.time / self.world.world.scenario.dt))
+        if step != self._last_step:
+            self.learner.observe(observation)
+            self._last_step = step
+
+    def obstacles(self, observation: Observation) -> tuple[np.ndarray, dict]:
+        """`point_forecast` from the measured states with the learner's estimates."""
+        self._learn(observation)
+        world = self.world.world
+        truth = world.traffic
+        estimates = self.learner.nominal()
+        n = len(truth)
+        states = np.array(truth.states)
+        states[0] = observation.ego
+        active = np.zeros(n, dtype=bool)
+        active[0] = True
+        theta_a, theta_b = np.array(truth.theta_a), np.array(truth.theta_b)
+        routes = np.full_like(np.asarray(truth.routes), -1)
+        routes[0] = truth.routes[0]
+        route_index = np.zeros(n, dtype=int)
+        route_index[0] = truth.route_index[0]
+        low, high = world.scenario.vehicle_speed if world.kind == "highway" else world.scenario.main_speed
+        target = np.full(n, 0.5 * (low + high))
+        target[0] = truth.target_speed[0]
+        for j, agent in enumerate(observation.ids):
+            agent = int(agent)
+            states[agent] = observation.vehicles[j]
+            estimate = estimates.get(agent)
+            if estimate is None:
+                continue
+            active[agent] = True
+            theta_a[agent], theta_b[agent] = estimate.theta_a, estimate.theta_b
+            route = list(estimate.route)
+            routes[agent, : len(route)] = route[: routes.shape[1]]
+            route_index[agent] = route.index(estimate.lane) if estimate.lane in route else 0
+        traffic = truth.evolve(
+            states=states,
+            spawned=active,
+            exited=np.zeros(n, dtype=bool),
+            spawn_step=np.where(active, 0, np.iinfo(np.int64).max),
+            routes=routes,
+            route_index=route_index,
+            theta_a=theta_a,
+            theta_b=theta_b,
+            target_speed=target,
+            timer=np.full(n, np.inf),
+            courteous=np.zeros(n, dtype=bool),
+            committed=np.zeros(n, dtype=bool),
+            yield_time=np.zeros(n),
+        )
+        return point_forecast(world, traffic, self.ego, self.level, self.lane, FORECAST_STEPS), {}
+
+    def observe(self, transition: Transition) -> None:
+        """Feed the learner the sub-step's measurement."""
+        self._learn(transition.next_measured)
+
+
+register_method("robust", RoadRobustMethod)
+register_method("nominal", RoadNominalMethod)
+register_method("oracle", RoadOracleMethod)
