@@ -44,7 +44,6 @@ from typing import Any
 import numpy as np
 
 from minimaxplan.kernels.bicycle import apply_action, ego_control
-from minimaxplan.models import InputError
 from minimaxplan.planners import RobustTreePlanner
 from minimaxplan.planners.bicycle_model import (
     HIGHWAY_ACTIONS,
