@@ -157,13 +157,20 @@ def ego_setup(world: RoadWorld) -> EgoSetup:
     return EgoSetup(world)
 
 
-def ego_reach(state: np.ndarray, speed_bounds: tuple[float, float], steps: int, dt: float, half_diagonal: float):
-    """Boxes that contain the ego's whole rectangle at each sub-step under any action sequence.
+#: Decisions over which the ego's reach is enumerated exactly (every action sequence);
+#: after them it grows by the largest speed (see `ego_reach`).
+REACH_DECISIONS = 2
+
+
+def ego_reach(model: BicycleModel, root, speed_bounds: tuple[float, float], steps: int, dt: float, vehicle):
+    """Boxes that contain the ego's whole rectangle, speed and heading at each sub-step under any action sequence.
 
     Parameters
     ----------
-    state : numpy.ndarray
-        The ego's ``(x, y, v, psi)`` now.
+    model : BicycleModel
+        The ego (deterministic).
+    root : BicycleState
+        Its state now.
     speed_bounds : tuple of 2 float
         ``(low, high)`` that contain the ego's speed at every future sub-step whatever
         its actions: the controllers track a target speed without overshoot (the gain
@@ -173,27 +180,61 @@ def ego_reach(state: np.ndarray, speed_bounds: tuple[float, float], steps: int, 
         H.
     dt : float
         Sub-step, s.
-    half_diagonal : float
-        Half the rectangle's diagonal, m.
+    vehicle : VehicleParameters
+        The ego's rectangle.
 
     Returns
     -------
     reach : numpy.ndarray, shape (steps + 1, 4)
-        ``[x_lo, y_lo, x_hi, y_hi]``: the centre moves at most ``high * dt`` per
-        sub-step in any direction, plus the rectangle around it.
-    speed : numpy.ndarray, shape (steps + 1, 2)
-        ``speed_bounds`` at every sub-step.
+        ``[x_lo, y_lo, x_hi, y_hi]``.
+    speed, heading : numpy.ndarray, shape (steps + 1, 2)
+        ``(low, high)`` of the speed (m/s) and heading (rad).
+
+    Notes
+    -----
+    For the first `REACH_DECISIONS` decisions every action sequence is rolled out with
+    the model (the ego is a point: this is its exact reach, the boxes of the rectangles'
+    corners, rounded outward); from the last enumerated sub-step on, the centre moves
+    at most ``high * dt`` per sub-step in any direction, the heading is unbounded.
     """
     low, high = speed_bounds
-    radius = high * dt * np.arange(steps + 1) + half_diagonal
+    S = model.substeps
+    enumerated = min(steps, REACH_DECISIONS * S)
+    frontier = [root]
+    states = [np.asarray(root.x, dtype=float)[None]]
+    for _ in range(REACH_DECISIONS):
+        nxt, rows = [], []
+        for state in frontier:
+            for a in model.actions:
+                sub, _, after = model.predict(state, a)
+                nxt.append(after)
+                rows.append(sub)
+        frontier = nxt
+        states.append(np.stack(rows, axis=1))  # (S, sequences, 4)
+    per_step = [states[0]]
+    for d in range(1, REACH_DECISIONS + 1):
+        # sequences of decision d extend those of d - 1: every sub-step row holds all of them
+        per_step.extend(states[d][k] for k in range(S))
+    per_step = per_step[: enumerated + 1]
     reach = np.empty((steps + 1, 4))
-    reach[:, 0] = np.nextafter(state[0] - radius, -np.inf)
-    reach[:, 1] = np.nextafter(state[1] - radius, -np.inf)
-    reach[:, 2] = np.nextafter(state[0] + radius, np.inf)
-    reach[:, 3] = np.nextafter(state[1] + radius, np.inf)
     speed = np.empty((steps + 1, 2))
-    speed[:, 0], speed[:, 1] = low, high
-    return reach, speed
+    heading = np.empty((steps + 1, 2))
+    for n, rows in enumerate(per_step):
+        corners = vehicle_corners(rows, vehicle).reshape(-1, 2)
+        reach[n, :2] = np.nextafter(corners.min(axis=0), -np.inf)
+        reach[n, 2:] = np.nextafter(corners.max(axis=0), np.inf)
+        speed[n] = np.nextafter(rows[:, 2].min(), -np.inf), np.nextafter(rows[:, 2].max(), np.inf)
+        heading[n] = np.nextafter(rows[:, 3].min(), -np.inf), np.nextafter(rows[:, 3].max(), np.inf)
+    last = per_step[-1]
+    centre_lo, centre_hi = last[:, :2].min(axis=0), last[:, :2].max(axis=0)
+    half_diagonal = 0.5 * float(np.hypot(vehicle.length, vehicle.width))
+    for n in range(enumerated + 1, steps + 1):
+        radius = high * dt * (n - enumerated) + half_diagonal
+        reach[n, :2] = np.nextafter(centre_lo - radius, -np.inf)
+        reach[n, 2:] = np.nextafter(centre_hi + radius, np.inf)
+        speed[n] = low, high
+        heading[n] = -np.pi, np.pi
+    return reach, speed, heading
 
 
 def _rectangle_boxes(states: np.ndarray, active: np.ndarray, vehicle) -> np.ndarray:
@@ -383,8 +424,8 @@ class RoadRobustMethod(RoadPlanningMethod):
         speeds = np.asarray(self.ego.speeds)
         v = float(observation.ego[2])
         bounds = (min(v, float(speeds.min())), max(v, float(speeds.max())))
-        half_diagonal = 0.5 * float(np.hypot(scenario.vehicle.length, scenario.vehicle.width))
-        reach, speed = ego_reach(observation.ego, bounds, FORECAST_STEPS, scenario.dt, half_diagonal)
+        root = self.model.initial_state(observation.ego, level=self.level, lane=self.lane, time=road_world.step_index)
+        reach, speed, heading = ego_reach(self.model, root, bounds, FORECAST_STEPS, scenario.dt, scenario.vehicle)
         beliefs: dict[int, VehicleBelief] = self.learner.beliefs()
         forecast: TrafficForecast = forecast_traffic(
             observation,
@@ -394,6 +435,7 @@ class RoadRobustMethod(RoadPlanningMethod):
             steps=FORECAST_STEPS,
             ego_reach=reach,
             ego_speed=speed,
+            ego_heading=heading,
             ego_route=self.ego.route or None,
         )
         self.guaranteed_lost += int(

@@ -847,14 +847,57 @@ class TrafficLearner:
         """
         return [h.route for h in self.tracks[agent].hyps if self._alive(h)]
 
+    def _in_force_before_now(self, h: _Hypothesis, track: _Track) -> bool:
+        """Whether ``h`` may have been in force on the last transition ``step - 1 -> step``.
+
+        A hypothesis whose last possible switch is the current sub-step has no data of
+        its own: it may be chosen *now* (a lane change decided at this sub-step, which
+        `forecast_traffic` covers as a switch at its step 0, under the gap rule), or it
+        was chosen earlier and was in force on the last transition. The second case is
+        refuted by that one transition's row (the rows of a window of length 1, built as
+        `_lateral_rows` builds them) when the certified LP finds it inconsistent with
+        every theta_b of the prior; the hypothesis then stays alive (it may start now)
+        but is not an intention in force.
+        """
+        step = self.step
+        if h.tstar < step:
+            return True
+        prev = step - 1
+        item = h.lat_steps.get(prev)
+        if item is None or prev not in track.states or step not in track.states:
+            return True
+        L, dt, n = self.vehicle.length, self.dt, self.noise
+        glo, ghi, rem = item[0], item[1], item[2]
+        dpsi = track.states[step][3] - track.states[prev][3]
+        y_lo = (L / dt) * (dpsi - 2 * n[3]) - rem
+        y_hi = (L / dt) * (dpsi + 2 * n[3]) + rem
+        pad = ROW_ROUNDING * (1 + np.abs(glo) + np.abs(ghi))
+        ypad = ROW_ROUNDING * (1 + abs(y_lo) + abs(y_hi))
+        rows = IntervalRows((glo - pad)[None], (ghi + pad)[None], [y_lo - ypad], [y_hi + ypad])
+        self.lp_solves += 1
+        try:
+            verdict = interval_consistency(rows, self.prior_b)
+        except SolverFailure:
+            self.solver_failures += 1
+            return True
+        return not verdict.eliminated
+
     def current_lanes(self, agent: int) -> tuple[int, ...]:
-        """The lanes a vehicle may be steering to now (current lanes of its surviving routes)."""
+        """The lanes a vehicle may be steering to now (current lanes of its surviving routes).
+
+        On the highway a side lane that can only be chosen now (see
+        `_in_force_before_now`) is left out: the forecast's switching covers it. The
+        vehicle's own lane always stays.
+        """
         track = self.tracks[agent]
         state = track.states[max(track.states)]
         lanes = set()
         for h in track.hyps:
             if not self._alive(h):
                 continue
+            if self.kind == "highway" and len(h.route) == 1 and not self._in_force_before_now(h, track):
+                if h.route[0] != self._current_lane(state[0], state[1]):
+                    continue
             cands, *_ = self._route_positions(h.route, state[0], state[1], self.noise)
             for k in cands or [0]:
                 lanes.add(h.route[k])
