@@ -72,6 +72,17 @@ between refits the last box stays valid (more rows, smaller set). A hypothesis'
 witness is checked on its new rows in numpy at every sub-step; the LP is re-solved
 only when the witness fails.
 
+Measured (`elimination_study`, seeds 0-19, `hold_lane_control`; transitions from the
+moment the intention was wrong to its elimination, median [min, max], eliminated / wrong
+cases): highway, the lane being left in a lane change 1 [1, 2] (39/39), a lane two away
+4 [4, 4] (226/227), a side neighbour of the lane kept 4 [4, 4] (1/386: by design, see
+above); T-junction, the straight route of a turning vehicle 133 [77, 285] (31/83, the
+rest left view first: until the stop line a courteous vehicle may be yielding), the
+turn of a vehicle going straight 86 [6, 276] (101/168). No miss in 30000 + 44942
+vehicle-steps (true intention among the survivors, true theta in both boxes). Cost:
+about 22 ms per sub-step for 15 highway vehicles (110 ms per 0.5 s decision), over the
+goal of a few ms per decision.
+
 Assumption (stated, not proven): another vehicle at the T-junction steers to a lane
 whose centre line is within ``OCCUPANCY_REACH`` of its centre; it decides who may be a
 leader there (measured: at most 0.69 m, docs/driving-world.md).
@@ -1116,7 +1127,13 @@ def censored_events(world, learner: TrafficLearner) -> list[tuple[str, None]]:
             if not learner._alive(h):
                 continue
             wrong = true_lane not in h.route if world.kind == "highway" else true_route[-len(h.route) :] != h.route
-            if wrong:
+            if not wrong:
+                continue
+            if world.kind == "highway":  # alive now: a side neighbour of the lane it keeps, or two away
+                group = world.road.side_lanes(true_lane)
+                far = abs(group.index(h.route[0]) - group.index(true_lane)) >= 2
+                out.append(("lane two away" if far else "neighbour lane (vehicle keeps its lane)", None))
+            else:
                 out.append((_kind_of(world, h.route, agent, track.first)[0], None))
     return out
 

@@ -52,17 +52,17 @@ def _run(kind: str, seed: int, steps: int, *, extreme: bool):
     return world, learner, checked, changes
 
 
-@settings(max_examples=2, deadline=None)
+@settings(max_examples=4, deadline=None)
 @given(seed=st.integers(0, 10_000), extreme=st.booleans())
 def test_highway_true_intention_and_parameters_never_lost(seed, extreme):
-    _, _, checked, _ = _run("highway", seed, 40, extreme=extreme)
+    _, _, checked, _ = _run("highway", seed, 60, extreme=extreme)
     assert checked > 0
 
 
-@settings(max_examples=2, deadline=None)
+@settings(max_examples=3, deadline=None)
 @given(seed=st.integers(0, 10_000), extreme=st.booleans())
 def test_tjunction_true_route_and_parameters_never_lost(seed, extreme):
-    _, _, checked, _ = _run("tjunction", seed, 60, extreme=extreme)
+    _, _, checked, _ = _run("tjunction", seed, 100, extreme=extreme)
     assert checked > 0
 
 
