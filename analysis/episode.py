@@ -232,7 +232,13 @@ class BoxCheck:
         self.misses: list[dict] = []
 
     def check(
-        self, boxes: Mapping[str, tuple[Any, Any]], truth: Mapping[str, Any], *, decision: int, substep: int, time: float
+        self,
+        boxes: Mapping[str, tuple[Any, Any]],
+        truth: Mapping[str, Any],
+        *,
+        decision: int,
+        substep: int,
+        time: float,
     ) -> None:
         """Check every box of ``boxes`` against the state of the same name in ``truth``.
 

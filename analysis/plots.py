@@ -389,6 +389,9 @@ def plot_experiment(
 ) -> list[pathlib.Path]:
     """Every figure of an experiment: ``trajectories_S.png`` and ``motion_S.png`` per scenario S.
 
+    For the road worlds, ``trajectories_S.png`` draws the road, the ego's and the other
+    vehicles' paths (`road_scenario.plot_road_trajectories`) and there is no motion figure.
+
     Parameters
     ----------
     records : sequence of EpisodeRecord
@@ -411,6 +414,12 @@ def plot_experiment(
         shown = sorted({r.seed for r in records if r.scenario == scenario})[:plot_seeds]
         group = [r for r in records if r.scenario == scenario and r.seed in shown]
         if not group:
+            continue
+        if all("traffic_paths" in r.extra.get("world", {}) for r in group):
+            # a road world: the lanes, the ego's and the other vehicles' paths (its state is (x, y, v, psi))
+            from .road_scenario import plot_road_trajectories
+
+            written.append(plot_road_trajectories(group, out / f"trajectories_{scenario}.png", title=scenario))
             continue
         written.append(plot_trajectories(group, out / f"trajectories_{scenario}.png"))
         if any(np.shape(r.trace.get("states", []))[1:] == (4,) for r in group):

@@ -53,7 +53,7 @@ from minimaxplan.planners.bicycle_model import (
     BicycleModel,
     ego_controller,
 )
-from minimaxplan.scenarios.driving_reward import DrivingReward
+from minimaxplan.scenarios.driving_reward import world_reward
 from minimaxplan.scenarios.road import lane_geometry
 from minimaxplan.scenarios.road_world import Observation, RoadWorld
 from minimaxplan.scenarios.traffic_models import TrafficForecast, VehicleBelief, forecast_traffic
@@ -129,25 +129,7 @@ class EgoSetup:
             max_steering=vehicle.max_steering,
             dt=scenario.dt,
         )
-        empty = np.zeros((1, 0, 4))
-        if world.kind == "highway":
-            self.reward = DrivingReward.highway(
-                empty, 0, road, off_road_margin=scenario.off_road_margin, length=vehicle.length, width=vehicle.width
-            )
-        else:
-            goal_lane = world.goal_lanes[0]
-            goal = np.asarray(road.position_at(goal_lane, world.goal_s), dtype=float)
-            scale = float(np.hypot(*(goal - state[:2])))
-            self.reward = DrivingReward.tjunction(
-                empty,
-                0,
-                road,
-                goal,
-                scale,
-                off_road_margin=scenario.off_road_margin,
-                length=vehicle.length,
-                width=vehicle.width,
-            )
+        self.reward = world_reward(world)
         self.level = int(np.argmin(np.abs(np.asarray(self.speeds) - state[2])))
         self.lane = int(world.traffic.lane[0])
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from minimaxplan.models.errors import InputError
 from minimaxplan.planners.dwa import RoadScene
+from minimaxplan.scenarios.driving_reward import true_reward, world_reward
 from minimaxplan.scenarios.road import HighwayGeometry, Road, TJunctionGeometry, highway_road, tjunction_road
 from minimaxplan.scenarios.road_world import ROAD_WORLD_KINDS, Observation, RoadWorld, make_road_world
 
@@ -37,7 +38,6 @@ __all__ = [
     "DrivingWorld",
     "RoadScenario",
     "RoadFrame",
-    "road_reward",
     "HIGHWAY_SPEED_LIMIT",
     "TJUNCTION_SPEED_LIMIT",
     "road_trajectory_figure",
@@ -110,35 +110,6 @@ class RoadFrame:
         return np.asarray(self.road.position_at(lane, s), dtype=float)
 
 
-def road_reward(world: DrivingWorld) -> float:
-    """The true reward in [0, 1] of a driving world's current state (0 on a collision or off the road).
-
-    Highway: ``(1 + 0.4 min(v / 30, 1) + 0.1 lane / (lanes - 1)) / 1.5`` (the paper's
-    c2 = 0.4, c3 = 0.1 flipped into a reward; lane k centred at ``y = k lane_width``, a
-    higher k the preferred lane as in `SpeedLaneReward`). T-junction: the progress along
-    the ego's route from its start to the goal, clipped to [0, 1] (the paper's c1 = 0.4
-    goal term, normalised).
-
-    Parameters
-    ----------
-    world : DrivingWorld
-        The episode.
-    """
-    road_world = world.world
-    if road_world.outcome in ("collision", "off_road"):
-        return 0.0
-    x, y, v, _ = road_world.ego_state
-    if road_world.kind == "highway":
-        geometry = road_world.scenario.geometry
-        lanes = geometry.lane_count
-        lane = float(np.clip(np.floor(y / geometry.lane_width + 0.5), 0, lanes - 1))
-        lane_term = lane / (lanes - 1) if lanes > 1 else 0.0
-        return float((1.0 + 0.4 * min(v / HIGHWAY_SPEED_LIMIT, 1.0) + 0.1 * lane_term) / 1.5)
-    progress = float(world.frame(np.array([x, y]))[0])
-    span = world.goal_progress - world.start_progress
-    return float(np.clip((progress - world.start_progress) / span, 0.0, 1.0))
-
-
 def route_frame(world: RoadWorld) -> RoadFrame:
     """The lanes the ego may use: every lane of the highway, the ego's route at the T-junction."""
     road = world.road
@@ -185,6 +156,7 @@ class DrivingWorld:
         self.goal_progress = goal_progress(world)
         self.speed_limit = HIGHWAY_SPEED_LIMIT if world.kind == "highway" else TJUNCTION_SPEED_LIMIT
         self.start_progress = float(self.frame(world.ego_state[:2])[0])
+        self._reward = world_reward(world)
         self._paths: dict[int, list[list[float]]] = {}
         self._record_paths()
 
@@ -201,7 +173,7 @@ class DrivingWorld:
 
     @property
     def outcome(self) -> str:
-        """"running", then "goal", "collision", "off_road" or "timeout"."""
+        """ "running", then "goal", "collision", "off_road" or "timeout"."""
         return self.world.outcome
 
     @property
@@ -246,8 +218,8 @@ class DrivingWorld:
         return outcome
 
     def reward(self) -> float:
-        """`road_reward` of the current state."""
-        return road_reward(self)
+        """The true reward of the current state (`minimaxplan.scenarios.driving_reward.true_reward`)."""
+        return true_reward(self.world, self._reward)
 
     def true_states(self) -> dict[str, np.ndarray]:
         """The true states for the run-time check: ``"ego"`` and ``"vehicle j"`` (agent j on the road), ``(x, y, v, psi)``."""

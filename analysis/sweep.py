@@ -122,7 +122,9 @@ def make_crowd_world(
         For a seed, count or uncertainty out of range.
     """
     world_class, _ = _classes()
-    return world_class(seed, pedestrians=pedestrians, velocity_uncertainty=velocity_uncertainty, measurement=measurement)
+    return world_class(
+        seed, pedestrians=pedestrians, velocity_uncertainty=velocity_uncertainty, measurement=measurement
+    )
 
 
 def crowd_scenario(pedestrians: int, velocity_uncertainty: float) -> RobotScenario:

@@ -396,7 +396,9 @@ class TrafficLearner:
         score = np.where(inside, np.abs(off), np.inf)
         lane = int(np.argmin(score))
         for _ in range(len(road)):
-            before = [a for a, b in road.connections if b == lane and inside[a] and abs(off[a]) <= road.widths[a] / 2 + 1.0]
+            before = [
+                a for a, b in road.connections if b == lane and inside[a] and abs(off[a]) <= road.widths[a] / 2 + 1.0
+            ]
             if not before:
                 break
             lane = int(before[0])
@@ -509,7 +511,9 @@ class TrafficLearner:
             )
             dist_lo, dist_hi = s_o - se_o - (s_i + se_i), s_o + se_o - (s_i - se_i)
             width = road.widths[group[0]]
-            lane_off = off_o[:, None] - (np.arange(len(group)) * width)[None, :]  # offsets from each group lane (parallel)
+            lane_off = (
+                off_o[:, None] - (np.arange(len(group)) * width)[None, :]
+            )  # offsets from each group lane (parallel)
             _, off_i = road.frenet(group, x, y)
             sure_i = np.abs(off_i) + n[1] <= road.widths[group] / 2
             sure_j = np.abs(lane_off) + oe_o[:, None] <= width / 2
@@ -533,7 +537,10 @@ class TrafficLearner:
             has_next = k + 1 < len(route)
             kappa_here = abs(float(road.curvature_at(lane, 0.0)))
             kappa_next = abs(float(road.curvature_at(route[k + 1], 0.0))) if has_next else 0.0
-            near_lo, near_hi = has_next and to_end_hi <= rules.curve_approach, has_next and to_end_lo <= rules.curve_approach
+            near_lo, near_hi = (
+                has_next and to_end_hi <= rules.curve_approach,
+                has_next and to_end_lo <= rules.curve_approach,
+            )
             if near_lo != near_hi and kappa_next > kappa_here:
                 return None  # the cap may or may not apply
             kappa = max(kappa_here, kappa_next if near_hi else 0.0)
@@ -551,7 +558,8 @@ class TrafficLearner:
             cs, co = road.frenet(rl[None, None, :], corners[:, :, 0:1], corners[:, :, 1:2])  # (m, 4, R)
             cpad = 0.2 + np.hypot(obs_noise[:, 0], obs_noise[:, 1])[:, None, None]
             corner_in = np.any(
-                (cs >= -cpad) & (cs <= lengths[:, None, :] + cpad) & (np.abs(co) <= widths[:, None, :] / 2 + cpad), axis=1
+                (cs >= -cpad) & (cs <= lengths[:, None, :] + cpad) & (np.abs(co) <= widths[:, None, :] / 2 + cpad),
+                axis=1,
             )
             reach = OCCUPANCY_REACH + OE
             centre_in = (S + SE >= -reach) & (S - SE <= lengths + reach) & (np.abs(OF) - OE <= widths / 2 + reach)
@@ -569,7 +577,15 @@ class TrafficLearner:
             err = obs_states[:, 3:4] - heads
             err = err - 2 * np.pi * np.round(err / (2 * np.pi))
             err = np.where(possible_occ, np.abs(err), 0.0)
-            head_err = err.max(axis=1) + obs_noise[:, 3] + np.max(np.where(possible_occ & (road.kinds[rl] == ARC)[None, :], SE / road.radii[rl][None, :], 0.0), axis=1, initial=0.0)
+            head_err = (
+                err.max(axis=1)
+                + obs_noise[:, 3]
+                + np.max(
+                    np.where(possible_occ & (road.kinds[rl] == ARC)[None, :], SE / road.radii[rl][None, :], 0.0),
+                    axis=1,
+                    initial=0.0,
+                )
+            )
             # the true distance is the least over the lanes it occupies: at most the largest possible one
             dist_hi = np.max(np.where(possible_occ & (d_hi > 0), d_hi, -np.inf), axis=1)
             sure_bound = sure_d.min(axis=1)
@@ -582,7 +598,9 @@ class TrafficLearner:
         if self.kind == "highway":
             d_up = np.min(np.where(sure, dist_hi, np.inf), initial=np.inf)
             vf_lo, vf_hi = obs_states[:, 2] - obs_noise[:, 2], obs_states[:, 2] + obs_noise[:, 2]
-            clo, chi = _cos_interval(obs_states[:, 3] - heading - obs_noise[:, 3], obs_states[:, 3] - heading + obs_noise[:, 3])
+            clo, chi = _cos_interval(
+                obs_states[:, 3] - heading - obs_noise[:, 3], obs_states[:, 3] - heading + obs_noise[:, 3]
+            )
         else:
             d_up = float(np.min(sure, initial=np.inf))
             vf_lo, vf_hi = obs_states[:, 2] - obs_noise[:, 2], obs_states[:, 2] + obs_noise[:, 2]
@@ -633,7 +651,9 @@ class TrafficLearner:
         vehicles = np.asarray(observation.vehicles, dtype=float).reshape(-1, 4)
         ego = np.asarray(observation.ego, dtype=float)
         all_states = np.vstack([vehicles, ego[None, :]]) if np.any(ego) else vehicles
-        all_noise = np.vstack([np.tile(self.noise, (len(vehicles), 1))] + ([self.ego_noise[None, :]] if np.any(ego) else []))
+        all_noise = np.vstack(
+            [np.tile(self.noise, (len(vehicles), 1))] + ([self.ego_noise[None, :]] if np.any(ego) else [])
+        )
         seen = set()
         for row, agent in enumerate(ids):
             agent = int(agent)
@@ -927,7 +947,13 @@ class TrafficLearner:
         out = {}
         for a in agents:
             t = self.tracks[int(a)]
-            out[int(a)] = VehicleBelief(int(a), t.theta_a, t.theta_b, self.current_lanes(int(a)), tuple(self.survivors(int(a))) or tuple(h.route for h in t.hyps))
+            out[int(a)] = VehicleBelief(
+                int(a),
+                t.theta_a,
+                t.theta_b,
+                self.current_lanes(int(a)),
+                tuple(self.survivors(int(a))) or tuple(h.route for h in t.hyps),
+            )
         return out
 
     def nominal(self, agents=None) -> dict[int, NominalEstimate]:
@@ -984,7 +1010,9 @@ def _corners(states: np.ndarray, vehicle) -> np.ndarray:
     f = np.stack([c, s], axis=-1) * (vehicle.length / 2)
     left = np.stack([-s, c], axis=-1) * (vehicle.width / 2)
     p = states[:, None, :2]
-    return np.concatenate([p + (f + left)[:, None], p + (f - left)[:, None], p + (-f - left)[:, None], p + (-f + left)[:, None]], axis=1)
+    return np.concatenate(
+        [p + (f + left)[:, None], p + (f - left)[:, None], p + (-f - left)[:, None], p + (-f + left)[:, None]], axis=1
+    )
 
 
 def _hull(boxes: list[Box]) -> Box:

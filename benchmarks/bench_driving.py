@@ -139,7 +139,10 @@ def main() -> dict:
         "| engine | median ms | p90 ms | first plan s (compiles) | goal <= 20 ms |",
         "|---|---:|---:|---:|---|",
     ]
-    for name, label in (("python", "RobustTreePlanner (Python engine, compiled expand)"), ("compiled", "compiled_plan")):
+    for name, label in (
+        ("python", "RobustTreePlanner (Python engine, compiled expand)"),
+        ("compiled", "compiled_plan"),
+    ):
         lines.append(
             f"| {label} | {result[name]['median_ms']:.2f} | {result[name]['p90_ms']:.2f} | "
             f"{result['first_plan_s'][name]:.1f} | {verdict[name]} |"

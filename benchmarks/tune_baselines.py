@@ -159,7 +159,9 @@ def evaluate_road(which: str, change: dict, seeds) -> dict:
     )
     from minimaxplan.analysis.road_scenario import RoadScenario
 
-    method, frozen = (RoadDWAMethod, ROAD_DWA_PARAMETERS) if which == "road-dwa" else (RoadTEBMethod, ROAD_TEB_PARAMETERS)
+    method, frozen = (
+        (RoadDWAMethod, ROAD_DWA_PARAMETERS) if which == "road-dwa" else (RoadTEBMethod, ROAD_TEB_PARAMETERS)
+    )
     row = {}
     for kind in ROAD_KINDS:
         params = type(frozen[kind])(**{**frozen[kind].to_dict(), **change})

@@ -350,12 +350,8 @@ def _driving_box_minimum(params, z, p, t):
             norm += params.speed_weight
         if params.lane_weight != 0.0:
             count = params.lane_values.shape[0]
-            k_lo = minimum(
-                maximum(math.floor((lo_y - params.lane_origin) / params.lane_width + 0.5), 0.0), count - 1.0
-            )
-            k_hi = minimum(
-                maximum(math.floor((hi_y - params.lane_origin) / params.lane_width + 0.5), 0.0), count - 1.0
-            )
+            k_lo = minimum(maximum(math.floor((lo_y - params.lane_origin) / params.lane_width + 0.5), 0.0), count - 1.0)
+            k_hi = minimum(maximum(math.floor((hi_y - params.lane_origin) / params.lane_width + 0.5), 0.0), count - 1.0)
             worst = params.lane_values[int(k_lo)]
             for k in range(int(k_lo) + 1, int(k_hi) + 1):
                 worst = minimum(worst, params.lane_values[k])

@@ -415,9 +415,7 @@ class _Frame:
         D = self.D
         w_lo, w_hi = interval_matvec(D, w_low, w_high)
         w_max = np.maximum(np.abs(w_low), np.abs(w_high))
-        w_error = (
-            summation_error_bound(2 * self.system.ndisturbances + 1) * np.abs(D) @ w_max + self.D_error @ w_max
-        )
+        w_error = summation_error_bound(2 * self.system.ndisturbances + 1) * np.abs(D) @ w_max + self.D_error @ w_max
         constant = _SAFETY * (w_error + self.gamma_step * np.maximum(np.abs(w_lo), np.abs(w_hi))) + self.underflow
         return w_lo - constant, w_hi + constant
 

@@ -34,12 +34,19 @@ from .comparison import (
 )
 from .controllers import LinearFeedback, OpenLoop
 from .decision import Decision
-from .dwa import DWAParameters, DynamicWindowPlanner, NavigationScene
+from .dwa import (
+    DWAParameters,
+    DynamicWindowPlanner,
+    NavigationScene,
+    RoadScene,
+    VehicleDWAParameters,
+    VehicleDynamicWindow,
+)
 from .interval_model import BoxState, IntervalModel
 from .navigation import NavigationFunction
 from .point_model import PointModel, PointState
 from .search import OptimisticPlanner, RobustTreePlanner
-from .teb import TEBParameters, TimedElasticBand
+from .teb import TEBParameters, TimedElasticBand, VehicleElasticBand, VehicleTEBParameters
 
 __all__ = [
     "RobustTreePlanner",
@@ -69,5 +76,10 @@ __all__ = [
     "NavigationScene",
     "TimedElasticBand",
     "TEBParameters",
+    "RoadScene",
+    "VehicleDynamicWindow",
+    "VehicleDWAParameters",
+    "VehicleElasticBand",
+    "VehicleTEBParameters",
     "NavigationFunction",
 ]

@@ -194,7 +194,19 @@ def _expand_kernel(params_type: type):
     version = sources_digest(__file__, bicycle_kernels.__file__, *minimum_sources(params_type))
 
     def expand_actions(
-        controller, params, x0, level, lane, time, speed_changes, lane_changes, substeps, z, out_x, out_meta, rewards,
+        controller,
+        params,
+        x0,
+        level,
+        lane,
+        time,
+        speed_changes,
+        lane_changes,
+        substeps,
+        z,
+        out_x,
+        out_meta,
+        rewards,
         terminals,
     ):
         _ = version  # ties numba's cache entry to the sources it calls into
@@ -613,7 +625,9 @@ def compiled_plan(models, state: BicycleState, *, gamma: float, budget: int) -> 
         for i in range(1, size):
             x = nodes[i, :4].copy()
             x.setflags(write=False)
-            joint.append(BicycleState(x, int(nodes[i, 4]), int(nodes[i, 5]), state.time + int(depth[i]) * first.substeps))
+            joint.append(
+                BicycleState(x, int(nodes[i, 4]), int(nodes[i, 5]), state.time + int(depth[i]) * first.substeps)
+            )
         columns = []
         for m in range(n_models):
             column = [state] + [None] * (size - 1)

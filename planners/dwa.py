@@ -569,9 +569,7 @@ class RoadScene:
         return out
 
 
-def _road_clearance(
-    ego: np.ndarray, times: np.ndarray, scene: RoadScene, length: float, width: float
-) -> np.ndarray:
+def _road_clearance(ego: np.ndarray, times: np.ndarray, scene: RoadScene, length: float, width: float) -> np.ndarray:
     """Lower bound of the gap between the ego's rectangles ``ego`` (k, T, 4) and every other
     vehicle at constant velocity at ``times`` (T,): the smallest disc-cover gap, (k, T) (inf
     without vehicles)."""

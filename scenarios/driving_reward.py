@@ -36,7 +36,7 @@ from minimaxplan.models.validation import as_count, as_finite_array, as_positive
 from .rewards import RewardFamily
 from .road import ARC, Road
 
-__all__ = ["DrivingReward", "road_pieces"]
+__all__ = ["DrivingReward", "road_pieces", "world_reward", "true_reward"]
 
 #: The paper's weights (Section IV): highway c2 = 0.4 (speed), c3 = 0.1 (lane); T-junction c1 = 0.4 (goal).
 HIGHWAY_SPEED_WEIGHT = 0.4
@@ -106,10 +106,24 @@ def road_pieces(road: Road, margin: float = 0.0) -> tuple[np.ndarray, np.ndarray
         if road.kinds[i] == ARC:
             half_sweep = abs(lane.sweep) / 2 + margin / lane.radius
             arcs.append(
-                [*map(float, lane.center), lane.radius, lane.start_angle + lane.sweep / 2, half_sweep, lane.width / 2 + margin, 0.0]
+                [
+                    *map(float, lane.center),
+                    lane.radius,
+                    lane.start_angle + lane.sweep / 2,
+                    half_sweep,
+                    lane.width / 2 + margin,
+                    0.0,
+                ]
             )
         else:
-            strips.append(_strip(lane.start - lane.direction * margin, lane.direction, lane.length + 2 * margin, lane.width / 2 + margin))
+            strips.append(
+                _strip(
+                    lane.start - lane.direction * margin,
+                    lane.direction,
+                    lane.length + 2 * margin,
+                    lane.width / 2 + margin,
+                )
+            )
     areas = [[x0 - margin, y0 - margin, x1 + margin, y1 + margin] for (x0, y0), (x1, y1) in road.areas]
 
     def table(rows, width):
@@ -260,7 +274,13 @@ class DrivingReward(RewardFamily):
     # ------------------------------------------------------------ factories
     @classmethod
     def highway(
-        cls, obstacles, time_offset: int, road: Road, *, off_road_margin: float = 0.0, length: float = 5.0,
+        cls,
+        obstacles,
+        time_offset: int,
+        road: Road,
+        *,
+        off_road_margin: float = 0.0,
+        length: float = 5.0,
         width: float = 2.0,
     ) -> DrivingReward:
         """The highway's reward ``(1 + 0.4 v / 30 + 0.1 lane) / 1.5`` on a road of parallel lanes along +x.
@@ -303,8 +323,16 @@ class DrivingReward(RewardFamily):
 
     @classmethod
     def tjunction(
-        cls, obstacles, time_offset: int, road: Road, goal, goal_scale: float, *, off_road_margin: float = 0.0,
-        length: float = 5.0, width: float = 2.0,
+        cls,
+        obstacles,
+        time_offset: int,
+        road: Road,
+        goal,
+        goal_scale: float,
+        *,
+        off_road_margin: float = 0.0,
+        length: float = 5.0,
+        width: float = 2.0,
     ) -> DrivingReward:
         """The T-junction's reward ``(1 + 0.4 (1 - min(d / d_ref, 1))) / 1.4``, d the distance to ``goal``.
 
@@ -556,3 +584,56 @@ def _obstacle_witness(boxes, p_lo, p_hi, psi, a, b):
             q = res.x
             return np.minimum(np.maximum(p_lo, o[:2] - q), p_hi)
     return None
+
+
+def world_reward(world) -> DrivingReward:
+    """The reward of a driving episode, with an empty obstacle table (`DrivingReward.with_obstacles` adds them).
+
+    Highway: `DrivingReward.highway`. T-junction: `DrivingReward.tjunction` towards the
+    centre of the goal lane at the goal's arc length, ``d_ref`` the ego's distance to
+    it at the start of the episode.
+
+    Parameters
+    ----------
+    world : RoadWorld
+        The episode (with an ego).
+    """
+    scenario = world.scenario
+    vehicle = scenario.vehicle
+    empty = np.zeros((1, 0, 4))
+    if world.kind == "highway":
+        return DrivingReward.highway(
+            empty, 0, world.road, off_road_margin=scenario.off_road_margin, length=vehicle.length, width=vehicle.width
+        )
+    goal = np.asarray(world.road.position_at(world.goal_lanes[0], world.goal_s), dtype=float)
+    start = np.asarray(world.initial_ego[:2], dtype=float)
+    scale = max(float(np.hypot(*(goal - start))), 1e-9)
+    return DrivingReward.tjunction(
+        empty,
+        0,
+        world.road,
+        goal,
+        scale,
+        off_road_margin=scenario.off_road_margin,
+        length=vehicle.length,
+        width=vehicle.width,
+    )
+
+
+def true_reward(world, reward: DrivingReward | None = None) -> float:
+    """The reward in [0, 1] of the ego's true state now: 0 once it collided or left the road.
+
+    The same terms as the planner's (`world_reward`); the collision term is the world's
+    own outcome (python-fcl rectangles), not the boxes.
+
+    Parameters
+    ----------
+    world : RoadWorld
+        The episode (with an ego).
+    reward : DrivingReward, optional
+        ``world_reward(world)`` if None (pass it to avoid rebuilding it).
+    """
+    if world.outcome in ("collision", "off_road"):
+        return 0.0
+    reward = world_reward(world) if reward is None else reward
+    return float(reward.free_value(np.asarray(world.ego_state, dtype=float)[None])[0])

@@ -53,6 +53,7 @@ except ImportError as exc:  # pragma: no cover - exercised only without the extr
 from minimaxplan.models.errors import InputError
 from minimaxplan.models.validation import as_choice, check_instance
 
+from .driving_reward import true_reward
 from .road_world import ROAD_WORLD_KINDS, HighwayScenario, RoadWorld, TJunctionScenario
 from .robot import DEFAULT_ROBOT, RobotParameters
 from .worlds import MEASUREMENT_MODELS, PEDESTRIAN_COUNT, WORLD_KINDS, RobotWorld
@@ -196,50 +197,32 @@ OBSERVED_VEHICLES = 8
 #: Bound of every road observation entry: the lanes lie within 2 km of the origin and
 #: speeds are clipped to ``max_speed`` (40 m/s); headings are wrapped.
 ROAD_OBSERVATION_BOUND = 1.0e4
-#: The highway reward's speed scale v_max, m/s (DRIVING.md).
-HIGHWAY_SPEED_SCALE = 30.0
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
 
 
-def road_reward(world: RoadWorld, start: np.ndarray) -> float:
-    """The true reward in [0, 1] of the ego's current state in a road world.
+def road_reward(world: RoadWorld) -> float:
+    """The true reward in [0, 1] of the ego's current state in a road world (`driving_reward.true_reward`).
 
-    0 once the ego collided or left the road. Otherwise, on the highway,
-    ``(1 + 0.4 min(v / v_max, 1) + 0.1 lane / (lanes - 1)) / 1.5`` with ``v_max = 30``
-    m/s and ``lane = clip(floor(y / lane_width + 1/2), 0, lanes - 1)`` (a higher index
-    is the preferred lane, the paper's l_c / (l_s - 1)); at the T-junction the progress
-    ``1 - min(d / d_0, 1)``, d the distance from the ego's centre to the goal point
-    (``west_out`` at arc length ``goal_s``) and d_0 that distance at the start.
+    0 once the ego collided or left the road; otherwise the planner's reward terms
+    (`DrivingReward`): on the highway ``(1 + 0.4 min(v / 30, 1) + 0.1 lane) / 1.5`` with
+    the lane term 1 in the rightmost lane (lane 0) and 0 in the leftmost; at the
+    T-junction ``(1 + 0.4 (1 - min(d / d_0, 1))) / 1.4``, d the distance from the ego's
+    centre to the goal point and d_0 that distance at the start.
 
     Parameters
     ----------
     world : RoadWorld
         A world with an ego.
-    start : numpy.ndarray
-        The ego's start position, shape (2,) (the T-junction's d_0 is measured from it).
 
     Returns
     -------
     float
         The reward, in [0, 1].
     """
-    if world.outcome in ("collision", "off_road"):
-        return 0.0
-    x, y, v, _ = world.ego_state
-    scenario = world.scenario
-    if isinstance(scenario, HighwayScenario):
-        lanes = scenario.geometry.lane_count
-        lane_term = 0.0
-        if lanes > 1:
-            lane = min(max(np.floor(y / scenario.geometry.lane_width + 0.5), 0.0), lanes - 1.0)
-            lane_term = lane / (lanes - 1)
-        return float((1.0 + 0.4 * min(v / HIGHWAY_SPEED_SCALE, 1.0) + 0.1 * lane_term) / 1.5)
-    goal = world.road.position_at(world.goal_lanes[0], world.goal_s)
-    reach = max(float(np.linalg.norm(goal - start)), 1e-9)
-    return float(1.0 - min(float(np.linalg.norm(goal - np.array([x, y]))) / reach, 1.0))
+    return true_reward(world)
 
 
 class RoadDrivingEnv(gym.Env):
@@ -269,7 +252,6 @@ class RoadDrivingEnv(gym.Env):
             -ROAD_OBSERVATION_BOUND, ROAD_OBSERVATION_BOUND, shape=(size,), dtype=np.float32
         )
         self.world: RoadWorld | None = None
-        self._start = np.zeros(2)
         self._ids = np.zeros(0, dtype=int)
 
     def _current_world(self) -> RoadWorld:
@@ -316,7 +298,6 @@ class RoadDrivingEnv(gym.Env):
         super().reset(seed=seed)
         world_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
         self.world = RoadWorld(self.kind, world_seed, scenario=self.scenario)
-        self._start = self.world.ego_state[:2]
         return self._observation(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
@@ -357,7 +338,7 @@ class RoadDrivingEnv(gym.Env):
         rewards = []
         for _ in range(int(self.scenario.substeps)):
             world.apply(u)
-            rewards.append(road_reward(world, self._start))
+            rewards.append(road_reward(world))
             if world.done:
                 break
         outcome = world.outcome

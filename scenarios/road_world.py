@@ -615,6 +615,13 @@ class RoadWorld:
         return self.traffic.states[0].copy()
 
     @property
+    def initial_ego(self) -> np.ndarray:
+        """The ego's true ``(x, y, v, psi)`` at the start of the episode (a copy)."""
+        if not self.include_ego:
+            raise InputError("this world has no ego")
+        return self._initial.states[0].copy()
+
+    @property
     def goal_lanes(self) -> tuple[int, ...]:
         """Lanes on which the goal is reached (at arc length >= `goal_s`, centre in the lane strip)."""
         return self._goal_lanes

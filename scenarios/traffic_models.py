@@ -491,12 +491,8 @@ def acceleration_feature_bounds(v, target, front_speed, gap, params: BehaviourPa
     f_lo, f_hi = (np.asarray(a, dtype=float) for a in front_speed)
     g_lo, g_hi = (np.asarray(a, dtype=float) for a in gap)
     d0, headway = params.standstill_distance, params.time_headway
-    lower = np.stack(
-        [t_lo - v_hi, np.minimum(f_lo - v_hi, 0.0), np.minimum(g_lo - d0 - headway * v_hi, 0.0)], axis=-1
-    )
-    upper = np.stack(
-        [t_hi - v_lo, np.minimum(f_hi - v_lo, 0.0), np.minimum(g_hi - d0 - headway * v_lo, 0.0)], axis=-1
-    )
+    lower = np.stack([t_lo - v_hi, np.minimum(f_lo - v_hi, 0.0), np.minimum(g_lo - d0 - headway * v_hi, 0.0)], axis=-1)
+    upper = np.stack([t_hi - v_lo, np.minimum(f_hi - v_lo, 0.0), np.minimum(g_hi - d0 - headway * v_lo, 0.0)], axis=-1)
     return lower, upper
 
 
@@ -566,9 +562,7 @@ def _strip_boxes(road: Road) -> np.ndarray:
             lo_a, hi_a = min(a0, a1), max(a0, a1)
             angles = [lo_a, hi_a] + [k * np.pi / 2 for k in range(-8, 9) if lo_a <= k * np.pi / 2 <= hi_a]
             radii = (r - half, r + half)
-            pts = np.array(
-                [road.centers[i] + rad * np.array([np.cos(a), np.sin(a)]) for a in angles for rad in radii]
-            )
+            pts = np.array([road.centers[i] + rad * np.array([np.cos(a), np.sin(a)]) for a in angles for rad in radii])
         lo, hi = _out(pts.min(axis=0), pts.max(axis=0))
         out[i] = [lo[0], lo[1], hi[0], hi[1]]
     return out
@@ -672,8 +666,22 @@ def _route_rows(road: Road, veh: int, belief: VehicleBelief, state: np.ndarray, 
             s0 = float((road.starts[lane] - o) @ u)
             end = s0 + float(road.lengths[lane])
             rows.append(
-                _Row(veh, lane, c, o, u, straight, lane in lanes, np.inf, end, np.nan, np.inf, np.inf,
-                     {lane: (s0, end)}, ())
+                _Row(
+                    veh,
+                    lane,
+                    c,
+                    o,
+                    u,
+                    straight,
+                    lane in lanes,
+                    np.inf,
+                    end,
+                    np.nan,
+                    np.inf,
+                    np.inf,
+                    {lane: (s0, end)},
+                    (),
+                )
             )
         return rows
     for route in belief.routes:
@@ -710,8 +718,7 @@ def _route_rows(road: Road, veh: int, belief: VehicleBelief, state: np.ndarray, 
             cap_from = last_end - vehicle.length / 2 - rules.curve_approach
             cap_speed = float(np.sqrt(rules.curve_lateral_acceleration * road.radii[beyond[0]]))
         rows.append(
-            _Row(veh, cur, 0.0, o, u, fine, True, prefix_end, last_end, stop_s,
-                 cap_from, cap_speed, prefix, beyond)
+            _Row(veh, cur, 0.0, o, u, fine, True, prefix_end, last_end, stop_s, cap_from, cap_speed, prefix, beyond)
         )
     if not rows:
         raise InputError(f"belief of agent {belief.agent}: no route holds one of its lanes {belief.lanes}")
@@ -1038,8 +1045,14 @@ def forecast_traffic(
         if not l_ok.any():
             back_lo, back_hi = _matvec(T[rr], zf_lo, zf_hi)
             into_lo, into_hi = _matvec(Tinv[rr], if_lo, if_hi)
-            return (np.maximum(zf_lo, into_lo), np.minimum(zf_hi, into_hi), np.maximum(if_lo, back_lo),
-                    np.minimum(if_hi, back_hi), sf[0], sf[1])
+            return (
+                np.maximum(zf_lo, into_lo),
+                np.minimum(zf_hi, into_hi),
+                np.maximum(if_lo, back_lo),
+                np.minimum(if_hi, back_hi),
+                sf[0],
+                sf[1],
+            )
         # low speeds: a direct interval step of the bicycle
         vl_lo, vl_hi = vlo, np.minimum(vhi, V_MIN)
         vh_lo, vh_hi = np.maximum(vl_lo, eps), np.maximum(vl_hi, eps)
@@ -1115,19 +1128,31 @@ def forecast_traffic(
             kv_lo = np.append(lower[n, :, 2], max(e_speed[n, 0], 0.0))
             kv_hi = np.append(upper[n, :, 2], e_speed[n, 1])
             pk_lo, pk_hi = _lin(
-                -np.sum(origin * u, axis=1)[:, None], u[:, None, 0], u[:, None, 1],
-                k_lo[None, :, 0], k_hi[None, :, 0], k_lo[None, :, 1], k_hi[None, :, 1],
+                -np.sum(origin * u, axis=1)[:, None],
+                u[:, None, 0],
+                u[:, None, 1],
+                k_lo[None, :, 0],
+                k_hi[None, :, 0],
+                k_lo[None, :, 1],
+                k_hi[None, :, 1],
             )
             lk_lo, lk_hi = _lin(
-                (-np.sum(origin * nrm, axis=1) - c)[:, None], nrm[:, None, 0], nrm[:, None, 1],
-                k_lo[None, :, 0], k_hi[None, :, 0], k_lo[None, :, 1], k_hi[None, :, 1],
+                (-np.sum(origin * nrm, axis=1) - c)[:, None],
+                nrm[:, None, 0],
+                nrm[:, None, 1],
+                k_lo[None, :, 0],
+                k_hi[None, :, 0],
+                k_lo[None, :, 1],
+                k_hi[None, :, 1],
             )
             # agents that certainly occupy the row's lane and stay on the road: every hypothesis of
             # theirs steers to it or has its centre in its strip (the ego: its centre box in the strip)
             abs_lo, abs_hi = lat_lo, lat_hi
             lw = road.widths[None, :] / 2
             with np.errstate(invalid="ignore"):
-                strip_in = (abs_lo[:, None] >= lane_offset[None, :] - lw) & (abs_hi[:, None] <= lane_offset[None, :] + lw)
+                strip_in = (abs_lo[:, None] >= lane_offset[None, :] - lw) & (
+                    abs_hi[:, None] <= lane_offset[None, :] + lw
+                )
             certain_row = ~alive[:, None] | (row_lane[:, None] == np.arange(n_lanes)[None, :]) | (strip_in & same_group)
             certain_row = (certain_row & fine[:, None]) | ~alive[:, None] | ~side_row[:, None]
             certain_veh = certain_row.reshape(m, P, n_lanes).all(axis=1)[:, row_lane].T  # (R, m)
@@ -1139,8 +1164,10 @@ def forecast_traffic(
             sv_lo = np.where(alive, s_lo, np.inf).reshape(m, P).min(axis=1)[veh_of]
             sv_hi = np.where(alive, s_hi, -np.inf).reshape(m, P).max(axis=1)[veh_of]
             vv_lo = np.where(alive, v_lo, np.inf).reshape(m, P).min(axis=1)[veh_of]
-            gap_need = beh.standstill_distance + rules.lane_change_margin + beh.time_headway * np.minimum(
-                vv_lo[:, None], kv_lo[None, :]
+            gap_need = (
+                beh.standstill_distance
+                + rules.lane_change_margin
+                + beh.time_headway * np.minimum(vv_lo[:, None], kv_lo[None, :])
             )
             pair_ok |= np.maximum(np.abs(pk_lo - sv_hi[:, None]), np.abs(pk_hi - sv_lo[:, None])) - length >= gap_need
 
@@ -1148,7 +1175,9 @@ def forecast_traffic(
             if has_side:
                 slot = (n // block) % C
                 cohort = R + (2 * np.arange(R)[:, None] + np.arange(2)[None, :]) * C + slot  # (R, 2)
-                if n % block == 0 and n > 0:  # the slot's cohorts are >= C block steps old: merge into the row's own box
+                if (
+                    n % block == 0 and n > 0
+                ):  # the slot's cohorts are >= C block steps old: merge into the row's own box
                     for d in range(2):
                         k = cohort[:, d]
                         old = ualive[k]
@@ -1159,7 +1188,10 @@ def forecast_traffic(
                         ualive[:R] |= old
                         ualive[k] = False
                 nat_lo, nat_hi = eu_lo[:R], eu_hi[:R]  # the sources: each row's own box (settled part)
-                new_s = [np.where(alive, a, np.inf if q % 2 == 0 else -np.inf) for q, a in enumerate((s_lo, s_hi, v_lo, v_hi))]
+                new_s = [
+                    np.where(alive, a, np.inf if q % 2 == 0 else -np.inf)
+                    for q, a in enumerate((s_lo, s_hi, v_lo, v_hi))
+                ]
                 to_coarse = np.zeros(R, dtype=bool)
                 xy = [cx_lo.copy(), cx_hi.copy(), cy_lo.copy(), cy_hi.copy(), ps_lo.copy(), ps_hi.copy()]
                 xy = [np.where(alive, a, np.inf if i % 2 == 0 else -np.inf) for i, a in enumerate(xy)]
@@ -1174,14 +1206,18 @@ def forecast_traffic(
                     # gap acceptance: blocked by an agent certainly in the target lane whatever the states
                     d_lo, d_hi = pk_lo - s_hi[nb][:, None], pk_hi - s_lo[nb][:, None]
                     far = np.maximum(np.abs(d_lo), np.abs(d_hi)) - length
-                    need = beh.standstill_distance + rules.lane_change_margin + beh.time_headway * np.minimum(
-                        v_lo[nb][:, None], kv_lo[None, :]
+                    need = (
+                        beh.standstill_distance
+                        + rules.lane_change_margin
+                        + beh.time_headway * np.minimum(v_lo[nb][:, None], kv_lo[None, :])
                     )
                     blocked = (in_strip & (far < need)).any(axis=1)
                     both = src_alive & fine_pair & (je_lo <= je_hi) & ~blocked
                     coarse_in = ok & alive[nb] & ~fine_pair
                     shift = c[nb] - c
-                    ii_lo, ii_hi = _out(np.stack([je_lo + shift, nat_lo[nb, 1]], 1), np.stack([je_hi + shift, nat_hi[nb, 1]], 1))
+                    ii_lo, ii_hi = _out(
+                        np.stack([je_lo + shift, nat_lo[nb, 1]], 1), np.stack([je_hi + shift, nat_hi[nb, 1]], 1)
+                    )
                     zi_lo, zi_hi = _matvec(Tinv, ii_lo, ii_hi)
                     k = cohort[:, d]
                     for lo_a, hi_a, a_lo, a_hi in ((ui_lo, ui_hi, ii_lo, ii_hi), (uz_lo, uz_hi, zi_lo, zi_hi)):
@@ -1189,7 +1225,9 @@ def forecast_traffic(
                         hi_a[k] = np.where(both[:, None], np.maximum(hi_a[k], a_hi), hi_a[k])
                     ualive[k] |= both
                     grow = both | coarse_in
-                    for q, (arr, op) in enumerate(((s_lo, np.minimum), (s_hi, np.maximum), (v_lo, np.minimum), (v_hi, np.maximum))):
+                    for q, (arr, op) in enumerate(
+                        ((s_lo, np.minimum), (s_hi, np.maximum), (v_lo, np.minimum), (v_hi, np.maximum))
+                    ):
                         new_s[q] = np.where(grow, op(new_s[q], arr[nb]), new_s[q])
                     src_xy = (cx_lo, cx_hi, cy_lo, cy_hi, ps_lo, ps_hi)
                     for q in range(6):
@@ -1224,17 +1262,26 @@ def forecast_traffic(
 
             # ------------------------------------------------- possible leaders
             in_prefix = ~np.isnan(pre_lo) & (np.nan_to_num(pre_hi, nan=-np.inf) >= s_lo[:, None])
-            row_int = np.where(fine[:, None], in_prefix & (np.nan_to_num(pre_lo, nan=np.inf) <= s_hi[:, None]), route_mask)
+            row_int = np.where(
+                fine[:, None], in_prefix & (np.nan_to_num(pre_lo, nan=np.inf) <= s_hi[:, None]), route_mask
+            )
             row_int &= alive[:, None]
-            switched = row_int & ~belief_lane[:, None]  # side lanes steered to only after a switch since the observation
+            switched = (
+                row_int & ~belief_lane[:, None]
+            )  # side lanes steered to only after a switch since the observation
             foot_now = footprint_box(
                 np.stack([np.where(alive, cx_lo, 0.0), np.where(alive, cy_lo, 0.0)], 1),
                 np.stack([np.where(alive, cx_hi, 0.0), np.where(alive, cy_hi, 0.0)], 1),
-                np.where(alive, ps_lo, 0.0), np.where(alive, ps_hi, 0.0), vehicle,
+                np.where(alive, ps_lo, 0.0),
+                np.where(alive, ps_hi, 0.0),
+                vehicle,
             )
-            row_touch = np.all(
-                (foot_now[:, None, :2] <= strips[None, :, 2:]) & (foot_now[:, None, 2:] >= strips[None, :, :2]), -1
-            ) & alive[:, None]
+            row_touch = (
+                np.all(
+                    (foot_now[:, None, :2] <= strips[None, :, 2:]) & (foot_now[:, None, 2:] >= strips[None, :, :2]), -1
+                )
+                & alive[:, None]
+            )
             # a switched row's rectangle in the lane it switched into: gated by the gap rule like its intention
             into_own = (alive & ~belief_lane & side_row)[:, None] & (np.arange(n_lanes)[None, :] == row_lane[:, None])
             occ = np.zeros((m + 1, n_lanes), dtype=bool)

@@ -127,7 +127,9 @@ class IntervalRows:
         if not (np.all(np.isfinite(glo)) and np.all(np.isfinite(ghi))):
             raise InputError("regressor_low and regressor_high must be finite (drop uninformative rows instead)")
         if np.any(glo > ghi):
-            raise InputError(f"regressor_low > regressor_high in rows {np.flatnonzero(np.any(glo > ghi, axis=1)).tolist()}")
+            raise InputError(
+                f"regressor_low > regressor_high in rows {np.flatnonzero(np.any(glo > ghi, axis=1)).tolist()}"
+            )
         if np.any(ylo > yhi):
             raise InputError(f"target_low > target_high in rows {np.flatnonzero(ylo > yhi).tolist()}")
         if np.any(ylo == np.inf) or np.any(yhi == -np.inf):
@@ -196,7 +198,10 @@ class IntervalRows:
         if np.any(r <= 0) or np.any(c <= 0):
             raise InputError("row and column factors must be > 0")
         return IntervalRows(
-            self.regressor_low * r / c, self.regressor_high * r / c, self.target_low * r[:, 0], self.target_high * r[:, 0]
+            self.regressor_low * r / c,
+            self.regressor_high * r / c,
+            self.target_low * r[:, 0],
+            self.target_high * r[:, 0],
         )
 
 
@@ -226,7 +231,12 @@ class _Scaled:
         self.beta = np.where(beta > 0, beta, 1.0)
         upper, lower = np.isfinite(yhi), np.isfinite(ylo)
         # upper rows: g_lo . theta <= y_hi;  lower rows: -g_hi . theta <= -y_lo
-        a = np.vstack([glo[upper] * self.theta_scale / self.beta[upper, None], -ghi[lower] * self.theta_scale / self.beta[lower, None]])
+        a = np.vstack(
+            [
+                glo[upper] * self.theta_scale / self.beta[upper, None],
+                -ghi[lower] * self.theta_scale / self.beta[lower, None],
+            ]
+        )
         b = np.concatenate([yhi[upper] / self.beta[upper], -ylo[lower] / self.beta[lower]]) + allowance
         self.a, self.b = a, b
         self.row_of = np.concatenate([np.flatnonzero(upper), np.flatnonzero(lower)])
@@ -332,7 +342,9 @@ class IntervalCertificate:
         """
         check_instance("rows", rows, IntervalRows)
         if self.multipliers_upper.shape != (rows.nrows,):
-            raise DimensionError(f"the certificate has {self.multipliers_upper.shape[0]} rows, the rows given {rows.nrows}")
+            raise DimensionError(
+                f"the certificate has {self.multipliers_upper.shape[0]} rows, the rows given {rows.nrows}"
+            )
         scaled = _Scaled(rows, prior, self.rounding_allowance)
         mu = np.where(scaled.side > 0, self.multipliers_upper[scaled.row_of], self.multipliers_lower[scaled.row_of])
         return scaled.lower_bound(mu, np.zeros(rows.nparams), 0.0, True)
@@ -396,7 +408,9 @@ class IntervalVerdict:
         }
 
 
-def witness_margin(rows: IntervalRows, prior: Box, theta: ArrayLike, *, rounding_allowance: float = INTERVAL_ROUNDING_ALLOWANCE) -> float:
+def witness_margin(
+    rows: IntervalRows, prior: Box, theta: ArrayLike, *, rounding_allowance: float = INTERVAL_ROUNDING_ALLOWANCE
+) -> float:
     """The margin (dimensionless, >= 0) that ``theta`` needs to explain every row.
 
     Parameters
@@ -538,7 +552,11 @@ def interval_parameter_box(
     by one ulp and intersected with the prior, so it is sound whatever HiGHS's accuracy.
     """
     check_instance("rows", rows, IntervalRows)
-    verdict = interval_consistency(rows, prior, tolerance=tolerance, rounding_allowance=rounding_allowance) if verdict is None else verdict
+    verdict = (
+        interval_consistency(rows, prior, tolerance=tolerance, rounding_allowance=rounding_allowance)
+        if verdict is None
+        else verdict
+    )
     if verdict.eliminated:
         raise NoConsistentModel("the interval rows are proven inconsistent with the prior box")
     allowance = max(float(rounding_allowance), INTERVAL_BOX_ALLOWANCE)
@@ -559,5 +577,7 @@ def interval_parameter_box(
             else:
                 high[i] = min(high[i], np.nextafter(-bound, np.inf))
     if np.any(low > high):
-        raise SolverFailure(f"parameter bounds crossed (low {low.tolist()}, high {high.tolist()}) although the rows are consistent")
+        raise SolverFailure(
+            f"parameter bounds crossed (low {low.tolist()}, high {high.tolist()}) although the rows are consistent"
+        )
     return Box(low, high)

@@ -60,9 +60,13 @@ def test_nan_is_a_miss_and_errors_name_the_box():
     box = (np.zeros(2), np.ones(2))
     check.check({"vehicle 7": box}, {"vehicle 7": np.array([0.5, np.nan])}, decision=0, substep=1, time=0.0)
     assert check.missed == 1 and math.isnan(check.misses[0]["excess"]) and check.misses[0]["coordinates"] == [1]
-    with pytest.raises(InputError, match=r"predicted a box for 'robot', but .* has no such name \(it has \['vehicle 7'\]\)"):
+    with pytest.raises(
+        InputError, match=r"predicted a box for 'robot', but .* has no such name \(it has \['vehicle 7'\]\)"
+    ):
         check.check({"robot": box}, {"vehicle 7": np.zeros(2)}, decision=0, substep=1, time=0.0)
-    with pytest.raises(DimensionError, match=r"'robot' has corners of shapes \(2,\) and \(2,\), but its true state has shape \(4,\)"):
+    with pytest.raises(
+        DimensionError, match=r"'robot' has corners of shapes \(2,\) and \(2,\), but its true state has shape \(4,\)"
+    ):
         check.check({"robot": box}, {"robot": np.zeros(4)}, decision=0, substep=1, time=0.0)
     with pytest.raises(InputError, match="predicted a box for 'ghost'"):
         check.check({"vehicle 7": box, "ghost": box}, {"vehicle 7": np.zeros(2)}, decision=0, substep=1, time=0.0)

@@ -41,7 +41,8 @@ def run(capsys, *argv) -> tuple[int, str, str]:
 def brute_force_first(hypothesis, states, controls, measurement_noise=None) -> int | None:
     """The smallest n whose prefix 0..n is eliminated, by scanning every prefix; None if never."""
     verdicts = [
-        0 in eliminate_models([hypothesis], states[: k + 1], controls[:k], measurement_noise=measurement_noise).eliminated
+        0
+        in eliminate_models([hypothesis], states[: k + 1], controls[:k], measurement_noise=measurement_noise).eliminated
         for k in range(1, controls.shape[0] + 1)
     ]
     if not any(verdicts):
@@ -239,7 +240,7 @@ def test_select_lmi_checks_each_survivors_feasible_box(capsys):
         lmi = entry["assumption4"]
         assert lmi["status"] == direct.status.value == "feasible"
         assert lmi["certified"] and lmi["holds"] and lmi["proof"] == "primal certificate re-checked exactly"
-        assert len(lmi["report"]["matrices"]) == 2 ** box.dim
+        assert len(lmi["report"]["matrices"]) == 2**box.dim
     code, out, _ = run(capsys, "select", HYPOTHESES, ROBOT_DATA, "--lmi", "--lmi-states", "2,3")
     assert "## Assumption 4 on each survivor's feasible parameter box" in out
     assert "| anisotropic friction | continuous | 4 | feasible | True | primal certificate re-checked exactly |" in out
@@ -307,9 +308,7 @@ def test_a_proper_fit_has_no_warning():
 
 def test_the_cli_warns_on_stderr_and_in_the_report(tmp_path, capsys, monkeypatch):
     def study(samples, **kwargs):
-        rows = [
-            {"n": n, "mean": 0.0, "max": 0.0, "min": 0.0, "per_episode": [0.0], "failures": 0} for n in samples
-        ]
+        rows = [{"n": n, "mean": 0.0, "max": 0.0, "min": 0.0, "per_episode": [0.0], "failures": 0} for n in samples]
         return {
             "scenario": "static",
             "episodes": 1,
@@ -326,9 +325,10 @@ def test_the_cli_warns_on_stderr_and_in_the_report(tmp_path, capsys, monkeypatch
         "minimaxplan suboptimality: warning: no trend fitted: 1 distinct value(s) of N, "
         "fewer than the 2 parameters of a + b log(N)/N"
     )
-    assert "**Warning: no trend fitted:" in out and "**Warning: no trend fitted:" in (
-        tmp_path / "suboptimality.md"
-    ).read_text()
+    assert (
+        "**Warning: no trend fitted:" in out
+        and "**Warning: no trend fitted:" in (tmp_path / "suboptimality.md").read_text()
+    )
     assert json.loads((tmp_path / "suboptimality.json").read_text())["fit"]["a"] is None
     assert (tmp_path / "suboptimality.png").read_bytes()[:4] == b"\x89PNG"
     code, _, err = run(capsys, "suboptimality", "--samples", "2,5", "--out", tmp_path)

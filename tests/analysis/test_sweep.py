@@ -94,7 +94,9 @@ def test_summary_intervals_are_clopper_pearson_and_student_t():
     assert row["mean_time_s"] == pytest.approx(12.0)
     one = summarise_sweep([record("teb", "goal", 9.0, 0)], {"cell": (1, 0.1)})[0]
     assert np.isnan(one["time_ci95"][0]) and one["mean_time_s"] == 9.0
-    text = sweep_markdown({"grid": {"scenario": "pedestrian", "episodes": 1, "seed": 0}, "rows": [one], "wall_time_s": 1})
+    text = sweep_markdown(
+        {"grid": {"scenario": "pedestrian", "episodes": 1, "seed": 0}, "rows": [one], "wall_time_s": 1}
+    )
     assert "| 1 | 0.1 | teb | 0/1 | [0.000, 0.975] | 0 | 0 | 9.0 | - |" in text
 
 

@@ -9,12 +9,12 @@ from hypothesis import strategies as st
 
 from minimaxplan.analysis.traffic_learning import (
     TrafficLearner,
-    VehicleBelief,
     elimination_statistics,
     hold_lane_control,
     remainder_bound,
 )
 from minimaxplan.scenarios.road_world import make_road_world
+from minimaxplan.scenarios.traffic_models import VehicleBelief
 
 
 class _Extremes:
@@ -98,9 +98,14 @@ def test_the_lane_being_left_is_eliminated_in_mid_lane_change():
     assert np.all(estimate.theta_b >= b.low) and np.all(estimate.theta_b <= b.high)
 
 
-def test_vehicle_belief_has_the_fields_of_the_driving_design():
+def test_the_learner_gives_the_forecast_its_vehicle_belief():
     fields = [f.name for f in dataclasses.fields(VehicleBelief)]
-    assert fields == ["agent", "theta_a", "theta_b", "lanes", "routes"]
+    assert fields[:5] == ["agent", "theta_a", "theta_b", "lanes", "routes"]
+    world = make_road_world("highway", 0)
+    learner = TrafficLearner(world.road, world.scenario)
+    learner.observe(world.measure())
+    beliefs = learner.beliefs()
+    assert beliefs and all(type(b) is VehicleBelief for b in beliefs.values())
 
 
 def test_remainder_bound_is_the_largest_remainder():

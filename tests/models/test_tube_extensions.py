@@ -208,9 +208,7 @@ def test_exact_extreme_trajectories_stay_in_the_tube(seed, p, d, dt, thin, basis
         w_lower, w_upper = random_step_boxes(rng, steps, r, 0.2)
         x0 = Box.from_center(rng.normal(size=p), rng.uniform(0, 0.3, size=p))
     chosen = random_basis(rng, p) if basis == "random" else basis
-    tube = predict_tube(
-        system, x0, (u_lower, u_upper), vertex_sets, basis=chosen, disturbances=(w_lower, w_upper)
-    )
+    tube = predict_tube(system, x0, (u_lower, u_upper), vertex_sets, basis=chosen, disturbances=(w_lower, w_upper))
     for _ in range(4):
         thetas = [v[rng.integers(len(v))] for v in vertex_sets]
         inputs = np.where(rng.integers(2, size=u_lower.shape).astype(bool), u_upper, u_lower)
@@ -373,7 +371,11 @@ def test_auto_basis_is_chosen_once_from_the_union_of_the_steps():
     sets = [rng.normal(size=(3, d)) * 0.5 for _ in range(HORIZON)]
     w_lower, w_upper = random_step_boxes(rng, HORIZON, p, 0.02)
     tube = predict_tube(
-        system, Box.from_center(np.ones(p), 0.1), np.zeros((HORIZON, 1)), sets, basis="auto",
+        system,
+        Box.from_center(np.ones(p), 0.1),
+        np.zeros((HORIZON, 1)),
+        sets,
+        basis="auto",
         disturbances=(w_lower, w_upper),
     )
     union = IntervalPredictor(
@@ -417,58 +419,150 @@ NAN = float("nan")
 
 BAD_CALLS = [
     # parameters, one per step
-    ("per-step count", dict(parameters=[THETA, THETA]), DimensionError,
-     r"parameters must have one set per step, 3 \(the controls' length\), got 2"),
-    ("per-step array count", dict(parameters=np.zeros((4, 2, 1))), DimensionError,
-     r"parameters must have one set per step, 3 \(the controls' length\), got 4"),
-    ("set of wrong dimension", dict(parameters=[THETA, Box(np.zeros(2), np.ones(2)), THETA]), DimensionError,
-     r"parameters\[1\] must have dimension 1 \(phi has shape \(1, 2, 2\)\), got 2"),
-    ("vertices of wrong dimension", dict(parameters=[THETA, THETA, np.zeros((2, 2))]), DimensionError,
-     r"parameters\[2\] must have shape \(\*, 1\), got shape \(2, 2\)"),
-    ("no vertex", dict(parameters=[np.empty((0, 1)), THETA, THETA]), DimensionError,
-     r"parameters\[0\] must have shape \(k, 1\) with k >= 1, got shape \(0, 1\)"),
+    (
+        "per-step count",
+        dict(parameters=[THETA, THETA]),
+        DimensionError,
+        r"parameters must have one set per step, 3 \(the controls' length\), got 2",
+    ),
+    (
+        "per-step array count",
+        dict(parameters=np.zeros((4, 2, 1))),
+        DimensionError,
+        r"parameters must have one set per step, 3 \(the controls' length\), got 4",
+    ),
+    (
+        "set of wrong dimension",
+        dict(parameters=[THETA, Box(np.zeros(2), np.ones(2)), THETA]),
+        DimensionError,
+        r"parameters\[1\] must have dimension 1 \(phi has shape \(1, 2, 2\)\), got 2",
+    ),
+    (
+        "vertices of wrong dimension",
+        dict(parameters=[THETA, THETA, np.zeros((2, 2))]),
+        DimensionError,
+        r"parameters\[2\] must have shape \(\*, 1\), got shape \(2, 2\)",
+    ),
+    (
+        "no vertex",
+        dict(parameters=[np.empty((0, 1)), THETA, THETA]),
+        DimensionError,
+        r"parameters\[0\] must have shape \(k, 1\) with k >= 1, got shape \(0, 1\)",
+    ),
     ("nan vertex", dict(parameters=[THETA, np.array([[NAN]]), THETA]), NonFiniteError, r"parameters\[1\] contains NaN"),
     ("text set", dict(parameters=[THETA, THETA, "box"]), InputError, r"parameters\[2\] must be a real numeric array"),
-    ("1-d vertices", dict(parameters=[THETA, np.zeros(1), THETA]), DimensionError,
-     r"parameters\[1\] must be 2-dimensional, got shape \(1,\)"),
+    (
+        "1-d vertices",
+        dict(parameters=[THETA, np.zeros(1), THETA]),
+        DimensionError,
+        r"parameters\[1\] must be 2-dimensional, got shape \(1,\)",
+    ),
     # box-valued controls
-    ("controls pair of wrong q", dict(controls=(np.zeros((3, 2)), np.zeros((3, 2)))), DimensionError,
-     r"controls lower must have shape \(\*, 1\), got shape \(3, 2\)"),
-    ("controls pair of unequal length", dict(controls=(np.zeros((3, 1)), np.zeros((2, 1)))), DimensionError,
-     r"controls lower and controls upper must have the same shape, got \(3, 1\) and \(2, 1\)"),
-    ("controls lower > upper", dict(controls=(np.zeros((3, 1)), np.array([[1.0], [-1.0], [1.0]]))), EmptySetError,
-     r"controls is empty at step 1: lower\[1, 0\] = 0.0 > upper\[1, 0\] = -1.0"),
-    ("controls nan", dict(controls=(np.zeros((3, 1)), np.full((3, 1), NAN))), NonFiniteError,
-     r"controls upper contains NaN"),
-    ("controls text", dict(controls=(np.zeros((3, 1)), np.full((3, 1), "1"))), InputError,
-     r"controls upper must be a real numeric array, got text"),
-    ("control box of wrong q", dict(controls=[Box([0.0], [1.0]), Box(np.zeros(2), np.ones(2))]), DimensionError,
-     r"controls\[1\] must have dimension 1 \(B has shape \(2, 1\)\), got 2"),
-    ("not a control box", dict(controls=[Box([0.0], [1.0]), Box([0.0], [1.0]), np.zeros(1)]), InputError,
-     r"controls\[2\] must be a Box, got ndarray"),
+    (
+        "controls pair of wrong q",
+        dict(controls=(np.zeros((3, 2)), np.zeros((3, 2)))),
+        DimensionError,
+        r"controls lower must have shape \(\*, 1\), got shape \(3, 2\)",
+    ),
+    (
+        "controls pair of unequal length",
+        dict(controls=(np.zeros((3, 1)), np.zeros((2, 1)))),
+        DimensionError,
+        r"controls lower and controls upper must have the same shape, got \(3, 1\) and \(2, 1\)",
+    ),
+    (
+        "controls lower > upper",
+        dict(controls=(np.zeros((3, 1)), np.array([[1.0], [-1.0], [1.0]]))),
+        EmptySetError,
+        r"controls is empty at step 1: lower\[1, 0\] = 0.0 > upper\[1, 0\] = -1.0",
+    ),
+    (
+        "controls nan",
+        dict(controls=(np.zeros((3, 1)), np.full((3, 1), NAN))),
+        NonFiniteError,
+        r"controls upper contains NaN",
+    ),
+    (
+        "controls text",
+        dict(controls=(np.zeros((3, 1)), np.full((3, 1), "1"))),
+        InputError,
+        r"controls upper must be a real numeric array, got text",
+    ),
+    (
+        "control box of wrong q",
+        dict(controls=[Box([0.0], [1.0]), Box(np.zeros(2), np.ones(2))]),
+        DimensionError,
+        r"controls\[1\] must have dimension 1 \(B has shape \(2, 1\)\), got 2",
+    ),
+    (
+        "not a control box",
+        dict(controls=[Box([0.0], [1.0]), Box([0.0], [1.0]), np.zeros(1)]),
+        InputError,
+        r"controls\[2\] must be a Box, got ndarray",
+    ),
     # disturbances
-    ("disturbances of wrong length", dict(disturbances=(np.zeros((2, 2)), np.zeros((2, 2)))), DimensionError,
-     r"disturbances lower must have shape \(3, 2\), got shape \(2, 2\)"),
-    ("disturbances of wrong r", dict(disturbances=(np.zeros((3, 3)), np.zeros((3, 3)))), DimensionError,
-     r"disturbances lower must have shape \(3, 2\), got shape \(3, 3\)"),
-    ("disturbance boxes count", dict(disturbances=[W, W]), DimensionError,
-     r"disturbances must have one box per step, 3 \(the controls' length\), got 2"),
-    ("disturbance box of wrong r", dict(disturbances=[W, Box(np.zeros(3), np.ones(3)), W]), DimensionError,
-     r"disturbances\[1\] must have dimension 2 \(columns of D, shape \(2, 2\)\), got 3"),
-    ("one disturbance box of wrong r", dict(disturbances=Box(np.zeros(3), np.ones(3))), DimensionError,
-     r"disturbances must have dimension 2 \(columns of D, shape \(2, 2\)\), got 3"),
-    ("disturbances lower > upper", dict(disturbances=(np.ones((3, 2)), np.zeros((3, 2)))), EmptySetError,
-     r"disturbances is empty at step 0: lower\[0, 0\] = 1.0 > upper\[0, 0\] = 0.0"),
-    ("disturbances nan", dict(disturbances=(np.full((3, 2), NAN), np.zeros((3, 2)))), NonFiniteError,
-     r"disturbances lower contains NaN"),
-    ("disturbances inf", dict(disturbances=(np.zeros((3, 2)), np.full((3, 2), np.inf))), NonFiniteError,
-     r"disturbances upper contains NaN or infinite"),
-    ("disturbances array", dict(disturbances=np.zeros((3, 2))), InputError,
-     r"disturbances must be None, a Box, a \(lower, upper\) pair of \(H, r\) arrays or a sequence of H Boxes, "
-     r"got ndarray"),
+    (
+        "disturbances of wrong length",
+        dict(disturbances=(np.zeros((2, 2)), np.zeros((2, 2)))),
+        DimensionError,
+        r"disturbances lower must have shape \(3, 2\), got shape \(2, 2\)",
+    ),
+    (
+        "disturbances of wrong r",
+        dict(disturbances=(np.zeros((3, 3)), np.zeros((3, 3)))),
+        DimensionError,
+        r"disturbances lower must have shape \(3, 2\), got shape \(3, 3\)",
+    ),
+    (
+        "disturbance boxes count",
+        dict(disturbances=[W, W]),
+        DimensionError,
+        r"disturbances must have one box per step, 3 \(the controls' length\), got 2",
+    ),
+    (
+        "disturbance box of wrong r",
+        dict(disturbances=[W, Box(np.zeros(3), np.ones(3)), W]),
+        DimensionError,
+        r"disturbances\[1\] must have dimension 2 \(columns of D, shape \(2, 2\)\), got 3",
+    ),
+    (
+        "one disturbance box of wrong r",
+        dict(disturbances=Box(np.zeros(3), np.ones(3))),
+        DimensionError,
+        r"disturbances must have dimension 2 \(columns of D, shape \(2, 2\)\), got 3",
+    ),
+    (
+        "disturbances lower > upper",
+        dict(disturbances=(np.ones((3, 2)), np.zeros((3, 2)))),
+        EmptySetError,
+        r"disturbances is empty at step 0: lower\[0, 0\] = 1.0 > upper\[0, 0\] = 0.0",
+    ),
+    (
+        "disturbances nan",
+        dict(disturbances=(np.full((3, 2), NAN), np.zeros((3, 2)))),
+        NonFiniteError,
+        r"disturbances lower contains NaN",
+    ),
+    (
+        "disturbances inf",
+        dict(disturbances=(np.zeros((3, 2)), np.full((3, 2), np.inf))),
+        NonFiniteError,
+        r"disturbances upper contains NaN or infinite",
+    ),
+    (
+        "disturbances array",
+        dict(disturbances=np.zeros((3, 2))),
+        InputError,
+        r"disturbances must be None, a Box, a \(lower, upper\) pair of \(H, r\) arrays or a sequence of H Boxes, "
+        r"got ndarray",
+    ),
     ("disturbances text", dict(disturbances="w"), InputError, r"disturbances must be None, a Box, .*got str"),
-    ("not a disturbance box", dict(disturbances=[W, W, (0.0, 1.0)]), InputError,
-     r"disturbances\[2\] must be a Box, got tuple"),
+    (
+        "not a disturbance box",
+        dict(disturbances=[W, W, (0.0, 1.0)]),
+        InputError,
+        r"disturbances\[2\] must be a Box, got tuple",
+    ),
 ]
 
 

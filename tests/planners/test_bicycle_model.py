@@ -49,7 +49,10 @@ TJUNCTION_NO_TRAFFIC = TJunctionScenario(headway_min=1e6)
 
 @pytest.mark.parametrize(
     "kind, actions",
-    [("highway", [0, 0, 3, 1, 2, 2, 4, 1, 0, 3, 1, 1]), ("tjunction", [2, 2, 1, 1, 1, 2, 1, 1, 1, 1, 0, 1, 2, 1, 1, 1, 1, 1])],
+    [
+        ("highway", [0, 0, 3, 1, 2, 2, 4, 1, 0, 3, 1, 1]),
+        ("tjunction", [2, 2, 1, 1, 1, 2, 1, 1, 1, 1, 0, 1, 2, 1, 1, 1, 1, 1]),
+    ],
 )
 def test_the_predicted_ego_is_the_worlds_bit_for_bit(kind, actions):
     """The world stepped with the kernel's controls puts the ego exactly where the model predicts it."""
@@ -59,9 +62,7 @@ def test_the_predicted_ego_is_the_worlds_bit_for_bit(kind, actions):
         (expanded,), _, (terminal,) = model.expand(state, (a,))
         assert np.array_equal(expanded.x, after.x) and (expanded.level, expanded.lane) == (after.level, after.lane)
         assert not terminal
-        level, lane = apply_action(
-            controller, state.level, state.lane, model._speed_changes[a], model._lane_changes[a]
-        )
+        level, lane = apply_action(controller, state.level, state.lane, model._speed_changes[a], model._lane_changes[a])
         for k in range(model.substeps):
             control, lane = ego_control(controller, world.ego_state, level, lane)
             assert np.array_equal(control, controls[k])

@@ -238,7 +238,9 @@ def test_band_cost_with_the_vehicle_terms_has_the_exact_gradient(seed, n, k):
 def test_vehicle_band_behind_a_slow_car_stays_clear_with_admissible_bicycle_controls(lane_weight):
     # A weak lane term lets the band overtake in the next lane; the tuned one (10) follows.
     params = VehicleTEBParameters(lane_weight=lane_weight)
-    planner = VehicleElasticBand(partial(bicycle_step, vehicle=CAR), dt=0.1, max_steering=CAR.max_steering, params=params)
+    planner = VehicleElasticBand(
+        partial(bicycle_step, vehicle=CAR), dt=0.1, max_steering=CAR.max_steering, params=params
+    )
     slow = np.array([40.0, 0.0, 10.0, 0.0])
     state = np.array([0.0, 0.0, 20.0, 0.0])
     for _ in range(16):  # 8 s at 0.5 s decisions

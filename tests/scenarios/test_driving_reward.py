@@ -57,7 +57,10 @@ def test_the_rectangle_box_test_at_points_is_fcls():
         centre, psi = rng.uniform(-4, 4, 2), rng.uniform(-np.pi, np.pi)
         state = np.array([centre[0], centre[1], 20.0, psi])
         collided = _obstacle_reward(box).box_minimum(state, state)[1]
-        inner, outer = _fcl_rectangle_meets_box(centre, psi, box, -1e-7), _fcl_rectangle_meets_box(centre, psi, box, 1e-7)
+        inner, outer = (
+            _fcl_rectangle_meets_box(centre, psi, box, -1e-7),
+            _fcl_rectangle_meets_box(centre, psi, box, 1e-7),
+        )
         if inner == outer:  # not within 1e-7 m of touching
             assert collided == inner
             agree += 1

@@ -164,18 +164,17 @@ def test_road_env_observes_the_world_and_steps_it_for_one_period():
     np.testing.assert_allclose(vehicles[0, :2], seen.vehicles[j, :2] - seen.ego[:2], rtol=1e-5, atol=1e-3)
 
     _, reward, terminated, truncated, info = env.step(np.array([0.25, 0.0], dtype=np.float32))
-    start = world.ego_state[:2]
     rewards = []
     for _ in range(5):
         world.apply([1.5, 0.0])  # the normalised action times the 6 m/s^2 bound
-        rewards.append(road_reward(world, start))
+        rewards.append(road_reward(world))
     np.testing.assert_array_equal(env.world.traffic.states, world.traffic.states)
     assert reward == pytest.approx(np.mean(rewards), rel=1e-12)
     assert 0.0 < reward <= 1.0 and not terminated and not truncated and info["outcome"] == "running"
-    # the highway reward: (1 + 0.4 v / 30 + 0.1 lane / 2) / 1.5
+    # the highway reward: (1 + 0.4 v / 30 + 0.1 (2 - lane) / 2) / 1.5 (lane 0, the rightmost, preferred)
     x, y, v, _ = world.ego_state
     lane = np.clip(np.floor(y / 4 + 0.5), 0, 2)
-    assert rewards[-1] == pytest.approx((1 + 0.4 * min(v / 30, 1) + 0.1 * lane / 2) / 1.5, rel=1e-12)
+    assert rewards[-1] == pytest.approx((1 + 0.4 * min(v / 30, 1) + 0.1 * (2 - lane) / 2) / 1.5, rel=1e-12)
 
 
 def test_road_env_ends_off_road_with_zero_reward():
@@ -187,18 +186,18 @@ def test_road_env_ends_off_road_with_zero_reward():
         if terminated or truncated:
             break
     assert terminated and not truncated and info["outcome"] in ("off_road", "collision")
-    assert road_reward(env.world, env.world.ego_state[:2]) == 0.0
+    assert road_reward(env.world) == 0.0
 
 
-def test_tjunction_reward_is_the_progress_to_the_goal():
+def test_tjunction_reward_grows_with_the_progress_to_the_goal():
     world = make_road_world("tjunction", 0)
     start = world.ego_state[:2]
-    assert road_reward(world, start) == 0.0  # at the start: no progress yet
+    assert road_reward(world) == pytest.approx(1 / 1.4, rel=1e-12)  # at the start: no progress yet
     goal = world.road.position_at(world.goal_lanes[0], world.goal_s)
     states = world.traffic.states.copy()
     states[0, :2] = (start + goal) / 2
     world.traffic = dataclasses.replace(world.traffic, states=states)
-    assert road_reward(world, start) == pytest.approx(0.5, rel=1e-12)
+    assert road_reward(world) == pytest.approx((1 + 0.4 * 0.5) / 1.4, rel=1e-12)
 
 
 def test_road_env_rejects_bad_actions_and_step_before_reset():

@@ -95,7 +95,14 @@ def _check(world, run, observations, t0, steps, intentions=None):
     last = len(ego_lanes) - 1
     route[np.arange(steps + 1), [ego_lanes[min(t0 + n, last)] for n in range(steps + 1)]] = True
     forecast = forecast_traffic(
-        obs, world.road, world.scenario, beliefs, steps=steps, ego_reach=reach, ego_speed=speed, ego_heading=heading,
+        obs,
+        world.road,
+        world.scenario,
+        beliefs,
+        steps=steps,
+        ego_reach=reach,
+        ego_speed=speed,
+        ego_heading=heading,
         ego_route=route,
     )
     misses = checked = 0
@@ -104,9 +111,7 @@ def _check(world, run, observations, t0, steps, intentions=None):
         inside = np.all((true >= forecast.state_lower[n] - TOL) & (true <= forecast.state_upper[n] + TOL), axis=1)
         corners = vehicle_corners(true, VEHICLE)
         box = forecast.boxes[n]
-        covered = np.all(
-            (corners >= box[:, None, :2] - TOL) & (corners <= box[:, None, 2:] + TOL), axis=(1, 2)
-        )
+        covered = np.all((corners >= box[:, None, :2] - TOL) & (corners <= box[:, None, 2:] + TOL), axis=(1, 2))
         misses += int(np.sum(~(inside & covered)))
         checked += len(obs.ids)
     return misses, checked, forecast

@@ -112,7 +112,12 @@ def test_point_regressors_allow_any_sign_and_linear_relations():
     relation = IntervalRows([[-20.0, 1.0], [-25.0, 1.0]], [[-20.0, 1.0], [-25.0, 1.0]], [0.0, -np.inf], [np.inf, 0.0])
     box = interval_parameter_box(relation, prior)
     assert box.low[1] == pytest.approx(0.15 * 20, rel=1e-6) and box.high[1] == pytest.approx(0.45 * 25, rel=1e-6)
-    bad = IntervalRows([[-20.0, 1.0], [-25.0, 1.0], [1.0, 0.0]], [[-20.0, 1.0], [-25.0, 1.0], [1.0, 0.0]], [0.0, -np.inf, 0.5], [np.inf, 0.0, 0.6])
+    bad = IntervalRows(
+        [[-20.0, 1.0], [-25.0, 1.0], [1.0, 0.0]],
+        [[-20.0, 1.0], [-25.0, 1.0], [1.0, 0.0]],
+        [0.0, -np.inf, 0.5],
+        [np.inf, 0.0, 0.6],
+    )
     assert interval_consistency(bad, prior).eliminated  # theta_1 > 0.45
 
 
