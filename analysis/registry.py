@@ -111,11 +111,15 @@ class EpisodeFailure(MinimaxplanError, RuntimeError):
 
 # -------------------------------------------------------------------- interfaces
 class Transition(NamedTuple):
-    """One sub-step as the method saw it: measurement, applied control, next measurement."""
+    """One sub-step as the method saw it: measurement, applied control, next measurement.
 
-    measured: np.ndarray
+    The measurements are what `World.measure` returns: an array in the robot worlds, an
+    Observation in the road worlds.
+    """
+
+    measured: Any
     control: np.ndarray
-    next_measured: np.ndarray
+    next_measured: Any
 
 
 @runtime_checkable
@@ -157,8 +161,11 @@ class World(Protocol):
     def position(self) -> np.ndarray:
         """Where the agent is, a 1-D array."""
 
-    def measure(self) -> np.ndarray:
-        """A (noisy) measurement of the state; the only thing the method sees of it."""
+    def measure(self) -> Any:
+        """A (noisy) measurement of the state; the only thing the method sees of it.
+
+        An array in the robot worlds, an Observation in the road worlds.
+        """
 
     def apply(self, u: np.ndarray) -> str:
         """Apply the control ``u`` for one sub-step; returns the outcome.
@@ -185,13 +192,14 @@ class World(Protocol):
 class Policy(Protocol):
     """What a method decided: a feedback law held for one decision period."""
 
-    def control(self, measurement: np.ndarray) -> np.ndarray:
+    def control(self, measurement: Any) -> np.ndarray:
         """The control to apply now, admissible for the world (e.g. saturated).
 
         Parameters
         ----------
-        measurement : numpy.ndarray
-            The current measured state, shape (p,).
+        measurement : Any
+            The current measurement (`World.measure`): an array in the robot worlds,
+            shape (p,), an Observation in the road worlds.
 
         Returns
         -------
@@ -336,13 +344,14 @@ class Method(abc.ABC, Generic[WorldT]):
         """
 
     @abc.abstractmethod
-    def decide(self, measurement: np.ndarray) -> Policy:
+    def decide(self, measurement: Any) -> Policy:
         """Plan on the current measurement; the returned policy runs for one decision period.
 
         Parameters
         ----------
-        measurement : numpy.ndarray
-            The current measured state, shape (p,).
+        measurement : Any
+            The current measurement (`World.measure`): an array in the robot worlds,
+            shape (p,), an Observation in the road worlds.
 
         Returns
         -------

@@ -55,7 +55,7 @@ from minimaxplan.planners.bicycle_model import (
 )
 from minimaxplan.scenarios.driving_reward import world_reward
 from minimaxplan.scenarios.road import lane_geometry
-from minimaxplan.scenarios.road_world import Observation, RoadWorld
+from minimaxplan.scenarios.road_world import HighwayScenario, Observation, RoadWorld
 from minimaxplan.scenarios.traffic_models import TrafficForecast, VehicleBelief, forecast_traffic
 from minimaxplan.scenarios.vehicles import BehaviourParameters, TrafficRules, traffic_step, vehicle_corners
 
@@ -201,12 +201,12 @@ def ego_reach(model: BicycleModel, root, speed_bounds: tuple[float, float], step
     reach = np.empty((steps + 1, 4))
     speed = np.empty((steps + 1, 2))
     heading = np.empty((steps + 1, 2))
-    for n, rows in enumerate(per_step):
-        corners = vehicle_corners(rows, vehicle).reshape(-1, 2)
+    for n, at_n in enumerate(per_step):
+        corners = vehicle_corners(at_n, vehicle).reshape(-1, 2)
         reach[n, :2] = np.nextafter(corners.min(axis=0), -np.inf)
         reach[n, 2:] = np.nextafter(corners.max(axis=0), np.inf)
-        speed[n] = np.nextafter(rows[:, 2].min(), -np.inf), np.nextafter(rows[:, 2].max(), np.inf)
-        heading[n] = np.nextafter(rows[:, 3].min(), -np.inf), np.nextafter(rows[:, 3].max(), np.inf)
+        speed[n] = np.nextafter(at_n[:, 2].min(), -np.inf), np.nextafter(at_n[:, 2].max(), np.inf)
+        heading[n] = np.nextafter(at_n[:, 3].min(), -np.inf), np.nextafter(at_n[:, 3].max(), np.inf)
     last = per_step[-1]
     centre_lo, centre_hi = last[:, :2].min(axis=0), last[:, :2].max(axis=0)
     half_diagonal = 0.5 * float(np.hypot(vehicle.length, vehicle.width))
@@ -505,7 +505,9 @@ class RoadNominalMethod(RoadPlanningMethod):
         routes[0] = truth.routes[0]
         route_index = np.zeros(n, dtype=int)
         route_index[0] = truth.route_index[0]
-        low, high = world.scenario.vehicle_speed if world.kind == "highway" else world.scenario.main_speed
+        # RoadWorld checks that its scenario is a HighwayScenario exactly when kind is "highway"
+        scenario = world.scenario
+        low, high = scenario.vehicle_speed if isinstance(scenario, HighwayScenario) else scenario.main_speed
         target = np.full(n, 0.5 * (low + high))
         target[0] = truth.target_speed[0]
         for j, agent in enumerate(observation.ids):

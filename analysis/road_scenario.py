@@ -75,7 +75,7 @@ class RoadFrame:
     heading)``: a `minimaxplan.planners.dwa.RoadReference`.
     """
 
-    def __init__(self, road: Road, lanes: Sequence[int], progress_offsets: Sequence[float]):
+    def __init__(self, road: Road, lanes: Sequence[int], progress_offsets: Sequence[float] | np.ndarray):
         self.road = road
         self.lanes = np.asarray(lanes, dtype=int)
         self.progress_offsets = np.asarray(progress_offsets, dtype=float)

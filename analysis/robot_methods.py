@@ -337,6 +337,7 @@ class RobustMethod(RobotMethod):
         lower, upper, _, _ = planner.models[0].rollout(root, decision.sequence)
         self.plans.append((t, lower[:, :2].tolist(), upper[:, :2].tolist()))
         self.decisions.append(self._decision_trace(t, lower, upper, survivors, decision.action))
+        assert objective.moving_obstacles is not None  # GoalReward makes None MovingObstacles.empty()
         self._predicted = self.executed_boxes(planner, root, decision.action, objective.moving_obstacles)
         return self.controllers[decision.action]
 

@@ -328,7 +328,9 @@ class TrafficLearner:
         b, v, rules = scenario.behaviour, scenario.vehicle, scenario.rules
         self.behaviour, self.vehicle, self.rules = b, v, rules
         lo, hi = b.theta_a_prior
-        self.speed_range = tuple(scenario.vehicle_speed if self.kind == "highway" else scenario.main_speed)
+        self.speed_range = tuple(
+            scenario.vehicle_speed if isinstance(scenario, HighwayScenario) else scenario.main_speed
+        )
         self.prior_a = Box(lo, hi)
         self.prior_lon = Box(np.append(lo, lo[0] * self.speed_range[0]), np.append(hi, hi[0] * self.speed_range[1]))
         self.prior_b = Box(*b.theta_b_prior)
@@ -602,6 +604,7 @@ class TrafficLearner:
                 obs_states[:, 3] - heading - obs_noise[:, 3], obs_states[:, 3] - heading + obs_noise[:, 3]
             )
         else:
+            assert head_err is not None  # set off the highway
             d_up = float(np.min(sure, initial=np.inf))
             vf_lo, vf_hi = obs_states[:, 2] - obs_noise[:, 2], obs_states[:, 2] + obs_noise[:, 2]
             clo, chi = _cos_interval(-head_err, head_err)
@@ -616,10 +619,16 @@ class TrafficLearner:
             f3lo.append(min(dist_lo[j] - L - d0 - T * v_hi, 0.0))
             f3hi.append(min(dist_hi[j] - L - d0 - T * v_lo, 0.0))
         if not np.isfinite(d_up):
-            f2lo.append(0.0), f2hi.append(0.0), f3lo.append(0.0), f3hi.append(0.0)
+            f2lo.append(0.0)
+            f2hi.append(0.0)
+            f3lo.append(0.0)
+            f3hi.append(0.0)
         if may_yield:
-            f2lo.append(-v_hi), f2hi.append(-v_lo)
-            f3lo.append(min(stop_gap[0] - d0 - T * v_hi, 0.0)), f3hi.append(min(stop_gap[1] - d0 - T * v_lo, 0.0))
+            assert stop_gap is not None  # may_yield is only set off the highway, with stop_gap
+            f2lo.append(-v_hi)
+            f2hi.append(-v_lo)
+            f3lo.append(min(stop_gap[0] - d0 - T * v_hi, 0.0))
+            f3hi.append(min(stop_gap[1] - d0 - T * v_lo, 0.0))
         vt_lo, vt_hi = self.speed_range
         if cap <= vt_lo:
             g1lo, g1hi, K = cap - v_hi, cap - v_lo, 0.0
@@ -740,8 +749,9 @@ class TrafficLearner:
             start = step - k
             if start < h.tstar:
                 continue
-            items = [h.lat_steps.get(t) for t in range(start, step)]
-            if any(it is None for it in items):
+            found = [h.lat_steps.get(t) for t in range(start, step)]
+            items = [it for it in found if it is not None]
+            if len(items) < len(found):
                 continue
             glo = np.sum([it[0] for it in items], axis=0)
             ghi = np.sum([it[1] for it in items], axis=0)
@@ -768,8 +778,9 @@ class TrafficLearner:
             if step % max(1, k // 4):
                 continue
             start = step - k
-            items = [lon.steps.get(t) for t in range(start, step)]
-            if any(it is None or not it[2] for it in items):
+            found = [lon.steps.get(t) for t in range(start, step)]
+            items = [it for it in found if it is not None and it[2]]
+            if len(items) < len(found):
                 continue
             glo = np.sum([it[0] for it in items], axis=0)
             ghi = np.sum([it[1] for it in items], axis=0)
@@ -793,6 +804,7 @@ class TrafficLearner:
         if h.dead_at is not None and h.tstar > h.dead_at:
             h.dead_at = None  # a new possible switch into it: revived on fresh data
             h.lat_witness, h.lat_box, h.lat_fit_rows = None, None, 0
+        assert h.lon is not None  # every hypothesis is made with one (_new_track)
         return h.dead_at is None and not h.lon.dead
 
     def _check(self, store: _RowStore, prior: Box, witness, extra: IntervalRows | None = None):
@@ -864,6 +876,7 @@ class TrafficLearner:
         key = tuple(id(b) for b in boxes_b + boxes_a)
         if key != track.hull_key:  # the hulls change only when a box or the survivors do
             track.hull_key = key
+            assert track.theta_a is not None and track.theta_b is not None  # set by _new_track
             track.theta_b = _intersect(track.theta_b, _hull(boxes_b))
             track.theta_a = _intersect(track.theta_a, _hull(boxes_a))
 
@@ -904,7 +917,7 @@ class TrafficLearner:
         y_hi = (L / dt) * (dpsi + 2 * n[3]) + rem
         pad = ROW_ROUNDING * (1 + np.abs(glo) + np.abs(ghi))
         ypad = ROW_ROUNDING * (1 + abs(y_lo) + abs(y_hi))
-        rows = IntervalRows((glo - pad)[None], (ghi + pad)[None], [y_lo - ypad], [y_hi + ypad])
+        rows = IntervalRows((glo - pad)[None], (ghi + pad)[None], np.array([y_lo - ypad]), np.array([y_hi + ypad]))
         self.lp_solves += 1
         try:
             verdict = interval_consistency(rows, self.prior_b)
@@ -947,6 +960,7 @@ class TrafficLearner:
         out = {}
         for a in agents:
             t = self.tracks[int(a)]
+            assert t.theta_a is not None and t.theta_b is not None  # set by _new_track
             out[int(a)] = VehicleBelief(
                 int(a),
                 t.theta_a,
@@ -1043,7 +1057,7 @@ def elimination_statistics(events) -> dict[str, dict]:
         kind -> {"count", "eliminated", "median", "min", "max"} (None when nothing was
         eliminated).
     """
-    out: dict[str, dict] = {}
+    out: dict[str, list] = {}
     for kind, n in events:
         out.setdefault(kind, []).append(n)
     result = {}
@@ -1192,7 +1206,7 @@ def elimination_study(kind: str, seeds, *, max_steps: int | None = None) -> dict
     from minimaxplan.scenarios.road_world import make_road_world
 
     events: list = []
-    out = {
+    out: dict = {
         "vehicle_steps": 0,
         "intention_misses": 0,
         "theta_a_misses": 0,

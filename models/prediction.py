@@ -816,10 +816,13 @@ def _distinct_sets(system: UncertainLinearSystem, sets: list) -> tuple[list, lis
     return distinct, set_of_step
 
 
-def _distinct_shifts(frame: _Frame, w_lower: np.ndarray, w_upper: np.ndarray) -> tuple[list[int], list]:
+def _distinct_shifts(
+    frame: _Frame, w_lower: np.ndarray, w_upper: np.ndarray
+) -> tuple[list[int], list[tuple[np.ndarray, np.ndarray]]]:
     """Each step's index into the shifts of the distinct disturbance boxes (each from fresh 1-D copies)."""
     by_box: dict[bytes, int] = {}
-    box_of_step, shifts = [], []
+    box_of_step: list[int] = []
+    shifts: list[tuple[np.ndarray, np.ndarray]] = []
     for lo, hi in zip(w_lower, w_upper):
         key = lo.tobytes() + hi.tobytes()
         index = by_box.get(key)
@@ -950,12 +953,14 @@ def predict_tube(
     if w_lower is None or steps == 0:
         hull = system.w
     else:
+        assert w_upper is not None  # set together with w_lower
         hull = Box(w_lower.min(axis=0), w_upper.max(axis=0))
     frame = _Frame(system, basis, union, hull)
     vertex_steps = [frame.vertex_step(matrices, formation_error) for matrices, formation_error in distinct]
     if w_lower is None or steps == 0:
         box_of_step, shifts = [0] * steps, [frame.shifts(system.w.low, system.w.high)]
     else:
+        assert w_upper is not None  # set together with w_lower
         box_of_step, shifts = _distinct_shifts(frame, w_lower, w_upper)
     predictors: dict[tuple[int, int], IntervalPredictor] = {}
     first = IntervalPredictor._from_parts(frame, vertex_steps[0], shifts[0])

@@ -924,6 +924,7 @@ class VehicleElasticBand:
         candidates = [self._fresh(start, goal, float(x[2]), scene.speed_limit) for goal in goals]
         warm = self._band is not None and len(self._band[1]) >= 1
         if warm:
+            assert self._band is not None  # warm implies a band
             X, dT = self._band
             look = min(len(dT), 4)
             nearest = min(int(np.argmin(np.linalg.norm(X[: look + 1] - start, axis=1))), len(dT) - 1)

@@ -246,7 +246,8 @@ class VehicleBelief:
 
 def _routes_from(road: Road, lane: int) -> list[tuple[int, ...]]:
     """Every lane sequence from ``lane`` to a lane without successor."""
-    out, stack = [], [(lane,)]
+    out: list[tuple[int, ...]] = []
+    stack: list[tuple[int, ...]] = [(lane,)]
     while stack:
         route = stack.pop()
         nxt = road.successors(route[-1])
@@ -921,11 +922,11 @@ def forecast_traffic(
         for lane, r in lane_rows.items():
             if road.side_of[lane] >= 0:
                 group = road.side_lanes(lane)
-                k = group.index(lane)
-                if k > 0 and group[k - 1] in lane_rows:
-                    nbr[r, 0] = lane_rows[group[k - 1]]
-                if k + 1 < len(group) and group[k + 1] in lane_rows:
-                    nbr[r, 1] = lane_rows[group[k + 1]]
+                at = group.index(lane)
+                if at > 0 and group[at - 1] in lane_rows:
+                    nbr[r, 0] = lane_rows[group[at - 1]]
+                if at + 1 < len(group) and group[at + 1] in lane_rows:
+                    nbr[r, 1] = lane_rows[group[at + 1]]
         sl = slice(j * P, (j + 1) * P)
         ta_lo[sl], ta_hi[sl] = belief.theta_a.low, belief.theta_a.high
         tb_lo[sl], tb_hi[sl] = belief.theta_b.low, belief.theta_b.high

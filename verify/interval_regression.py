@@ -279,7 +279,7 @@ def _solve(scaled: _Scaled, objective: np.ndarray, margin: float | None) -> tupl
         # s may go down to -1: the witness is then the deepest point (max-min slack), so
         # that it keeps explaining new rows for longer (see `interval_consistency`)
         bounds = np.vstack([bounds, [-WITNESS_DEPTH, np.inf]])
-    b = scaled.b if free else scaled.b + margin
+    b = scaled.b if margin is None else scaled.b + margin
     if m == 0:
         t = np.where(c[:d] > 0, scaled.low, np.where(c[:d] < 0, scaled.high, (scaled.low + scaled.high) / 2))
         return t, 0.0, np.zeros(0)
@@ -297,7 +297,7 @@ def _solve(scaled: _Scaled, objective: np.ndarray, margin: float | None) -> tupl
     mu = np.maximum(-np.asarray(res.ineqlin.marginals, dtype=float), 0.0)
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(mu))):
         raise SolverFailure(f"HiGHS returned non-finite values on the interval-regression LP over {m} inequalities")
-    return x[:d], (float(x[d]) if free else float(margin)), mu[:m]
+    return x[:d], (float(x[d]) if margin is None else float(margin)), mu[:m]
 
 
 @dataclass(frozen=True, eq=False)
