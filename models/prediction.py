@@ -745,7 +745,7 @@ def _is_box_sequence(value) -> bool:
 
 
 def _step_boxes(name: str, value, steps: int | None, dim: int, reason: str) -> tuple[np.ndarray, np.ndarray]:
-    """Per-step boxes given as a (lower, upper) pair of (H, dim) arrays or a sequence of H `Box`es.
+    """Per-step boxes given as a (lower, upper) pair of (H, dim) arrays or a sequence of H `Box` objects.
 
     ``steps`` None accepts any H (the controls define it). Checks shapes, NaN/inf and
     ``lower <= upper``; returns the bounds as float arrays (H, dim).
@@ -854,7 +854,7 @@ def predict_tube(
         The inputs, one of:
 
         - an array of shape (H, q): the known control sequence;
-        - a ``(lower, upper)`` pair of (H, q) arrays, or a sequence of H `Box`es of
+        - a ``(lower, upper)`` pair of (H, q) arrays, or a sequence of H `Box` objects of
           dimension q: at step n the input is any ``u_n`` in the box (e.g. a leader's
           predicted state). A step whose box is a point is the point control.
     parameters
@@ -868,7 +868,7 @@ def predict_tube(
     disturbances
         What replaces ``system.w`` as the disturbance set: None (``system.w`` at every
         step), a `Box` of dimension r (at every step), or one box per step, a
-        ``(lower, upper)`` pair of (H, r) arrays or a sequence of H `Box`es (e.g. the
+        ``(lower, upper)`` pair of (H, r) arrays or a sequence of H `Box` objects (e.g. the
         bounds of a model's nonlinear remainder along the tube).
 
     Returns

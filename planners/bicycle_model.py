@@ -531,7 +531,7 @@ def _search_kernel(params_type: type):
 
 
 def compiled_plan(models, state: BicycleState, *, gamma: float, budget: int) -> tuple[Decision, SearchTree]:
-    """`RobustTreePlanner` ``(models, actions, ...)``'s search, compiled whole, for `BicycleModel`s of one ego.
+    """The search of `RobustTreePlanner`, compiled whole, for `BicycleModel` models of one ego.
 
     The same tree operations (`minimaxplan.planners.tree_ops`) and the same
     transitions as the Python engine with the models' ``expand``, in one compiled
@@ -557,7 +557,7 @@ def compiled_plan(models, state: BicycleState, *, gamma: float, budget: int) -> 
     decision : Decision
         As `RobustTreePlanner.plan` returns it.
     tree : SearchTree
-        The search tree (its states are `BicycleState`s; a terminated model keeps its
+        The search tree (its states are `BicycleState` values; a terminated model keeps its
         terminal state on the rest of the branch, as in the Python engine).
 
     Raises

@@ -84,7 +84,7 @@ def _as_bounds(name: str, value, shape) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class IntervalRows:
-    """Rows ``y_lo_k <= g . theta <= y_hi_k`` for some ``g`` in ``[g_lo_k, g_hi_k]``.
+    """Rows ``y_lo_k <= g^T theta <= y_hi_k`` for some ``g`` in ``[g_lo_k, g_hi_k]``.
 
     Parameters
     ----------
