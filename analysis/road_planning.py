@@ -71,6 +71,7 @@ __all__ = [
     "RoadNominalMethod",
     "RoadOracleMethod",
     "EgoSetup",
+    "conservative_first",
     "ego_setup",
     "ego_reach",
     "point_forecast",
@@ -79,6 +80,17 @@ __all__ = [
 #: Sub-steps of the other vehicles' forecast (5 s at dt = 0.1 s): the planner's
 #: reward is 0 beyond them.
 FORECAST_STEPS = 50
+
+
+def conservative_first(actions: tuple) -> tuple:
+    """The actions with SLOWER first, then IDLE, then the others in their order.
+
+    `RobustTreePlanner` breaks ties between root actions by their index. When every
+    action may collide within the forecast (all lower bounds 0), that tie is broken
+    towards braking instead of towards the paper's first action (LANE_LEFT).
+    """
+    rank = {"SLOWER": 0, "IDLE": 1}
+    return tuple(sorted(actions, key=lambda a: rank.get(a[0], 2)))
 
 
 class EgoSetup:
@@ -110,12 +122,12 @@ class EgoSetup:
         vehicle = scenario.vehicle
         state = world.ego_state
         if world.kind == "highway":
-            self.actions: tuple = HIGHWAY_ACTIONS
+            self.actions: tuple = conservative_first(HIGHWAY_ACTIONS)
             self.speeds: tuple = HIGHWAY_TARGET_SPEEDS
             lanes = lane_geometry(road)
             route: tuple[int, ...] = ()
         else:
-            self.actions = TJUNCTION_ACTIONS
+            self.actions = conservative_first(TJUNCTION_ACTIONS)
             self.speeds = TJUNCTION_TARGET_SPEEDS
             route = tuple(int(lane) for lane in world.traffic.routes[0] if lane >= 0)
             lanes = lane_geometry(road, route)
