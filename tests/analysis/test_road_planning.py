@@ -1,0 +1,84 @@
+"""The road worlds' tree-search methods: registration, the ego's reach, the run-time check."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from minimaxplan.analysis.episode import LoopConfig, make_job, run_job
+from minimaxplan.analysis.registry import UnsupportedScenario
+from minimaxplan.analysis.road_planning import (
+    FORECAST_STEPS,
+    REACH_DECISIONS,
+    EgoSetup,
+    conservative_first,
+    ego_reach,
+)
+from minimaxplan.planners import HIGHWAY_ACTIONS, TJUNCTION_ACTIONS, BicycleModel
+from minimaxplan.scenarios import make_road_world
+from minimaxplan.scenarios.vehicles import vehicle_corners
+
+
+def test_the_tree_search_methods_drive_road_worlds_only():
+    for method in ("robust", "nominal", "oracle"):
+        make_job("highway", method, 0)
+        make_job("tjunction", method, 0)
+    with pytest.raises(UnsupportedScenario, match="RoadRobustMethod drives only RoadScenario worlds"):
+        from minimaxplan.analysis.road_planning import RoadRobustMethod
+        from minimaxplan.analysis.robot_scenario import RobotScenario
+
+        RoadRobustMethod(RobotScenario("static"), LoopConfig())
+
+
+def test_ties_go_to_braking():
+    assert [a[0] for a in conservative_first(HIGHWAY_ACTIONS)] == [
+        "SLOWER",
+        "IDLE",
+        "LANE_LEFT",
+        "LANE_RIGHT",
+        "FASTER",
+    ]
+    assert [a[0] for a in conservative_first(TJUNCTION_ACTIONS)] == ["SLOWER", "IDLE", "FASTER"]
+    assert sorted(conservative_first(HIGHWAY_ACTIONS)) == sorted(HIGHWAY_ACTIONS)
+
+
+@settings(max_examples=12, deadline=None)
+@given(
+    kind=st.sampled_from(["highway", "tjunction"]),
+    seed=st.integers(0, 5000),
+    actions=st.lists(st.integers(0, 4), min_size=10, max_size=10),
+)
+def test_the_ego_reach_contains_every_action_sequence(kind, seed, actions):
+    """Any action sequence keeps the ego's rectangle, speed and heading inside `ego_reach`,
+    over the enumerated decisions and beyond them."""
+    world = make_road_world(kind, seed)
+    ego = EgoSetup(world)
+    model = BicycleModel(ego.controller, ego.reward, ego.actions, substeps=world.scenario.substeps)
+    state = world.ego_state
+    speeds = np.asarray(ego.speeds)
+    bounds = (min(state[2], speeds.min()), max(state[2], speeds.max()))
+    root = model.initial_state(state, level=ego.level, lane=ego.lane, time=0)
+    reach, speed, heading = ego_reach(model, root, bounds, FORECAST_STEPS, world.scenario.dt, world.scenario.vehicle)
+    node, n = root, 0
+    for a in actions:
+        sub, _, node = model.predict(node, a % len(ego.actions))
+        for x in sub:
+            n += 1
+            if n > FORECAST_STEPS:
+                break
+            corners = vehicle_corners(x[None], world.scenario.vehicle)[0]
+            assert np.all(corners >= reach[n, :2]) and np.all(corners <= reach[n, 2:]), (n, x, reach[n])
+            assert speed[n, 0] <= x[2] <= speed[n, 1]
+            assert heading[n, 0] <= x[3] <= heading[n, 1]
+    assert n >= REACH_DECISIONS * world.scenario.substeps
+
+
+@pytest.mark.parametrize("kind", ["highway", "tjunction"])
+def test_a_robust_road_episode_checks_its_boxes_and_misses_none(kind):
+    record = run_job(make_job(kind, "robust", 1, LoopConfig(max_decisions=6)))
+    assert record.decisions == 6 or record.outcome != "running"
+    kinds = record.extra["runtime_check"]["by_kind"]
+    assert kinds["ego"]["checked"] > 0 and kinds["vehicle"]["checked"] > 0
+    assert record.boxes_checked == kinds["ego"]["checked"] + kinds["vehicle"]["checked"]
+    assert record.boxes_missed == 0, record.extra["runtime_check"]["misses"]
+    assert record.extra["solver_failures"] == 0
