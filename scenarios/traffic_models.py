@@ -83,6 +83,10 @@ V_MIN = 1.0
 #: per step, orders of magnitude above the floating-point error of the few operations
 #: of a step (a few units of 2^-53 relative).
 ROUND_MARGIN = 1e-9
+#: The fine lateral step splits the speed box into this many geometric bins ...
+SPEED_BINS = 3
+#: ... when some row's ``v_hi / v_lo`` exceeds this.
+SPEED_BIN_RATIO = 1.25
 #: Lane-change cohorts: switches are grouped in blocks of this many sub-steps ...
 COHORT_BLOCK = 2
 #: ... and a cohort is merged into its row's own box after this many sub-steps (capped by the
@@ -1030,19 +1034,38 @@ def forecast_traffic(
         f_ok = vhi >= V_MIN
         l_ok = vlo < V_MIN
         vf_lo_, vf_hi_ = np.maximum(vlo, V_MIN), np.maximum(vhi, V_MIN)
-        q_lo, q_hi = tb_lo[rr, 1] / vf_hi_, tb_hi[rr, 1] / vf_lo_
         b1 = (tb_lo[rr, 0], tb_hi[rr, 0])
         e_box, c_box = (e_lo[:, 0], e_hi[:, 0]), (e_lo[:, 1], e_hi[:, 1])
-        r_e, r_c, _, a_f = lateral_remainder(e_box, c_box, (vf_lo_, vf_hi_), b1, (q_lo, q_hi), dt, vehicle)
-        p_lo_ = np.stack([vf_lo_, b1[0], q_lo], 1)
-        p_hi_ = np.stack([vf_hi_, b1[1], q_hi], 1)
-        rw_lo, rw_hi = np.stack([r_e[0], r_c[0]], 1), np.stack([r_e[1], r_c[1]], 1)
-        zf_lo, zf_hi = _vertex_step(base[rr], uz_lo[idx], uz_hi[idx], p_lo_, p_hi_)
-        w_lo, w_hi = _matvec(Tinv[rr], rw_lo, rw_hi)
-        zf_lo, zf_hi = _out(zf_lo + w_lo, zf_hi + w_hi)
-        if_lo, if_hi = _vertex_step(np.broadcast_to(phi, (len(idx), 3, 2, 2)), e_lo, e_hi, p_lo_, p_hi_)
-        if_lo, if_hi = _out(if_lo + rw_lo, if_hi + rw_hi)
-        sf = _mul(vf_lo_ * dt, vf_hi_ * dt, *cos_interval(*a_f))
+        # the speed box in geometric bins: q = theta_b2 / v then ranges with each bin's v, not the whole box's
+        # (only for the units whose speed box is wide)
+        ratio = vf_hi_ / vf_lo_
+        zf_lo = np.full((len(idx), 2), np.inf)
+        zf_hi = np.full((len(idx), 2), -np.inf)
+        if_lo, if_hi = zf_lo.copy(), zf_hi.copy()
+        sf = (np.full(len(idx), np.inf), np.full(len(idx), -np.inf))
+        wide = ratio > SPEED_BIN_RATIO
+        for sel, bins in ((np.flatnonzero(~wide), 1), (np.flatnonzero(wide), SPEED_BINS)):
+            if sel.size == 0:
+                continue
+            rs, us = rr[sel], idx[sel]
+            eb, cb, b1s = (e_box[0][sel], e_box[1][sel]), (c_box[0][sel], c_box[1][sel]), (b1[0][sel], b1[1][sel])
+            for k in range(bins):
+                bv_lo = vf_lo_[sel] * ratio[sel] ** (k / bins)
+                bv_hi = vf_hi_[sel] if k == bins - 1 else vf_lo_[sel] * ratio[sel] ** ((k + 1) / bins)
+                q_lo, q_hi = tb_lo[rs, 1] / bv_hi, tb_hi[rs, 1] / bv_lo
+                r_e, r_c, _, a_f = lateral_remainder(eb, cb, (bv_lo, bv_hi), b1s, (q_lo, q_hi), dt, vehicle)
+                p_lo_ = np.stack([bv_lo, b1s[0], q_lo], 1)
+                p_hi_ = np.stack([bv_hi, b1s[1], q_hi], 1)
+                rw_lo, rw_hi = np.stack([r_e[0], r_c[0]], 1), np.stack([r_e[1], r_c[1]], 1)
+                z1_lo, z1_hi = _vertex_step(base[rs], uz_lo[us], uz_hi[us], p_lo_, p_hi_)
+                w_lo, w_hi = _matvec(Tinv[rs], rw_lo, rw_hi)
+                z1_lo, z1_hi = _out(z1_lo + w_lo, z1_hi + w_hi)
+                i1_lo, i1_hi = _vertex_step(np.broadcast_to(phi, (len(sel), 3, 2, 2)), e_lo[sel], e_hi[sel], p_lo_, p_hi_)
+                i1_lo, i1_hi = _out(i1_lo + rw_lo, i1_hi + rw_hi)
+                s1 = _mul(bv_lo * dt, bv_hi * dt, *cos_interval(*a_f))
+                zf_lo[sel], zf_hi[sel] = np.minimum(zf_lo[sel], z1_lo), np.maximum(zf_hi[sel], z1_hi)
+                if_lo[sel], if_hi[sel] = np.minimum(if_lo[sel], i1_lo), np.maximum(if_hi[sel], i1_hi)
+                sf[0][sel], sf[1][sel] = np.minimum(sf[0][sel], s1[0]), np.maximum(sf[1][sel], s1[1])
         if not l_ok.any():
             back_lo, back_hi = _matvec(T[rr], zf_lo, zf_hi)
             into_lo, into_hi = _matvec(Tinv[rr], if_lo, if_hi)
