@@ -3,7 +3,9 @@
 Scenario and method registries (`register_scenario`, `register_method`; the interfaces
 `Scenario`, `World`, `Method`, `Policy` in `registry`, pinned in ``docs/extending.md``),
 the one episode loop of the paper's Figure 1 (`episode.run_episode`), the robot
-scenarios and their methods (`robot_scenario`, `robot_methods`), Monte-Carlo
+scenarios and their methods (`robot_scenario`, `robot_methods`), the road scenarios
+"highway" and "tjunction" with their DWA and TEB baselines and road figures
+(`road_scenario`, `road_methods`), Monte-Carlo
 experiments (`experiment.run_experiment`, Table 3), the suboptimality study
 (`suboptimality`, Figure 6), model files, data files and reports (`model_file`,
 `data_file`, `reports`), and the ``minimaxplan`` console script (`cli`). The only layer
