@@ -1060,7 +1060,9 @@ def forecast_traffic(
                 z1_lo, z1_hi = _vertex_step(base[rs], uz_lo[us], uz_hi[us], p_lo_, p_hi_)
                 w_lo, w_hi = _matvec(Tinv[rs], rw_lo, rw_hi)
                 z1_lo, z1_hi = _out(z1_lo + w_lo, z1_hi + w_hi)
-                i1_lo, i1_hi = _vertex_step(np.broadcast_to(phi, (len(sel), 3, 2, 2)), e_lo[sel], e_hi[sel], p_lo_, p_hi_)
+                i1_lo, i1_hi = _vertex_step(
+                    np.broadcast_to(phi, (len(sel), 3, 2, 2)), e_lo[sel], e_hi[sel], p_lo_, p_hi_
+                )
                 i1_lo, i1_hi = _out(i1_lo + rw_lo, i1_hi + rw_hi)
                 s1 = _mul(bv_lo * dt, bv_hi * dt, *cos_interval(*a_f))
                 zf_lo[sel], zf_hi[sel] = np.minimum(zf_lo[sel], z1_lo), np.maximum(zf_hi[sel], z1_hi)
