@@ -34,6 +34,7 @@ import abc
 import importlib
 import pickle
 import re
+import sys
 from collections.abc import Callable, Mapping
 from typing import Any, Generic, NamedTuple, Protocol, TypeVar, runtime_checkable
 
@@ -383,14 +384,31 @@ class Method(abc.ABC, Generic[WorldT]):
 _SCENARIOS: dict[str, Factory] = {}
 _METHODS: dict[str, list[Factory]] = {}
 _builtins_loaded = False
+_builtins_loading = False
 
 
 def _load_builtins() -> None:
-    global _builtins_loaded
-    if not _builtins_loaded:
-        _builtins_loaded = True  # first: the built-in modules register through this module
+    """Import the built-in modules in `BUILTIN_MODULES` order, so that names register in that order.
+
+    A built-in module still being imported (the caller, or one further up the import
+    chain) stops the loading there: it registers its names next, and the modules after
+    it are imported by a later call. So whichever module a program imports first, the
+    robot's names come before the road's.
+    """
+    global _builtins_loaded, _builtins_loading
+    if _builtins_loaded or _builtins_loading:
+        return
+    _builtins_loading = True  # the built-in modules register through this function
+    try:
         for module in BUILTIN_MODULES:
+            loaded = sys.modules.get(module)
+            spec = getattr(loaded, "__spec__", None)
+            if loaded is not None and getattr(spec, "_initializing", False):
+                return
             importlib.import_module(module)
+        _builtins_loaded = True
+    finally:
+        _builtins_loading = False
 
 
 def _checked_factory(kind: str, name: str, factory: Factory) -> Factory:

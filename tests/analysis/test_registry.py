@@ -318,3 +318,19 @@ def test_the_example_of_docs_extending_runs_as_printed(capsys):
         del sys.modules[module.__name__]
     assert capsys.readouterr().out == "['goal', 'goal', 'goal']\n"
     assert "['goal', 'goal', 'goal']" in text
+
+
+@pytest.mark.parametrize("first", ["robot_methods", "road_methods", "road_planning", "road_scenario"])
+def test_the_builtin_names_keep_their_order_whichever_module_is_imported_first(first):
+    import subprocess
+    import sys
+
+    code = (
+        f"import minimaxplan.analysis.{first}\n"
+        "from minimaxplan.analysis.registry import method_names, scenario_names\n"
+        "print(method_names()[:5], scenario_names()[:4])"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert (
+        out.strip() == "['robust', 'nominal', 'oracle', 'dwa', 'teb'] ['static', 'pedestrian', 'highway', 'tjunction']"
+    )
