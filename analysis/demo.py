@@ -4,10 +4,11 @@ Part 1 walks through the pipeline once: it simulates an uncertain 2D robot (a do
 integrator with unknown anisotropic friction), learns a confidence set for the
 friction, discards the structural hypotheses that the data contradicts, checks
 Assumption 4 on the velocity subsystem, and predicts an interval tube that contains
-every possible future trajectory. Part 2 is a short version of the paper's experiment:
-5 episodes per method in both worlds, the Table 3 layout printed, the trajectory and
-speed/heading plots and an animated GIF of the robust method among pedestrians written
-to ``out/demo``.
+every possible future trajectory. Part 2 is a short version of the paper's experiments:
+5 episodes per method in every registered world (the robot's static and pedestrian
+worlds, the road's highway and T-junction), the Table 3 layout printed, the trajectory
+and speed/heading plots and an animated GIF of the robust method among pedestrians
+written to ``out/demo``.
 """
 
 from __future__ import annotations
