@@ -42,7 +42,7 @@ CONTINUOUS = "continuous"
 # Keys a model (a hypothesis table, or the top level of a single-model file) may hold.
 _MODEL_KEYS = {"name", "time", "dt", "A0", "A", "phi", "B", "D", "w", "theta"}
 # Keys only the top level may hold.
-_FILE_KEYS = {"hypothesis", "measurement_noise"}
+_FILE_KEYS = {"hypothesis", "measurement_noise", "state_names", "state_units"}
 _BOX_KEYS = {"low", "high"}
 
 
@@ -137,12 +137,16 @@ class ModelFile:
     """The contents of a model file: its models and the data's measurement-noise bound.
 
     ``measurement_noise`` is None, or the bound ``v_bar`` (shape (p,)) on the
-    measurement noise of every state coordinate (DESIGN errata).
+    measurement noise of every state coordinate (DESIGN errata). ``state_names`` and
+    ``state_units`` are None or p strings (the reports label states and margins with
+    them).
     """
 
     hypotheses: tuple[ModelHypothesis, ...]
     measurement_noise: np.ndarray | None = None
     source: str = "<string>"
+    state_names: tuple[str, ...] | None = None
+    state_units: tuple[str, ...] | None = None
 
     @property
     def names(self) -> list[str]:
@@ -157,13 +161,15 @@ class ModelFile:
         chosen = tuple(h for h in self.hypotheses if h.name == name)
         if not chosen:
             raise ModelFileError(f"{self.source}: no model named {name!r}; the file holds {self.names}")
-        return ModelFile(chosen, self.measurement_noise, self.source)
+        return ModelFile(chosen, self.measurement_noise, self.source, self.state_names, self.state_units)
 
     def to_dict(self) -> dict:
         return {
             "source": self.source,
             "hypotheses": [h.to_dict() for h in self.hypotheses],
             "measurement_noise": None if self.measurement_noise is None else self.measurement_noise.tolist(),
+            "state_names": None if self.state_names is None else list(self.state_names),
+            "state_units": None if self.state_units is None else list(self.state_units),
         }
 
 
@@ -243,7 +249,17 @@ def parse_model_file(text: str, *, source: str = "<string>") -> ModelFile:
             )
         if np.any(noise < 0):
             raise ModelFileError(f"{source}: measurement_noise must be >= 0, got {noise.tolist()}")
-    return ModelFile(tuple(hypotheses), noise, source)
+    labels = {}
+    for key in ("state_names", "state_units"):
+        if key in document:
+            value = document[key]
+            p = hypotheses[0].system.nstates
+            if not isinstance(value, list) or not all(isinstance(v, str) and v.strip() for v in value):
+                raise ModelFileError(f"{source}: {key} must be a list of non-empty strings, got {value!r}")
+            if len(value) != p:
+                raise ModelFileError(f"{source}: {key} must have {p} entries (one per state), got {len(value)}")
+            labels[key] = tuple(value)
+    return ModelFile(tuple(hypotheses), noise, source, labels.get("state_names"), labels.get("state_units"))
 
 
 def _parse_model(table: Mapping[str, Any], where: str, *, default_name: str) -> ModelHypothesis:

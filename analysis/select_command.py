@@ -211,8 +211,8 @@ def select_models(
             )
     lmi_time = time.perf_counter() - started
     # State names and units are optional keys of a model file; older ModelFile values have neither.
-    names = getattr(model_file, "state_names", None)
-    units = getattr(model_file, "state_units", None)
+    names = model_file.state_names
+    units = model_file.state_units
     return SelectionReport(
         names=tuple(model_file.names),
         result=result,

@@ -309,3 +309,57 @@ def test_every_toml_example_in_the_documentation_parses():
             np.testing.assert_array_equal(
                 getattr(parsed[0].select(name).systems[0], key), getattr(full.select(name).systems[0], key)
             )
+
+
+_TWO_STATES = """
+{labels}
+[[hypothesis]]
+A0 = [[1.0, 0.1], [0.0, 0.9]]
+phi = [[[0.0, 0.0], [0.0, 0.1]]]
+theta = { low = [0.0], high = [1.0] }
+B = [[0.0], [0.1]]
+w = { low = [-0.01, -0.01], high = [0.01, 0.01] }
+"""
+
+
+def test_state_names_and_units_label_the_states():
+    text = _TWO_STATES.replace("{labels}", 'state_names = ["angle", "speed"]\nstate_units = ["rad", "rad/s"]')
+    model_file = parse_model_file(text)
+    assert model_file.state_names == ("angle", "speed") and model_file.state_units == ("rad", "rad/s")
+    assert model_file.to_dict()["state_units"] == ["rad", "rad/s"]
+    assert model_file.select(model_file.names[0]).state_names == ("angle", "speed")
+    plain = parse_model_file(_TWO_STATES.replace("{labels}", ""))
+    assert plain.state_names is None and plain.state_units is None
+
+
+@pytest.mark.parametrize(
+    "labels, message",
+    [
+        ('state_names = ["angle"]', "state_names must have 2 entries"),
+        ('state_units = ["rad", 3]', "state_units must be a list of non-empty strings"),
+        ('state_units = "rad"', "state_units must be a list of non-empty strings"),
+        ('state_names = ["angle", " "]', "state_names must be a list of non-empty strings"),
+    ],
+)
+def test_bad_state_labels_are_refused(labels, message):
+    with pytest.raises(InputError, match=message):
+        parse_model_file(_TWO_STATES.replace("{labels}", labels))
+
+
+def test_the_select_report_states_margins_in_the_file_s_units():
+    from minimaxplan.analysis.cli import main
+
+    root = pathlib.Path(__file__).resolve().parents[2]
+    model_file = load_model_file(root / "examples" / "robot_hypotheses.toml")
+    assert model_file.state_units == ("m", "m", "m/s", "m/s")
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(
+            ["select", str(root / "examples" / "robot_hypotheses.toml"), str(root / "examples" / "robot_data.csv")]
+        )
+    assert code == 0
+    text = out.getvalue()
+    assert "| 3 | wrong input gain | **eliminated** |" in text and "vy (state 3) | 0.04386 m/s |" in text

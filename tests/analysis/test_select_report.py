@@ -169,7 +169,9 @@ def test_exact_contradiction_wording_in_the_markdown_and_json(tmp_path, capsys):
 
 # --------------------------------------------------------- units and the Markdown
 def test_markdown_states_the_margin_per_state_in_its_unit():
-    report = select_models(MODELS, DATA)
+    named_by_the_file = select_models(MODELS, DATA)  # the example file names its states and units
+    assert named_by_the_file.state_units == ("m", "m", "m/s", "m/s")
+    report = dataclasses.replace(named_by_the_file, state_names=None, state_units=None)
     e = report.explanations[0]  # isotropic friction
     assert "| 0 | isotropic friction | **eliminated** |" in report.to_markdown()
     assert f"| {e.first_transition} | x{e.violated} (state {e.violated}) |" in report.to_markdown()
