@@ -374,7 +374,9 @@ class RoadPlanningMethod(Method[DrivingWorld]):
             {
                 "step": int(t),
                 "action": self.ego.actions[decision.action][0],
-                "lower_bound": float(decision.lower_bound) if hasattr(decision, "lower_bound") else None,
+                "lower": float(decision.lower),
+                "upper": float(decision.upper),
+                "depth": int(decision.depth),
             }
         )
         return policy

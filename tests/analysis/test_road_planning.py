@@ -82,3 +82,5 @@ def test_a_robust_road_episode_checks_its_boxes_and_misses_none(kind):
     assert record.boxes_checked == kinds["ego"]["checked"] + kinds["vehicle"]["checked"]
     assert record.boxes_missed == 0, record.extra["runtime_check"]["misses"]
     assert record.extra["solver_failures"] == 0
+    for decision in record.extra["decisions"]:  # Theorem 3's bracket, recorded per decision
+        assert 0.0 <= decision["lower"] <= decision["upper"] and decision["depth"] >= 1
