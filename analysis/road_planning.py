@@ -44,6 +44,8 @@ from typing import Any
 import numpy as np
 
 from minimaxplan.kernels.bicycle import apply_action, ego_control
+from minimaxplan.models import InputError
+from minimaxplan.models.validation import as_count, as_positive_scalar, check_instance
 from minimaxplan.planners import RobustTreePlanner
 from minimaxplan.planners.bicycle_model import (
     HIGHWAY_ACTIONS,
@@ -72,7 +74,6 @@ __all__ = [
     "RoadOracleMethod",
     "EgoSetup",
     "conservative_first",
-    "ego_setup",
     "ego_reach",
     "point_forecast",
 ]
@@ -146,11 +147,6 @@ class EgoSetup:
         self.lane = int(world.traffic.lane[0])
 
 
-def ego_setup(world: RoadWorld) -> EgoSetup:
-    """`EgoSetup` of ``world``."""
-    return EgoSetup(world)
-
-
 #: Decisions over which the ego's reach is enumerated exactly (every action sequence);
 #: after them it grows by the largest speed (see `ego_reach`).
 REACH_DECISIONS = 2
@@ -191,7 +187,12 @@ def ego_reach(model: BicycleModel, root, speed_bounds: tuple[float, float], step
     corners, rounded outward); from the last enumerated sub-step on, the centre moves
     at most ``high * dt`` per sub-step in any direction, the heading is unbounded.
     """
-    low, high = speed_bounds
+    check_instance("model", model, BicycleModel)
+    steps = as_count("steps", steps)
+    dt = as_positive_scalar("dt", dt)
+    low, high = (as_positive_scalar(f"speed_bounds[{i}]", b, allow_zero=True) for i, b in enumerate(speed_bounds))
+    if low > high:
+        raise InputError(f"speed_bounds must satisfy low <= high, got {tuple(speed_bounds)}")
     S = model.substeps
     enumerated = min(steps, REACH_DECISIONS * S)
     frontier = [root]
@@ -389,7 +390,33 @@ class RoadPlanningMethod(Method[DrivingWorld]):
         return {"decisions": self.decisions}
 
 
-class RoadRobustMethod(RoadPlanningMethod):
+class _LearningMethod(RoadPlanningMethod):
+    """A tree-search method that feeds a `TrafficLearner` every sub-step's measurement (robust, nominal)."""
+
+    def start(self, world: DrivingWorld) -> None:
+        """Build the ego model and the traffic learner.
+
+        Parameters
+        ----------
+        world : DrivingWorld
+            The episode.
+        """
+        super().start(world)
+        self.learner = TrafficLearner(world.world.road, world.world.scenario)
+        self._learned_time: float | None = None
+
+    def _learn(self, observation: Observation) -> None:
+        # a decision's measurement is the last sub-step's one, already learned from
+        if observation.time != self._learned_time:
+            self.learner.observe(observation)
+            self._learned_time = observation.time
+
+    def observe(self, transition: Transition) -> None:
+        """Feed the learner the sub-step's measurement."""
+        self._learn(transition.next_measured)
+
+
+class RoadRobustMethod(_LearningMethod):
     """The proposed planner on the road: elimination, sound forecasts, robust tree search (see the module docstring)."""
 
     def start(self, world: DrivingWorld) -> None:
@@ -401,16 +428,7 @@ class RoadRobustMethod(RoadPlanningMethod):
             The episode.
         """
         super().start(world)
-        road_world = world.world
-        self.learner = TrafficLearner(road_world.road, road_world.scenario)
-        self._last_step = -1
         self.guaranteed_lost = 0
-
-    def _learn(self, observation: Observation) -> None:
-        step = int(round(observation.time / self.world.world.scenario.dt))
-        if step != self._last_step:
-            self.learner.observe(observation)
-            self._last_step = step
 
     def obstacles(self, observation: Observation) -> tuple[np.ndarray, dict]:
         """`forecast_traffic` under the learner's beliefs; the state boxes of the decision's sub-steps to check."""
@@ -455,10 +473,6 @@ class RoadRobustMethod(RoadPlanningMethod):
             }
         return forecast.boxes, checked
 
-    def observe(self, transition: Transition) -> None:
-        """Feed the learner the sub-step's measurement."""
-        self._learn(transition.next_measured)
-
     def report(self) -> dict:
         """The decisions, the learner's eliminations and LP counts, and the coarse-box count."""
         learner = self.learner
@@ -482,26 +496,8 @@ class RoadOracleMethod(RoadPlanningMethod):
         return point_forecast(world, world.traffic, self.ego, self.level, self.lane, FORECAST_STEPS), {}
 
 
-class RoadNominalMethod(RoadPlanningMethod):
+class RoadNominalMethod(_LearningMethod):
     """Certainty equivalence: the least-squares parameters and minimum-error routes of the learner."""
-
-    def start(self, world: DrivingWorld) -> None:
-        """Build the ego model and the traffic learner.
-
-        Parameters
-        ----------
-        world : DrivingWorld
-            The episode.
-        """
-        super().start(world)
-        self.learner = TrafficLearner(world.world.road, world.world.scenario)
-        self._last_step = -1
-
-    def _learn(self, observation: Observation) -> None:
-        step = int(round(observation.time / self.world.world.scenario.dt))
-        if step != self._last_step:
-            self.learner.observe(observation)
-            self._last_step = step
 
     def obstacles(self, observation: Observation) -> tuple[np.ndarray, dict]:
         """`point_forecast` from the measured states with the learner's estimates."""
@@ -551,10 +547,6 @@ class RoadNominalMethod(RoadPlanningMethod):
             yield_time=np.zeros(n),
         )
         return point_forecast(world, traffic, self.ego, self.level, self.lane, FORECAST_STEPS), {}
-
-    def observe(self, transition: Transition) -> None:
-        """Feed the learner the sub-step's measurement."""
-        self._learn(transition.next_measured)
 
 
 register_method("robust", RoadRobustMethod)

@@ -36,6 +36,7 @@ from .navigation import NavigationFunction
 
 __all__ = [
     "NavigationScene",
+    "BicycleBaseline",
     "DWAParameters",
     "DWAEvaluation",
     "DynamicWindowPlanner",
@@ -677,7 +678,44 @@ class VehicleDWAParameters:
         return asdict(self)
 
 
-class VehicleDynamicWindow:
+class BicycleBaseline:
+    """The ego bicycle shared by the road baselines (`VehicleDynamicWindow`, `VehicleElasticBand`).
+
+    Attributes
+    ----------
+    dynamics : VehicleDynamics
+        The vectorised bicycle step (the analysis layer passes the world's).
+    dt : float
+        Sub-step, s.
+    substeps : int
+        Sub-steps per decision.
+    acceleration_bound, max_steering : float
+        The admissible control box, m/s^2 and rad.
+    length, width : float
+        The rectangle, m.
+    """
+
+    dynamics: VehicleDynamics
+    dt: float
+    substeps: int
+    acceleration_bound: float
+    max_steering: float
+    length: float
+    width: float
+
+    def _set_vehicle(self, dynamics, dt, substeps, acceleration_bound, max_steering, length, width) -> None:
+        if not callable(dynamics):
+            raise InputError(f"dynamics must be callable, got {type(dynamics).__name__}")
+        self.dynamics = dynamics
+        self.dt = as_positive_scalar("dt", dt)
+        self.substeps = as_count("substeps", substeps)
+        self.acceleration_bound = as_positive_scalar("acceleration_bound", acceleration_bound)
+        self.max_steering = as_positive_scalar("max_steering", max_steering)
+        self.length = as_positive_scalar("length", length)
+        self.width = as_positive_scalar("width", width)
+
+
+class VehicleDynamicWindow(BicycleBaseline):
     """DWA for a car-like ego: a sampled (acceleration, steering) window on a given dynamics.
 
     Parameters
@@ -726,16 +764,8 @@ class VehicleDynamicWindow:
         width: float = 2.0,
         params: VehicleDWAParameters = VehicleDWAParameters(),
     ):
-        if not callable(dynamics):
-            raise InputError(f"dynamics must be callable, got {type(dynamics).__name__}")
         check_instance("params", params, VehicleDWAParameters)
-        self.dynamics = dynamics
-        self.dt = as_positive_scalar("dt", dt)
-        self.substeps = as_count("substeps", substeps)
-        self.acceleration_bound = as_positive_scalar("acceleration_bound", acceleration_bound)
-        self.max_steering = as_positive_scalar("max_steering", max_steering)
-        self.length = as_positive_scalar("length", length)
-        self.width = as_positive_scalar("width", width)
+        self._set_vehicle(dynamics, dt, substeps, acceleration_bound, max_steering, length, width)
         self.params = params
         self._steps = max(self.substeps, int(round(params.horizon / self.dt)))
 

@@ -45,7 +45,15 @@ from minimaxplan.models.errors import InputError, SolverFailure
 from minimaxplan.models.system import UncertainLinearSystem
 from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, check_instance
 
-from .dwa import NavigationScene, RoadScene, VehicleDynamics, _off_road, planar_robot_model, steering_window
+from .dwa import (
+    BicycleBaseline,
+    NavigationScene,
+    RoadScene,
+    VehicleDynamics,
+    _off_road,
+    planar_robot_model,
+    steering_window,
+)
 from .navigation import NavigationFunction
 
 __all__ = [
@@ -725,7 +733,7 @@ class VehicleTEBParameters:
 _MINKOWSKI_STEPS = np.arange(-2, 3) / 3.0
 
 
-class VehicleElasticBand:
+class VehicleElasticBand(BicycleBaseline):
     """TEB for a car-like ego on a road: bands to each local goal, tracked through a given dynamics.
 
     Parameters
@@ -774,16 +782,8 @@ class VehicleElasticBand:
         width: float = 2.0,
         params: VehicleTEBParameters = VehicleTEBParameters(),
     ):
-        if not callable(dynamics):
-            raise InputError(f"dynamics must be callable, got {type(dynamics).__name__}")
         check_instance("params", params, VehicleTEBParameters)
-        self.dynamics = dynamics
-        self.dt = as_positive_scalar("dt", dt)
-        self.substeps = as_count("substeps", substeps)
-        self.acceleration_bound = as_positive_scalar("acceleration_bound", acceleration_bound)
-        self.max_steering = as_positive_scalar("max_steering", max_steering)
-        self.length = as_positive_scalar("length", length)
-        self.width = as_positive_scalar("width", width)
+        self._set_vehicle(dynamics, dt, substeps, acceleration_bound, max_steering, length, width)
         self.params = params
         self.curvature = float(np.tan(self.max_steering) / self.length)
         self.reset()

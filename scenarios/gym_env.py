@@ -30,7 +30,7 @@ T-junction):
   noisy `Observation`: positions of the others relative to the measured ego position,
   nearest first, headings wrapped to [-pi, pi), absent entries zeros with
   ``present = 0``;
-* reward: the mean over the held sub-steps of `road_reward` in [0, 1] (0 once the ego
+* reward: the mean over the held sub-steps of `driving_reward.true_reward` in [0, 1] (0 once the ego
   collided or left the road);
 * ``terminated`` on goal, collision or leaving the road, ``truncated`` at the time
   limit; ``info`` holds ``outcome``, ``time`` and the observed vehicles' ``ids``.
@@ -53,12 +53,12 @@ except ImportError as exc:  # pragma: no cover - exercised only without the extr
 from minimaxplan.models.errors import InputError
 from minimaxplan.models.validation import as_choice, check_instance
 
-from .driving_reward import true_reward
+from .driving_reward import true_reward, world_reward
 from .road_world import ROAD_WORLD_KINDS, HighwayScenario, RoadWorld, TJunctionScenario
 from .robot import DEFAULT_ROBOT, RobotParameters
 from .worlds import MEASUREMENT_MODELS, PEDESTRIAN_COUNT, WORLD_KINDS, RobotWorld
 
-__all__ = ["RobotNavigationEnv", "RoadDrivingEnv", "road_reward", "ENV_ID", "ROAD_ENV_ID"]
+__all__ = ["RobotNavigationEnv", "RoadDrivingEnv", "ENV_ID", "ROAD_ENV_ID"]
 
 ENV_ID = "minimaxplan/RobotNavigation-v0"
 ROAD_ENV_ID = "minimaxplan/RoadDriving-v0"
@@ -203,28 +203,6 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
 
 
-def road_reward(world: RoadWorld) -> float:
-    """The true reward in [0, 1] of the ego's current state in a road world (`driving_reward.true_reward`).
-
-    0 once the ego collided or left the road; otherwise the planner's reward terms
-    (`DrivingReward`): on the highway ``(1 + 0.4 min(v / 30, 1) + 0.1 lane) / 1.5`` with
-    the lane term 1 in the rightmost lane (lane 0) and 0 in the leftmost; at the
-    T-junction ``(1 + 0.4 (1 - min(d / d_0, 1))) / 1.4``, d the distance from the ego's
-    centre to the goal point and d_0 that distance at the start.
-
-    Parameters
-    ----------
-    world : RoadWorld
-        A world with an ego.
-
-    Returns
-    -------
-    float
-        The reward, in [0, 1].
-    """
-    return true_reward(world)
-
-
 class RoadDrivingEnv(gym.Env):
     """The ego among uncertain traffic on the highway or at the T-junction (see the module docstring).
 
@@ -298,6 +276,7 @@ class RoadDrivingEnv(gym.Env):
         super().reset(seed=seed)
         world_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
         self.world = RoadWorld(self.kind, world_seed, scenario=self.scenario)
+        self._reward = world_reward(self.world)  # built once per episode, evaluated every sub-step
         return self._observation(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
@@ -314,7 +293,7 @@ class RoadDrivingEnv(gym.Env):
         observation : numpy.ndarray
             float32, shape ``observation_space.shape``.
         reward : float
-            Mean `road_reward` over the sub-steps, in [0, 1].
+            Mean `true_reward` over the sub-steps, in [0, 1].
         terminated : bool
             The ego reached the goal, collided or left the road.
         truncated : bool
@@ -338,7 +317,7 @@ class RoadDrivingEnv(gym.Env):
         rewards = []
         for _ in range(int(self.scenario.substeps)):
             world.apply(u)
-            rewards.append(road_reward(world))
+            rewards.append(true_reward(world, self._reward))
             if world.done:
                 break
         outcome = world.outcome

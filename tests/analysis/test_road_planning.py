@@ -84,3 +84,21 @@ def test_a_robust_road_episode_checks_its_boxes_and_misses_none(kind):
     assert record.extra["solver_failures"] == 0
     for decision in record.extra["decisions"]:  # Theorem 3's bracket, recorded per decision
         assert 0.0 <= decision["lower"] <= decision["upper"] and decision["depth"] >= 1
+
+
+def test_the_ego_reach_refuses_bad_input():
+    from minimaxplan.models import InputError
+
+    world = make_road_world("highway", 0)
+    ego = EgoSetup(world)
+    model = BicycleModel(ego.controller, ego.reward, ego.actions, substeps=5)
+    root = model.initial_state(world.ego_state, level=ego.level, lane=ego.lane)
+    vehicle = world.scenario.vehicle
+    with pytest.raises(InputError, match="speed_bounds must satisfy low <= high"):
+        ego_reach(model, root, (30.0, 20.0), 10, 0.1, vehicle)
+    with pytest.raises(InputError, match="dt"):
+        ego_reach(model, root, (20.0, 30.0), 10, 0.0, vehicle)
+    with pytest.raises(InputError, match="steps"):
+        ego_reach(model, root, (20.0, 30.0), -1, 0.1, vehicle)
+    with pytest.raises(InputError, match="model"):
+        ego_reach("a model", root, (20.0, 30.0), 10, 0.1, vehicle)

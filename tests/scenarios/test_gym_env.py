@@ -7,6 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
+from minimaxplan.scenarios.driving_reward import true_reward
+
 if os.environ.get("CI") == "true":
     import gymnasium
 else:
@@ -114,7 +116,6 @@ from minimaxplan.scenarios.gym_env import (  # noqa: E402
     OBSERVED_VEHICLES,
     ROAD_ENV_ID,
     RoadDrivingEnv,
-    road_reward,
 )
 from minimaxplan.scenarios.road_world import make_road_world  # noqa: E402
 
@@ -167,7 +168,7 @@ def test_road_env_observes_the_world_and_steps_it_for_one_period():
     rewards = []
     for _ in range(5):
         world.apply([1.5, 0.0])  # the normalised action times the 6 m/s^2 bound
-        rewards.append(road_reward(world))
+        rewards.append(true_reward(world))
     np.testing.assert_array_equal(env.world.traffic.states, world.traffic.states)
     assert reward == pytest.approx(np.mean(rewards), rel=1e-12)
     assert 0.0 < reward <= 1.0 and not terminated and not truncated and info["outcome"] == "running"
@@ -186,18 +187,18 @@ def test_road_env_ends_off_road_with_zero_reward():
         if terminated or truncated:
             break
     assert terminated and not truncated and info["outcome"] in ("off_road", "collision")
-    assert road_reward(env.world) == 0.0
+    assert true_reward(env.world) == 0.0
 
 
 def test_tjunction_reward_grows_with_the_progress_to_the_goal():
     world = make_road_world("tjunction", 0)
     start = world.ego_state[:2]
-    assert road_reward(world) == pytest.approx(1 / 1.4, rel=1e-12)  # at the start: no progress yet
+    assert true_reward(world) == pytest.approx(1 / 1.4, rel=1e-12)  # at the start: no progress yet
     goal = world.road.position_at(world.goal_lanes[0], world.goal_s)
     states = world.traffic.states.copy()
     states[0, :2] = (start + goal) / 2
     world.traffic = dataclasses.replace(world.traffic, states=states)
-    assert road_reward(world) == pytest.approx((1 + 0.4 * 0.5) / 1.4, rel=1e-12)
+    assert true_reward(world) == pytest.approx((1 + 0.4 * 0.5) / 1.4, rel=1e-12)
 
 
 def test_road_env_rejects_bad_actions_and_step_before_reset():
