@@ -15,7 +15,8 @@ The reward (the paper's cost flipped into [0, 1], Section IV)::
     J(x, t) = (1 + c1 goal(x) + c2 speed(v) + c3 lane(y)) / (1 + c1 + c2 + c3)   otherwise
 
 with ``speed(v) = clip(v / v_max, 0, 1)``, ``lane(y) = lane_values[clip(floor((y - y0) / w
-+ 1/2), 0, n - 1)]`` and ``goal(x) = 1 - min(||pos - goal|| / goal_scale, 1)``; the zero
++ 1/2), 0, n - 1)]`` and ``goal(x) = 1 - min(dist(pos, goal) / goal_scale, 1)`` (the
+distance to the goal region, 0 inside it); the zero
 cases are terminal (beyond the obstacle table's horizon the traffic is unknown, so the
 pessimistic reward is 0 there, and stays 0).
 
@@ -34,7 +35,9 @@ Exactness of the minimum over a box (Theorem 1):
   the rectangle's four corner boxes grown by P: a sound lower bound, not exact;
 * the free terms are monotone in separate coordinates (speed nondecreasing in v, the
   lane term's minimum over the lanes the y-interval touches, the goal term at the
-  farthest corner), so their minima add up; the goal and lane terms both read y, so at
+  corner farthest from the goal region: the distance to a box is ``hypot(dx, dy)`` with
+  dx convex in x alone and dy in y alone, so its maximum over a box of positions is at
+  the ends of each interval), so their minima add up; the goal and lane terms both read y, so at
   most one of them may have a nonzero weight (checked by the family).
 
 Collision and road tests are rounded outward by `ROUNDING_MARGIN` (m): a rectangle
@@ -112,8 +115,8 @@ lane_width, lane_origin : float
     Lane geometry for the lane term, m.
 goal_weight : float
     c1.
-goal : ndarray (2,)
-    The goal position, m.
+goal : ndarray (4,)
+    The goal region ``[x_lo, y_lo, x_hi, y_hi]``, m (a point: zero size).
 goal_scale : float
     The distance at which the goal term reaches 0, m.
 """
@@ -358,9 +361,9 @@ def _driving_box_minimum(params, z, p, t):
             total += params.lane_weight * worst
             norm += params.lane_weight
         if params.goal_weight != 0.0:
-            gx, gy = params.goal[0], params.goal[1]
-            far_x = maximum(gx - lo_x, hi_x - gx)
-            far_y = maximum(gy - lo_y, hi_y - gy)
+            goal = params.goal
+            far_x = maximum(maximum(goal[0] - lo_x, hi_x - goal[2]), 0.0)
+            far_y = maximum(maximum(goal[1] - lo_y, hi_y - goal[3]), 0.0)
             progress = 1.0 - minimum(math.hypot(far_x, far_y) / params.goal_scale, 1.0)
             total += params.goal_weight * progress
             norm += params.goal_weight

@@ -132,6 +132,19 @@ def road_pieces(road: Road, margin: float = 0.0) -> tuple[np.ndarray, np.ndarray
     return table(strips, 6), table(arcs, 7), table(areas, 4)
 
 
+def _goal_region(goal) -> np.ndarray:
+    """The goal as a read-only region ``[x_lo, y_lo, x_hi, y_hi]`` (a point: the region of zero size)."""
+    region = np.array(as_finite_array("goal", goal), dtype=float, copy=True)
+    if region.shape == (2,):
+        region = np.concatenate([region, region])
+    if region.shape != (4,):
+        raise DimensionError(f"goal must have shape (2,) or (4,), got shape {region.shape}")
+    if region[0] > region[2] or region[1] > region[3]:
+        raise InputError(f"goal must satisfy x_lo <= x_hi and y_lo <= y_hi, got {region.tolist()}")
+    region.setflags(write=False)
+    return region
+
+
 def _obstacle_table(boxes) -> np.ndarray:
     table = np.array(boxes, dtype=float, copy=True)
     if table.ndim != 3 or table.shape[2] != 4 or table.shape[0] < 1:
@@ -179,10 +192,13 @@ class DrivingReward(RewardFamily):
     goal_weight : float
         c1 >= 0 (at most one of ``lane_weight`` and ``goal_weight`` nonzero: both read y,
         and their minima would not add up).
-    goal : array_like, shape (2,), optional
-        The goal point, m; required when ``goal_weight > 0``.
+    goal : array_like, shape (2,) or (4,), optional
+        The goal, m: a point ``(x, y)`` or an axis-aligned region ``[x_lo, y_lo, x_hi,
+        y_hi]`` (a point is the region of zero size); required when ``goal_weight > 0``.
+        Stored as the region, shape (4,).
     goal_scale : float
-        d_ref > 0, m: the goal term is ``1 - min(d / d_ref, 1)``.
+        d_ref > 0, m: the goal term is ``1 - min(d / d_ref, 1)``, d the distance of the
+        ego's centre to the goal region (0 inside it).
 
     Notes
     -----
@@ -239,10 +255,9 @@ class DrivingReward(RewardFamily):
         if self.goal is None:
             if self.goal_weight > 0:
                 raise InputError("goal_weight > 0 needs a goal")
-            goal = np.zeros(2)
+            goal = np.zeros(4)
         else:
-            goal = as_finite_array("goal", self.goal, (2,)).copy()
-            goal.setflags(write=False)
+            goal = _goal_region(self.goal)
             object.__setattr__(self, "goal", goal)
         if self.road is None:
             pieces = (np.zeros((0, 6)), np.zeros((0, 7)), np.zeros((0, 4)))
@@ -334,7 +349,7 @@ class DrivingReward(RewardFamily):
         length: float = 5.0,
         width: float = 2.0,
     ) -> DrivingReward:
-        """The T-junction's reward ``(1 + 0.4 (1 - min(d / d_ref, 1))) / 1.4``, d the distance to ``goal``.
+        """The T-junction's reward ``(1 + 0.4 (1 - min(d / d_ref, 1))) / 1.4``, d the distance to the ``goal`` region.
 
         Parameters
         ----------
@@ -344,8 +359,9 @@ class DrivingReward(RewardFamily):
             The absolute sub-step of row 0.
         road : Road
             The T-junction (`tjunction_road`).
-        goal : array_like, shape (2,)
-            The goal point (e.g. the centre of ``west_out`` at the goal's arc length), m.
+        goal : array_like, shape (2,) or (4,)
+            The goal point or region, m (`world_reward`: the part of ``west_out`` where the
+            world counts the goal as reached).
         goal_scale : float
             d_ref, m (e.g. the ego's initial distance to the goal).
         off_road_margin, length, width : float
@@ -432,7 +448,11 @@ class DrivingReward(RewardFamily):
             total = total + self.lane_weight * self.lane_values[k.astype(int)]
             norm += self.lane_weight
         if self.goal_weight:
-            d = np.hypot(states[..., 0] - self.goal[0], states[..., 1] - self.goal[1])  # type: ignore[index]
+            goal = self.goal
+            assert goal is not None
+            dx = np.maximum(np.maximum(goal[0] - states[..., 0], states[..., 0] - goal[2]), 0.0)
+            dy = np.maximum(np.maximum(goal[1] - states[..., 1], states[..., 1] - goal[3]), 0.0)
+            d = np.hypot(dx, dy)
             total = total + self.goal_weight * (1.0 - np.minimum(d / self.goal_scale, 1.0))
             norm += self.goal_weight
         return np.minimum(total / norm, 1.0)
@@ -440,7 +460,7 @@ class DrivingReward(RewardFamily):
     def free_argmin(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
         """A state of each box where the free reward attains its minimum over the box.
 
-        The lowest speed, the corner farthest from the goal (goal term) or the y of the
+        The lowest speed, the corner farthest from the goal region (goal term) or the y of the
         worst lane the y-interval touches (lane term).
 
         Parameters
@@ -455,8 +475,11 @@ class DrivingReward(RewardFamily):
         """
         point = np.array(lower, dtype=float, copy=True)
         if self.goal_weight:
+            goal = self.goal
+            assert goal is not None
             for i in (0, 1):
-                far_low = np.abs(lower[..., i] - self.goal[i]) >= np.abs(upper[..., i] - self.goal[i])  # type: ignore[index]
+                # the distance to the interval [goal[i], goal[i + 2]] is convex: largest at an end
+                far_low = goal[i] - lower[..., i] >= upper[..., i] - goal[i + 2]
                 point[..., i] = np.where(far_low, lower[..., i], upper[..., i])
         if self.lane_weight:
             assert self.lane_values is not None
@@ -590,8 +613,11 @@ def world_reward(world) -> DrivingReward:
     """The reward of a driving episode, with an empty obstacle table (`DrivingReward.with_obstacles` adds them).
 
     Highway: `DrivingReward.highway`. T-junction: `DrivingReward.tjunction` towards the
-    centre of the goal lane at the goal's arc length, ``d_ref`` the ego's distance to
-    it at the start of the episode.
+    goal region, the part of the goal lane where the world counts the goal as reached
+    (arc length from ``goal_s`` to the lane's end, centre within the lane's strip; its
+    box hull, equal to it on the T-junction's straight, axis-aligned ``west_out``), so
+    that the reward is highest exactly where the episode succeeds; ``d_ref`` is the
+    ego's distance to the region at the start of the episode.
 
     Parameters
     ----------
@@ -605,13 +631,19 @@ def world_reward(world) -> DrivingReward:
         return DrivingReward.highway(
             empty, 0, world.road, off_road_margin=scenario.off_road_margin, length=vehicle.length, width=vehicle.width
         )
-    goal = np.asarray(world.road.position_at(world.goal_lanes[0], world.goal_s), dtype=float)
+    road = world.road
+    lane = world.goal_lanes[0]
+    half_width = 0.5 * float(road.widths[lane])
+    ends = [world.goal_s, float(road.lengths[lane])]
+    corners = np.array([road.position_at(lane, s, offset) for s in ends for offset in (-half_width, half_width)])
+    goal = np.concatenate([corners.min(axis=0), corners.max(axis=0)])
     start = np.asarray(world.initial_ego[:2], dtype=float)
-    scale = max(float(np.hypot(*(goal - start))), 1e-9)
+    outside = np.maximum(np.maximum(goal[:2] - start, start - goal[2:]), 0.0)
+    scale = max(float(np.hypot(*outside)), 1e-9)
     return DrivingReward.tjunction(
         empty,
         0,
-        world.road,
+        road,
         goal,
         scale,
         off_road_margin=scenario.off_road_margin,

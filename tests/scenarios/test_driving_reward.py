@@ -182,13 +182,15 @@ def test_tjunction_reward_is_progress_to_the_goal():
     assert reward.box_minimum(start, start)[0] == pytest.approx((1 + 0.4 * (1 - min(d / 80, 1))) / 1.4)
 
 
-@pytest.mark.parametrize("kind", ["highway", "tjunction"])
+@pytest.mark.parametrize("kind", ["highway", "tjunction", "goal region"])
 def test_the_free_minimum_over_a_box_is_exact_and_attained(kind):
     rng = np.random.default_rng(6)
     if kind == "highway":
         reward = DrivingReward.highway(np.tile(EMPTY, (1, 1, 1)), 0, HIGHWAY)
     else:
         goal = TJUNCTION.position_at(TJUNCTION.index("west_out"), 25.0)
+        if kind == "goal region":  # a region that the random boxes straddle, enter and miss
+            goal = np.array([53.0, 1.0, 56.0, 4.0])
         reward = DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, None, goal_weight=0.4, goal=goal, goal_scale=80.0)
     for _ in range(100):
         lower = np.array([rng.uniform(50, 60), rng.uniform(-1.5, 9.0), rng.uniform(0, 35), 0.0])
@@ -236,6 +238,37 @@ def test_beyond_the_table_the_reward_is_zero_and_terminal_and_empty_rows_never_c
     assert moved.horizon == 0 and moved.speed_weight == 0.4
 
 
+def test_a_point_goal_is_the_region_of_zero_size():
+    point = DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, goal_weight=0.4, goal=[3.0, -2.0], goal_scale=10.0)
+    region = DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, goal_weight=0.4, goal=[3.0, -2.0, 3.0, -2.0], goal_scale=10.0)
+    assert point.goal.tolist() == [3.0, -2.0, 3.0, -2.0] and not point.goal.flags.writeable
+    states = np.random.default_rng(2).uniform(-10, 10, (50, 4))
+    assert np.array_equal(point.free_value(states), region.free_value(states))
+    d = np.hypot(states[:, 0] - 3.0, states[:, 1] + 2.0)
+    assert np.allclose(point.free_value(states), (1 + 0.4 * (1 - np.minimum(d / 10, 1))) / 1.4, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_the_tjunction_reward_is_highest_exactly_where_the_world_counts_the_goal(seed):
+    from minimaxplan.scenarios.driving_reward import world_reward
+    from minimaxplan.scenarios.road_world import make_road_world
+
+    world = make_road_world("tjunction", seed=seed)
+    reward = world_reward(world)
+    lane = world.goal_lanes[0]
+    rng = np.random.default_rng(seed)
+    s = rng.uniform(world.goal_s - 20, world.road.lengths[lane], 400)
+    offset = rng.uniform(-3.0, 3.0, 400)
+    points = np.asarray(world.road.position_at(lane, s, offset)).reshape(400, 2)
+    for x, y in points:
+        states = np.array(world.traffic.states)
+        states[0, :2] = x, y
+        world.traffic = world.traffic.evolve(states=states)
+        state = np.array([x, y, 5.0, np.pi])
+        at_top = reward.free_value(state) == pytest.approx(1.0, abs=0.0)
+        assert at_top == world.goal_reached(), (x, y)
+
+
 def test_malformed_arguments_are_rejected():
     with pytest.raises(DimensionError, match=r"\(H\+1, m, 4\)"):
         DrivingReward(np.zeros((3, 4)), 0)
@@ -249,6 +282,10 @@ def test_malformed_arguments_are_rejected():
         DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, lane_weight=0.1)
     with pytest.raises(InputError, match="goal"):
         DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, goal_weight=0.4)
+    with pytest.raises(DimensionError, match=r"goal must have shape \(2,\) or \(4,\), got shape \(3,\)"):
+        DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, goal_weight=0.4, goal=[0, 0, 1])
+    with pytest.raises(InputError, match="x_lo <= x_hi"):
+        DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, goal_weight=0.4, goal=[1, 0, 0, 1])
     with pytest.raises(InputError, match="road"):
         DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, road="highway")
     with pytest.raises(InputError, match="moving_positions"):
