@@ -22,7 +22,6 @@ from .bicycle_model import (
     TJUNCTION_TARGET_SPEEDS,
     BicycleModel,
     BicycleState,
-    compiled_plan,
     ego_controller,
 )
 from .comparison import (
@@ -59,7 +58,6 @@ __all__ = [
     "BicycleModel",
     "BicycleState",
     "ego_controller",
-    "compiled_plan",
     "HIGHWAY_ACTIONS",
     "TJUNCTION_ACTIONS",
     "HIGHWAY_TARGET_SPEEDS",

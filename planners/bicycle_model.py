@@ -15,7 +15,10 @@ action (`HIGHWAY_ACTIONS`, `TJUNCTION_ACTIONS`) changes the speed level and/or t
 target lane; the controllers then act at every sub-step. `expand` steps every action
 of a node over all sub-steps in one compiled call: the transition's reward is the
 minimum of the reward over the sub-step states (as `PointModel`'s), terminal when one
-of them collides.
+of them collides. `fallback_values` (the planner's `FallbackModel` protocol) bounds
+the return of holding one action from a state, which `RobustTreePlanner` adds to a
+leaf's lower bound: the search then prefers plans after which braking (or keeping
+the speed) stays collision-free over the whole forecast.
 """
 
 from __future__ import annotations
@@ -37,14 +40,8 @@ from ..kernels.reward_protocol import (
     minimum_sources,
     sources_digest,
 )
-from ..models.errors import DimensionError, InputError, RewardRangeError
+from ..models.errors import DimensionError, InputError
 from ..models.validation import as_count, as_discount, as_finite_array, as_positive_scalar, check_instance
-from . import tree_ops
-from .decision import Decision
-from .tree import SearchTree
-
-# Module globals, not closure cells (numba keys a cached closure by its cells' pickles; see compiled_search).
-from .tree_ops import N_EXPANDED, SIZE, expand, reset, select
 
 __all__ = [
     "HIGHWAY_ACTIONS",
@@ -54,7 +51,7 @@ __all__ = [
     "BicycleState",
     "BicycleModel",
     "ego_controller",
-    "compiled_plan",
+    "MAX_FALLBACK_DECISIONS",
 ]
 
 #: The highway's actions (the paper's) as (name, speed-level change, lane change: +1 left, -1 right).
@@ -233,6 +230,54 @@ def _expand_kernel(params_type: type):
     return _compile_without_refcounts(expand_actions, params_type)
 
 
+#: The most decisions a continuation is rolled out for (it stops earlier at the first terminal
+#: transition, at the latest where the reward's obstacle table ends).
+MAX_FALLBACK_DECISIONS = 10_000
+
+
+@functools.cache
+def _fallback_kernel(params_type: type):
+    """The compiled continuation bounds of `BicycleModel.fallback_values`, for rewards of ``params_type``."""
+    version = sources_digest(__file__, bicycle_kernels.__file__, *minimum_sources(params_type))
+
+    def fallback_returns(
+        controller, params, xs, levels, lanes, times, speed_changes, lane_changes, substeps, gamma, z, out
+    ):
+        _ = version  # ties numba's cache entry to the sources it calls into
+        half = controller.length / 2
+        for i in range(xs.shape[0]):
+            best = 0.0
+            for a in range(speed_changes.shape[0]):
+                x, y, v, psi = xs[i, 0], xs[i, 1], xs[i, 2], xs[i, 3]
+                level, lane, time = levels[i], lanes[i], times[i]
+                total = 0.0
+                discount = 1.0
+                for _decision in range(MAX_FALLBACK_DECISIONS):
+                    level, lane = apply_action(controller, level, lane, speed_changes[a], lane_changes[a])
+                    worst = 1.0
+                    hit = False
+                    for k in range(substeps):
+                        accel, steer, lane = ego_control_one(controller, x, y, v, psi, level, lane)
+                        x, y, v, psi = bicycle_step_one(
+                            x, y, v, psi, accel, steer, controller.dt, half, controller.max_speed
+                        )
+                        z[0], z[1], z[2], z[3] = -x, -y, -v, -psi
+                        z[4], z[5], z[6], z[7] = x, y, v, psi
+                        value, collided = box_reward_minimum(params, z, 4, float(time + k + 1))
+                        worst = minimum(worst, value)
+                        hit = hit or collided
+                    total += discount * worst
+                    discount *= gamma
+                    time += substeps
+                    if hit:
+                        break
+                if total > best:
+                    best = total
+            out[i] = best
+
+    return _compile_without_refcounts(fallback_returns, params_type)
+
+
 class BicycleModel:
     """The ego as a deterministic `VectorisedModel` for `RobustTreePlanner` (see the module docstring).
 
@@ -395,6 +440,57 @@ class BicycleModel:
         next_states, rewards, terminals = self.expand(state, (action,))
         return next_states[0], float(rewards[0]), bool(terminals[0])
 
+    def fallback_values(self, states: Sequence[BicycleState], gamma: float) -> np.ndarray:
+        """Continuation bounds (`FallbackModel`): the best return of holding one action from each state.
+
+        For each state and each action a, the transitions of `expand` are repeated with
+        a held (braking with SLOWER, keeping the speed with IDLE, ...) until the first
+        terminal one (a possible collision, leaving the road, or the end of the
+        reward's obstacle table, where the reward is 0); the value is the largest of
+        the discounted returns ``sum_k gamma^k r_k`` over the actions. Each is the
+        exact return of one fixed plan from the state (the ego is a point), so the
+        largest is a lower bound of the robust value there.
+
+        Parameters
+        ----------
+        states : sequence of BicycleState
+            The states (the children of a tree node).
+        gamma : float
+            The discount factor, in (0, 1).
+
+        Returns
+        -------
+        numpy.ndarray, shape (len(states),)
+            In ``[0, 1 / (1 - gamma)]``.
+        """
+        gamma = as_discount("gamma", gamma)
+        n = len(states)
+        xs = np.empty((n, 4))
+        meta = np.empty((n, 3), dtype=np.int64)
+        for i, state in enumerate(states):
+            if type(state) is not BicycleState:
+                check_instance(f"states[{i}]", state, BicycleState, "a BicycleState (see BicycleModel.initial_state)")
+            xs[i] = state.x
+            meta[i] = state.level, state.lane, state.time
+        out = np.empty(n)
+        params_type: type = type(self._params)  # mypy infers type[Any], which it does not treat as Hashable
+        kernel = _fallback_kernel(params_type)
+        kernel(
+            self.controller,
+            self._params,
+            xs,
+            meta[:, 0].copy(),
+            meta[:, 1].copy(),
+            meta[:, 2].copy(),
+            self._speed_changes,
+            self._lane_changes,
+            self.substeps,
+            gamma,
+            self._scratch,
+            out,
+        )
+        return out
+
     def predict(self, state: BicycleState, action) -> tuple[np.ndarray, np.ndarray, BicycleState]:
         """The sub-step states and controls of one action: what the world's ego does under them.
 
@@ -458,183 +554,3 @@ class BicycleModel:
         if lane >= self.controller.lanes.kinds.shape[0]:
             raise InputError(f"lane must be a lane index < {self.controller.lanes.kinds.shape[0]}, got {lane}")
         return BicycleState(x, level, lane, as_count("time", time, minimum=0))
-
-
-#: `compiled_plan`'s kernel status: budget spent, or stopped because the root's bounds met.
-_DONE, _SOLVED = 0, 1
-
-
-@functools.cache
-def _search_kernel(params_type: type):
-    """The whole robust search over M `BicycleModel`s in one compiled call, for rewards of ``params_type``."""
-    version = sources_digest(__file__, tree_ops.__file__, bicycle_kernels.__file__, *minimum_sources(params_type))
-
-    def run_ego_search(budget, tree, nodes, z, controller, params, speed_changes, lane_changes, substeps, time0):
-        """Expand ``tree`` from ``nodes[0]`` (x, y, v, psi, level, lane) for ``budget`` expansions.
-
-        ``params`` holds the M models' reward parameters (one ego, M rewards). Returns
-        ``(status, bad)`` as `minimaxplan.planners.compiled_search`'s kernel (the arrays
-        hold the whole budget's tree, so they never fill up).
-        """
-        _ = version  # ties numba's cache entry to the sources it calls into
-        rewards, new_terminal, terminal, depth, counts = (
-            tree.rewards,
-            tree.new_terminal,
-            tree.terminal,
-            tree.depth,
-            tree.counts,
-        )
-        n_models, n_actions = rewards.shape
-        half = controller.length / 2
-        dt, max_speed = controller.dt, controller.max_speed
-        reset(tree)
-        while counts[N_EXPANDED] < budget:
-            leaf = select(tree)
-            if leaf < 0:
-                return _SOLVED, -1
-            first = counts[SIZE]
-            alive = False
-            for m in range(n_models):
-                if not terminal[leaf, m]:
-                    alive = True
-            if alive:
-                time = time0 + depth[leaf] * substeps
-                level, lane = int(nodes[leaf, 4]), int(nodes[leaf, 5])
-                for a in range(n_actions):
-                    lv, ln = apply_action(controller, level, lane, speed_changes[a], lane_changes[a])
-                    x, y, v, psi = nodes[leaf, 0], nodes[leaf, 1], nodes[leaf, 2], nodes[leaf, 3]
-                    for m in range(n_models):
-                        rewards[m, a] = 1.0
-                        new_terminal[m, a] = False
-                    for k in range(substeps):
-                        accel, steer, ln = ego_control_one(controller, x, y, v, psi, lv, ln)
-                        x, y, v, psi = bicycle_step_one(x, y, v, psi, accel, steer, dt, half, max_speed)
-                        z[0], z[1], z[2], z[3] = -x, -y, -v, -psi
-                        z[4], z[5], z[6], z[7] = x, y, v, psi
-                        for m in range(n_models):
-                            value, collided = box_reward_minimum(params[m], z, 4, float(time + k + 1))
-                            rewards[m, a] = minimum(rewards[m, a], value)
-                            new_terminal[m, a] = new_terminal[m, a] or collided
-                    child = first + a
-                    nodes[child, 0], nodes[child, 1], nodes[child, 2], nodes[child, 3] = x, y, v, psi
-                    nodes[child, 4], nodes[child, 5] = lv, ln
-            else:  # every model terminated: nothing is stepped (`expand` zeroes the rewards)
-                for a in range(n_actions):
-                    for j in range(6):
-                        nodes[first + a, j] = nodes[leaf, j]
-            bad = expand(tree, leaf)
-            if bad >= 0:
-                return _DONE, bad
-        return _DONE, -1
-
-    return _compile_without_refcounts(run_ego_search, params_type)
-
-
-def compiled_plan(models, state: BicycleState, *, gamma: float, budget: int) -> tuple[Decision, SearchTree]:
-    """The search of `RobustTreePlanner`, compiled whole, for `BicycleModel` models of one ego.
-
-    The same tree operations (`minimaxplan.planners.tree_ops`) and the same
-    transitions as the Python engine with the models' ``expand``, in one compiled
-    call: the same tree and the same `Decision`, bit for bit (tested), without a
-    Python round trip per expansion. With M models (scene-wide hypotheses, each its
-    own reward, the same ego), the ego is stepped once per action and each reward
-    evaluated on it.
-
-    Parameters
-    ----------
-    models : BicycleModel or sequence of BicycleModel
-        The ego models: one controller object, one action table, one number of
-        sub-steps; rewards whose ``kernel_params`` have one type.
-    state : BicycleState
-        The root state, shared by every model.
-    gamma : float
-        Discount factor in (0, 1).
-    budget : int
-        Expansions K >= 1.
-
-    Returns
-    -------
-    decision : Decision
-        As `RobustTreePlanner.plan` returns it.
-    tree : SearchTree
-        The search tree (its states are `BicycleState` values; a terminated model keeps its
-        terminal state on the rest of the branch, as in the Python engine).
-
-    Raises
-    ------
-    InputError
-        If a model is not a `BicycleModel`, the models differ in their controller,
-        actions, sub-steps or reward type, or ``state`` is not a `BicycleState`.
-    RewardRangeError
-        If a reward returned a value outside [0, 1].
-
-    Notes
-    -----
-    Hooking it into `RobustTreePlanner` (its ``engine="compiled"``) needs the planner to
-    dispatch its compiled search on the models' kind; until then this is the ego
-    models' compiled engine.
-    """
-    group = [models] if isinstance(models, BicycleModel) else list(models)
-    if not group:
-        raise InputError("models must be a BicycleModel or a non-empty sequence of them")
-    for m, model in enumerate(group):
-        check_instance(f"models[{m}]", model, BicycleModel)
-    first = group[0]
-    for model in group[1:]:
-        if (
-            model.controller is not first.controller
-            or model.substeps != first.substeps
-            or not np.array_equal(model._speed_changes, first._speed_changes)
-            or not np.array_equal(model._lane_changes, first._lane_changes)
-            or type(model._params) is not type(first._params)
-        ):
-            raise InputError("models must share one controller, action table, sub-steps and reward type")
-    check_instance("state", state, BicycleState)
-    gamma = as_discount("gamma", gamma)
-    budget = as_count("budget", budget)
-    n_models, n_actions = len(group), first.n_actions
-    capacity = 1 + budget * n_actions
-    tree = tree_ops.allocate(capacity, n_models, n_actions, gamma, tree_ops.discount_table(gamma, budget + 2))
-    nodes = np.empty((capacity, 6))
-    nodes[0, :4] = state.x
-    nodes[0, 4], nodes[0, 5] = state.level, state.lane
-    params_type: type = type(first._params)  # mypy infers type[Any], which it does not treat as Hashable
-    kernel = _search_kernel(params_type)
-    status, bad = kernel(
-        budget,
-        tree,
-        nodes,
-        first._scratch,
-        first.controller,
-        tuple(model._params for model in group),
-        first._speed_changes,
-        first._lane_changes,
-        first.substeps,
-        state.time,
-    )
-    if bad >= 0:
-        a, m = divmod(int(bad), n_models)
-        raise RewardRangeError(
-            f"models[{m}] returned reward {float(tree.rewards[m, a])!r} for action {a}; rewards must be in [0, 1]"
-        )
-    size = int(tree.counts[SIZE])
-
-    def states() -> list:
-        depth, parent, terminal = tree.depth[:size], tree.parent[:size], tree.terminal
-        joint: list = [state]
-        for i in range(1, size):
-            x = nodes[i, :4].copy()
-            x.setflags(write=False)
-            joint.append(
-                BicycleState(x, int(nodes[i, 4]), int(nodes[i, 5]), state.time + int(depth[i]) * first.substeps)
-            )
-        columns = []
-        for m in range(n_models):
-            column = [state] + [None] * (size - 1)
-            for i in range(1, size):
-                column[i] = column[parent[i]] if terminal[parent[i], m] else joint[i]
-            columns.append(column)
-        return columns
-
-    search_tree = SearchTree(tree, states)
-    return Decision.from_tree(search_tree, first.actions, solved=status == _SOLVED), search_tree

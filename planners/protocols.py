@@ -28,6 +28,7 @@ __all__ = [
     "TransitionModel",
     "VectorisedModel",
     "BatchedTransitions",
+    "FallbackModel",
     "LinkedModel",
     "CompiledTransitions",
     "CompiledProblem",
@@ -66,6 +67,27 @@ class VectorisedModel(TransitionModel, Protocol):
 
     def expand(self, state: Any, actions: Sequence) -> tuple[Sequence, np.ndarray, np.ndarray]:
         """``(next_states, rewards, terminals)`` for every action of ``actions``."""
+
+
+@runtime_checkable
+class FallbackModel(TransitionModel, Protocol):
+    """A `TransitionModel` that bounds the return of a fixed continuation from any state.
+
+    Notes
+    -----
+    ``fallback_values(states, gamma)`` returns, for each state, a float F in
+    ``[0, 1 / (1 - gamma)]`` with ``F <= sum_n gamma^n r_n`` along some sequence of
+    actions from that state fixed in advance (e.g. braking until the end of the
+    reward's horizon): a pessimistic value of a plan that the planner could also
+    follow. `RobustTreePlanner` then takes ``min_m (R_m + gamma^l F_m)`` as a leaf's
+    lower bound instead of the paper's ``min_m R_m`` (eq. (18)); it stays a lower bound
+    of the robust value (eq. (13)) because the leaf's path followed by the continuation
+    is one plan, evaluated in every model. The upper bounds are unchanged. It is used
+    only when every model of the planner gives it.
+    """
+
+    def fallback_values(self, states: Sequence, gamma: float) -> np.ndarray:
+        """F for each state of ``states``, shape ``(len(states),)``."""
 
 
 @runtime_checkable

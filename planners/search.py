@@ -34,7 +34,14 @@ from ..models.validation import as_choice, as_count, as_discount
 from . import tree_ops
 from .compiled_search import FULL, SOLVED, BoxArrays, allocate_boxes, grow_boxes, search_kernel
 from .decision import Decision
-from .protocols import BatchedTransitions, CompiledTransitions, LinkedModel, TransitionModel, VectorisedModel
+from .protocols import (
+    BatchedTransitions,
+    CompiledTransitions,
+    FallbackModel,
+    LinkedModel,
+    TransitionModel,
+    VectorisedModel,
+)
 from .tree import SearchTree
 from .tree_ops import REWARD_ERROR, TreeArrays
 
@@ -226,7 +233,12 @@ class RobustTreePlanner:
     ``L_a = min_m R_m(a)`` and its robust b-value (16), with the discount that the
     paper's eq. (12) omits (see DESIGN.md errata), is
     ``U_a = min_m (R_m(a) + gamma^l / (1 - gamma) [m not terminated])``.
-    Internal nodes take the max over children of both (17)-(18). Each iteration
+    Internal nodes take the max over children of both (17)-(18). When every model is
+    a `FallbackModel` (the Python engine), a leaf's lower bound is
+    ``min_m (R_m(a) + gamma^l F_m)`` with F_m the model's bound on a fixed
+    continuation from the leaf's state: the leaf's path followed by that continuation
+    is one plan, so this is still a lower bound, and the search prefers paths that
+    end where the continuation is safe. Each iteration
     expands the leaf with the largest b-value; ties go to the lexicographically
     smallest action path. The returned action maximises the lower bound at the root.
 
@@ -263,12 +275,20 @@ class RobustTreePlanner:
         self._actions = actions
         self._transitions = [_Transitions(m, model, actions) for m, model in enumerate(models)]
         self._group = _linked_group(self._models)
+        self._fallback = all(isinstance(model, FallbackModel) and callable(model.fallback_values) for model in models)
         engine = as_choice("engine", engine, ENGINES)
         self._engine = engine
         group = self._group
         self._compiled = (
-            group if engine != "python" and isinstance(group, CompiledTransitions) and group.compiled else None
+            group
+            if engine != "python" and isinstance(group, CompiledTransitions) and group.compiled and not self._fallback
+            else None
         )
+        if engine == "compiled" and self._fallback:
+            raise InputError(
+                "engine='compiled' does not evaluate the models' continuation bounds (FallbackModel.fallback_values); "
+                "use engine='python' or 'auto'"
+            )
         if engine == "compiled" and self._compiled is None:
             raise InputError(
                 "engine='compiled' needs the models of one IntervalModel.linked group, in member order, "
@@ -427,6 +447,7 @@ class RobustTreePlanner:
             and not tree.any_terminated[leaf]
             and self._transitions_jointly(group, tree, leaf, state_lists)
         ):
+            self._fallbacks_of(tree, leaf, state_lists)
             return
         n_actions = len(self.actions)
         rewards, new_terminal = tree.rewards, tree.new_terminal
@@ -441,6 +462,30 @@ class RobustTreePlanner:
             rewards[m] = model_rewards
             new_terminal[m] = model_terminals
             state_lists[m].extend(next_states)
+        self._fallbacks_of(tree, leaf, state_lists)
+
+    def _fallbacks_of(self, tree: TreeArrays, leaf: int, state_lists: list) -> None:
+        """Write the continuation bounds of ``leaf``'s children into ``tree.fallback`` (`FallbackModel`s only)."""
+        if not self._fallback:
+            return
+        n_actions = len(self.actions)
+        bound = 1.0 / (1.0 - self.gamma)
+        terminal = tree.terminal[leaf]
+        for m, model in enumerate(self._models):
+            if terminal[m]:
+                continue  # `tree_ops.expand` sets its bounds to 0
+            children = state_lists[m][-n_actions:]
+            values = np.asarray(model.fallback_values(children, self.gamma), dtype=float)
+            if values.shape != (n_actions,):
+                raise DimensionError(
+                    f"models[{m}].fallback_values must return shape ({n_actions},), got shape {values.shape}"
+                )
+            if not np.all((values >= 0.0) & (values <= bound)):
+                raise RewardRangeError(
+                    f"models[{m}].fallback_values returned {values.tolist()!r}; "
+                    f"continuation bounds must be finite and in [0, 1 / (1 - gamma)] = [0, {bound!r}]"
+                )
+            tree.fallback[m] = values
 
     def _transitions_jointly(self, group: BatchedTransitions, tree: TreeArrays, leaf: int, state_lists: list) -> bool:
         """`_transitions_of` from one ``expand_all`` of the group, if the leaf's models share one state.

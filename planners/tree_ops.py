@@ -79,11 +79,15 @@ class TreeArrays(NamedTuple):
         ``parent[0] = action[0] = -1``; ``first_child[i] = -1`` for a leaf.
     leaf_lower, leaf_upper : ndarray (capacity,)
         The leaf bounds of each node as computed when it was created, which never
-        change: ``min_m R_m`` (eq. (18)) and the robust b-value
-        ``min_m (R_m + gamma^l / (1 - gamma) [m not terminated])`` (eq. (16)).
+        change: ``min_m (R_m + gamma^l F_m [m not terminated])`` (eq. (18), with the
+        continuation bound F_m of ``fallback``; 0 unless the models give one) and the
+        robust b-value ``min_m (R_m + gamma^l / (1 - gamma) [m not terminated])``
+        (eq. (16)).
     lower, upper : ndarray (capacity,)
-        Backed-up bounds: the leaf bounds at a leaf, the max over the children at an
-        internal node (eqs. (17), (18)).
+        Backed-up bounds: the leaf bounds at a leaf; at an internal node the max over
+        the children (eqs. (17), (18)), and for ``lower`` at least the node's own leaf
+        bound (the continuation bound of a node is not always met by its children's
+        after rounding).
     any_terminated : ndarray (capacity,) of bool
         ``terminal[i].any()``.
     expanded : ndarray (capacity,) of int64
@@ -97,6 +101,11 @@ class TreeArrays(NamedTuple):
         The transition's rewards, written by the engine before `expand`.
     new_terminal : ndarray (M, n_actions) of bool
         Whether each transition was terminal, written with ``rewards``.
+    fallback : ndarray (M, n_actions)
+        F_m: a lower bound, in ``[0, 1 / (1 - gamma)]``, of model m's discounted return
+        from each transition's next state under some fixed continuation of actions
+        (`minimaxplan.planners.protocols.FallbackModel`), written with ``rewards``; 0
+        (the paper's bound) when the models give none.
     counts : ndarray (4,) of int64
         ``[size, heap size, expansions, max depth]`` (indices `SIZE`, `HEAP_SIZE`,
         `N_EXPANDED`, `MAX_DEPTH`).
@@ -120,6 +129,7 @@ class TreeArrays(NamedTuple):
     discounts: np.ndarray
     rewards: np.ndarray
     new_terminal: np.ndarray
+    fallback: np.ndarray
     counts: np.ndarray
     gamma: float
 
@@ -154,6 +164,7 @@ def allocate(capacity: int, n_models: int, n_actions: int, gamma: float, discoun
         discounts=discounts,
         rewards=np.zeros((n_models, n_actions)),
         new_terminal=np.zeros((n_models, n_actions), dtype=bool),
+        fallback=np.zeros((n_models, n_actions)),
         counts=np.zeros(4, dtype=np.int64),
         gamma=float(gamma),
     )
@@ -315,6 +326,7 @@ def expand(tree, leaf):
             for a in range(n_actions):
                 rewards[m, a] = 0.0
                 new_terminal[m, a] = True
+                tree.fallback[m, a] = 0.0
     for a in range(n_actions):
         for m in range(n_models):
             r = rewards[m, a]
@@ -340,8 +352,15 @@ def add_children(tree, leaf):
     bound needs no clipping: ``R_m + gamma^l r`` with ``r >= 0`` never rounds below
     ``R_m``. While no model has terminated every optimistic term is ``R_m + tail``
     and rounding is monotone, so ``min_m fl(R_m + tail) == fl(min_m R_m + tail)``.
+
+    With a continuation bound F_m (``tree.fallback``), the child's lower bound is
+    ``min_m (R_m + gamma^(l+1) F_m [not terminated])``: the action path followed by a
+    fixed continuation is one plan, whose worst return over the models is at most the
+    robust value of the child (eq. (13)); with F = 0 this is the paper's ``min_m R_m``
+    bit for bit (``x + 0.0 == x``).
     """
     rewards, new_terminal, discounts = tree.rewards, tree.new_terminal, tree.discounts
+    fallback = tree.fallback
     returns, terminal, counts = tree.returns, tree.terminal, tree.counts
     parent, action, depth, first_child = tree.parent, tree.action, tree.depth, tree.first_child
     leaf_lower, leaf_upper, lower, upper = tree.leaf_lower, tree.leaf_upper, tree.lower, tree.upper
@@ -360,13 +379,15 @@ def add_children(tree, leaf):
     for a in range(n_actions):
         child = first + a
         child_lower = np.inf
+        child_return = np.inf
         child_optimistic = np.inf
         child_any = False
         for m in range(n_models):
             value = returns[leaf, m] + discounts[d] * rewards[m, a]
             returns[child, m] = value
-            if value < child_lower:
-                child_lower = value
+            if value < child_return:
+                child_return = value
+            done = False
             if check_terminal:
                 done = terminal[leaf, m] or new_terminal[m, a]
                 terminal[child, m] = done
@@ -376,10 +397,13 @@ def add_children(tree, leaf):
                     child_optimistic = optimistic
             else:
                 terminal[child, m] = False
+            pessimistic = value if done else value + discounts[d + 1] * fallback[m, a]
+            if pessimistic < child_lower:
+                child_lower = pessimistic
         if check_terminal:
             child_upper = min(child_optimistic, parent_upper)
         else:
-            child_upper = min(child_lower + tail, parent_upper)
+            child_upper = min(child_return + tail, parent_upper)
         parent[child] = leaf
         action[child] = a
         depth[child] = d + 1
@@ -404,16 +428,19 @@ def add_children(tree, leaf):
 
 @njit(**_NO_REFCOUNTS)
 def backup(tree, node):
-    """Recompute ``lower``/``upper`` from ``node`` up to the root (max over the children).
+    """Recompute ``lower``/``upper`` from ``node`` up to the root (max over the children; ``lower`` at least the leaf bound).
 
     Only the path to the root can change, and the walk stops at the first ancestor
-    whose bounds are unchanged (its ancestors then are too).
+    whose bounds are unchanged (its ancestors then are too). Without continuation
+    bounds the children's max is never below the node's leaf bound (their returns add
+    rewards >= 0), so the max with it changes nothing there.
     """
     lower, upper, first_child, parent = tree.lower, tree.upper, tree.first_child, tree.parent
+    leaf_lower = tree.leaf_lower
     n_actions = tree.rewards.shape[1]
     while node >= 0:
         start = first_child[node]
-        new_lower = lower[start]
+        new_lower = max(leaf_lower[node], lower[start])
         new_upper = upper[start]
         for a in range(1, n_actions):
             if lower[start + a] > new_lower:

@@ -13,7 +13,6 @@ from minimaxplan.planners.bicycle_model import (
     TJUNCTION_TARGET_SPEEDS,
     BicycleModel,
     BicycleState,
-    compiled_plan,
     ego_controller,
 )
 from minimaxplan.planners.protocols import VectorisedModel
@@ -145,48 +144,86 @@ def test_malformed_arguments_are_rejected():
         ego_controller(lane_geometry(world.road), [25.0, 20.0])
 
 
+def _held_return(model, state, action, gamma):
+    """The discounted return of holding ``action`` until the first terminal transition (`step`, in Python)."""
+    total, discount = 0.0, 1.0
+    for _ in range(10_000):
+        state, reward, terminal = model.step(state, action)
+        total += discount * reward
+        discount *= gamma
+        if terminal:
+            return total
+    raise AssertionError("no terminal transition")
+
+
 @pytest.mark.parametrize("kind", ["highway", "tjunction"])
-def test_the_compiled_search_builds_the_python_engines_tree(kind):
+def test_the_fallback_values_are_the_best_held_actions_return(kind):
     world, controller, model, state = _ego_setup(kind)
     if kind == "highway":
         x = state.x
-        table = _stopped_vehicle_ahead(float(x[1]), float(x[0]) + 45.0)
+        table = _stopped_vehicle_ahead(float(x[1]), float(x[0]) + 45.0)[:31]
         table[:, 1] = [x[0] + 10.0, x[1] + 2.0, x[0] + 16.0, x[1] + 6.0]  # a box in the lane to the left
         model = model.with_reward(DrivingReward.highway(table, 0, world.road))
-    for budget in (1, 7, 100):
-        planner = RobustTreePlanner([model], model.actions, gamma=0.9, budget=budget, engine="python")
-        expected = planner.plan(state)
-        decision, tree = compiled_plan(model, state, gamma=0.9, budget=budget)
-        assert decision == expected
-        for name in ("parent", "action", "returns", "lower", "upper", "leaf_upper", "terminal"):
-            assert np.array_equal(getattr(tree, name), getattr(planner.tree, name)), name
-        for mine, theirs in zip(tree.states[0], planner.tree.states[0]):
-            assert np.array_equal(mine.x, theirs.x) and mine[1:] == theirs[1:]
-    with pytest.raises(InputError, match="state"):
-        compiled_plan(model, (state.x, 1, 1, 0), gamma=0.9, budget=10)
+    else:
+        model = model.with_reward(model.reward.with_obstacles(np.tile(EMPTY, (37, 1, 1)), 0))
+    children, _, _ = model.expand(state, model.actions)
+    values = model.fallback_values([state, *children], 0.9)
+    for value, start in zip(values, [state, *children]):
+        expected = max(_held_return(model, start, a, 0.9) for a in model.actions)
+        assert value == pytest.approx(expected, rel=1e-12, abs=1e-12)
+        assert 0.0 <= value <= 10.0
+    with pytest.raises(InputError, match="states\\[0\\]"):
+        model.fallback_values([(state.x, 1, 1, 0)], 0.9)
+    with pytest.raises(InputError, match="gamma"):
+        model.fallback_values([state], 1.0)
 
 
-def test_the_compiled_search_over_scene_hypotheses_is_the_python_engines():
-    """M models: one ego, M obstacle tables (scene-wide hypotheses); one of them blocks the ego's lane."""
+def _robust_value(models, state, depth, gamma):
+    """``max_plan min_m sum_n gamma^n r_n^m`` over every action sequence of ``depth`` decisions (brute force)."""
+
+    def value(states, alive, d):
+        if d == depth or not alive.any():
+            return np.zeros(len(models))
+        best = None
+        for a in models[0].actions:
+            steps = [m.step(s, a) if live else (s, 0.0, True) for m, s, live in zip(models, states, alive)]
+            rewards = np.array([r for _, r, _ in steps])
+            later = value([n for n, _, _ in steps], alive & ~np.array([t for _, _, t in steps]), d + 1)
+            returns = rewards + gamma * later
+            if best is None or returns.min() > best.min():
+                best = returns
+        return best
+
+    return float(value([state] * len(models), np.ones(len(models), dtype=bool), 0).min())
+
+
+def test_fallback_bounds_keep_theorem_3s_bracket_and_only_raise_the_lower_bound():
+    """Three scene hypotheses (a blocked lane, a taken side lane) over a 4-decision table: brute force is exact."""
     world, controller, model, state = _ego_setup("highway")
     x = state.x
-    free = np.tile(EMPTY, (51, 2, 1))
-    blocked = _stopped_vehicle_ahead(float(x[1]), float(x[0]) + 40.0)
+    free = np.tile(EMPTY, (21, 2, 1))
+    blocked = _stopped_vehicle_ahead(float(x[1]), float(x[0]) + 40.0)[:21]
     side = blocked.copy()
-    side[:, 1] = [x[0] - 30.0, x[1] + 2.5, x[0] + 60.0, x[1] + 6.0]  # the lane to the left is taken
+    side[:, 1] = [x[0] - 30.0, x[1] + 2.5, x[0] + 60.0, x[1] + 6.0]
     models = [model.with_reward(DrivingReward.highway(table, 0, world.road)) for table in (free, blocked, side)]
-    for budget in (3, 60):
-        planner = RobustTreePlanner(models, models[0].actions, gamma=0.9, budget=budget)
-        expected = planner.plan(state)
-        decision, tree = compiled_plan(models, state, gamma=0.9, budget=budget)
-        assert decision == expected
-        for name in ("returns", "terminal", "lower", "upper", "parent"):
-            assert np.array_equal(getattr(tree, name), getattr(planner.tree, name)), name
-        if budget == 60:  # some models terminated on some branches, not all
-            assert tree.terminal.any() and not tree.terminal[:, 0].all()
-        for m in range(3):
-            for mine, theirs in zip(tree.states[m], planner.tree.states[m]):
-                assert np.array_equal(mine.x, theirs.x) and mine[1:] == theirs[1:]
-    other = ego_controller(lane_geometry(world.road), HIGHWAY_TARGET_SPEEDS)
-    with pytest.raises(InputError, match="share one controller"):
-        compiled_plan([models[0], BicycleModel(other, models[1].reward, HIGHWAY_ACTIONS)], state, gamma=0.9, budget=5)
+    exact = _robust_value(models, state, 5, 0.9)  # the table ends within the 5th decision: reward 0 after
+    for budget in (1, 3, 10, 40, 200):
+        with_fallback = RobustTreePlanner(models, models[0].actions, gamma=0.9, budget=budget).plan(state)
+        paper = RobustTreePlanner([_NoFallback(m) for m in models], models[0].actions, gamma=0.9, budget=budget)
+        without = paper.plan(state)
+        assert with_fallback.lower <= exact + 1e-12 <= with_fallback.upper + 2e-12
+        assert with_fallback.lower >= without.lower and with_fallback.upper == without.upper
+    assert with_fallback.lower == pytest.approx(exact, abs=1e-12)  # the budget closes the tree
+
+
+class _NoFallback:
+    """A model without `fallback_values`: the paper's lower bound (a reference for the test above)."""
+
+    def __init__(self, model):
+        self._model = model
+
+    def expand(self, state, actions):
+        return self._model.expand(state, actions)
+
+    def step(self, state, action):
+        return self._model.step(state, action)
