@@ -1068,6 +1068,28 @@ def forecast_traffic(
                 zf_lo[sel], zf_hi[sel] = np.minimum(zf_lo[sel], z1_lo), np.maximum(zf_hi[sel], z1_hi)
                 if_lo[sel], if_hi[sel] = np.minimum(if_lo[sel], i1_lo), np.maximum(if_hi[sel], i1_hi)
                 sf[0][sel], sf[1][sel] = np.minimum(sf[0][sel], s1[0]), np.maximum(sf[1][sel], s1[1])
+
+        def direct_step(vl_lo, vl_hi):
+            """The bicycle's step bounded directly by intervals (no linearisation), speeds in [vl_lo, vl_hi]."""
+            vh_lo, vh_hi = np.maximum(vl_lo, eps), np.maximum(vl_hi, eps)
+            _, _, d_l, a_l = lateral_remainder(
+                e_box, c_box, (vh_lo, vh_hi), b1, (tb_lo[rr, 1] / vh_hi, tb_hi[rr, 1] / vh_lo), dt, vehicle
+            )
+            de = _mul(vl_lo * dt, vl_hi * dt, *sin_interval(*a_l))
+            dc = _mul(2 * vl_lo * dt / length, 2 * vl_hi * dt / length, np.sin(_slip(d_l[0])), np.sin(_slip(d_l[1])))
+            low_e = _out(e_box[0] + de[0], e_box[1] + de[1])
+            low_c = _out(c_box[0] + dc[0], c_box[1] + dc[1])
+            step_lo, step_hi = np.stack([low_e[0], low_c[0]], 1), np.stack([low_e[1], low_c[1]], 1)
+            return step_lo, step_hi, _mul(vl_lo * dt, vl_hi * dt, *cos_interval(*a_l))
+
+        # The direct step over the whole speed box contains the fine step's set too: intersect them (both
+        # sound). Where the speed box is wide and reaches low speeds, the linearised law's stiff gains
+        # (q = theta_b2 / v) make the vertex bound grow faster than the bicycle can turn.
+        wd_lo, wd_hi, wd_s = direct_step(vlo, vhi)
+        if_lo, if_hi = np.maximum(if_lo, wd_lo), np.minimum(if_hi, wd_hi)
+        wz_lo, wz_hi = _matvec(Tinv[rr], wd_lo, wd_hi)
+        zf_lo, zf_hi = np.maximum(zf_lo, wz_lo), np.minimum(zf_hi, wz_hi)
+        sf = (np.maximum(sf[0], wd_s[0]), np.minimum(sf[1], wd_s[1]))
         if not l_ok.any():
             back_lo, back_hi = _matvec(T[rr], zf_lo, zf_hi)
             into_lo, into_hi = _matvec(Tinv[rr], if_lo, if_hi)
@@ -1079,19 +1101,9 @@ def forecast_traffic(
                 sf[0],
                 sf[1],
             )
-        # low speeds: a direct interval step of the bicycle
-        vl_lo, vl_hi = vlo, np.minimum(vhi, V_MIN)
-        vh_lo, vh_hi = np.maximum(vl_lo, eps), np.maximum(vl_hi, eps)
-        _, _, d_l, a_l = lateral_remainder(
-            e_box, c_box, (vh_lo, vh_hi), b1, (tb_lo[rr, 1] / vh_hi, tb_hi[rr, 1] / vh_lo), dt, vehicle
-        )
-        de = _mul(vl_lo * dt, vl_hi * dt, *sin_interval(*a_l))
-        dc = _mul(2 * vl_lo * dt / length, 2 * vl_hi * dt / length, np.sin(_slip(d_l[0])), np.sin(_slip(d_l[1])))
-        low_e = _out(e_box[0] + de[0], e_box[1] + de[1])
-        low_c = _out(c_box[0] + dc[0], c_box[1] + dc[1])
-        il_lo, il_hi = np.stack([low_e[0], low_c[0]], 1), np.stack([low_e[1], low_c[1]], 1)
+        # low speeds: the direct step alone
+        il_lo, il_hi, sl = direct_step(vlo, np.minimum(vhi, V_MIN))
         zl_lo, zl_hi = _matvec(Tinv[rr], il_lo, il_hi)
-        sl = _mul(vl_lo * dt, vl_hi * dt, *cos_interval(*a_l))
         fo, lo_ = f_ok[:, None], l_ok[:, None]
         nz_lo = np.minimum(np.where(fo, zf_lo, np.inf), np.where(lo_, zl_lo, np.inf))
         nz_hi = np.maximum(np.where(fo, zf_hi, -np.inf), np.where(lo_, zl_hi, -np.inf))
