@@ -201,27 +201,32 @@ def number_list(
     suffix = f" ({unit})" if unit else ""
 
     def parse(text: str) -> list[float]:
-        items = [item.strip() for item in text.split(",")]
-        if not any(items):
-            raise argparse.ArgumentTypeError(f"expected comma-separated numbers {relation}{suffix}, got {text!r}")
-        values = []
-        for item in items:
-            try:
-                value = float(item)
-            except ValueError:
-                raise argparse.ArgumentTypeError(
-                    f"expected comma-separated numbers, got {item!r} in {text!r}"
-                ) from None
+        values = [_number(item, text) for item in _items(text, f"numbers {relation}{suffix}")]
+        for item, value in zip(text.split(","), values):
             below = value <= minimum if strict else value < minimum
             if not math.isfinite(value) or below or (maximum is not None and value > maximum):
                 raise argparse.ArgumentTypeError(
-                    f"every value must be a finite number {relation}{suffix}, got {item!r}"
+                    f"every value must be a finite number {relation}{suffix}, got {item.strip()!r}"
                 )
-            values.append(value)
         return values
 
     parse.__name__ = "comma-separated numbers"
     return parse
+
+
+def _items(text: str, what: str) -> list[str]:
+    """The comma-separated items of ``text``, stripped; an error naming ``what`` if there are none."""
+    items = [item.strip() for item in text.split(",")]
+    if any(items):
+        return items
+    raise argparse.ArgumentTypeError(f"expected comma-separated {what}, got {text!r}")
+
+
+def _number(item: str, text: str) -> float:
+    try:
+        return float(item)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {item!r} in {text!r}") from None
 
 
 def distinct(parse: Callable[[str], list]) -> Callable[[str], list]:

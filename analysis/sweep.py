@@ -731,8 +731,9 @@ def summarise_sweep(
         ``failures``, ``failure_rate``, ``failure_ci95`` (exact Clopper-Pearson), the
         failure outcomes' counts, ``successes``, ``mean_time_s`` and ``time_ci95``
         (Student-t interval of the mean over the successful episodes; NaN without two
-        of them), ``mean_return`` and, for methods that check their predictions,
-        ``boxes_missed`` (else None).
+        of them), ``mean_return``, and ``boxes_missed`` and ``boxes_checked``: the
+        run-time check's counts of predicted boxes (`EpisodeRecord.boxes_checked`)
+        summed over the episodes, None for a method that checked none.
     """
     import numpy as np
     from scipy import stats
@@ -750,7 +751,7 @@ def summarise_sweep(
             time_ci = [float(times.mean()) - half, float(times.mean()) + half]
         else:
             time_ci = [math.nan, math.nan]
-        missed = [int(r.extra["boxes_missed"]) for r in group if "boxes_missed" in r.extra]
+        checked = sum(r.boxes_checked for r in group)
         rows.append(
             {
                 **cells[name],
@@ -764,7 +765,8 @@ def summarise_sweep(
                 "mean_time_s": float(times.mean()) if times.size else math.nan,
                 "time_ci95": time_ci,
                 "mean_return": float(np.mean([r.discounted_return for r in group])),
-                "boxes_missed": int(sum(missed)) if missed else None,
+                "boxes_missed": sum(r.boxes_missed for r in group) if checked else None,
+                "boxes_checked": checked if checked else None,
             }
         )
     axes = list(next(iter(cells.values()), {}))
@@ -825,9 +827,14 @@ def sweep_markdown(study: dict) -> str:
         cells += [str(r[_OUTCOME_COLUMNS[o][0]]) for o in outcomes]
         cells += [_fmt(r["mean_time_s"], 1), time_ci, f"{r['mean_return']:.3f}"]
         lines.append("| " + " | ".join(cells) + " |")
-    missed = [r["boxes_missed"] for r in study["rows"] if r["boxes_missed"] is not None]
-    if missed:
-        lines += ["", f"Predicted boxes missed by the true states (robust): {sum(missed)} (a miss is a bug)."]
+    checking = [r for r in study["rows"] if r.get("boxes_checked")]
+    if checking:
+        methods = ", ".join(dict.fromkeys(r["method"] for r in checking))
+        lines += [
+            "",
+            f"Run-time check ({methods}): {sum(r['boxes_checked'] for r in checking)} predicted boxes checked "
+            f"against the true states, {sum(r['boxes_missed'] for r in checking)} missed (a miss is a bug).",
+        ]
     lines += ["", f"Wall time of the run: {study['wall_time_s']:.1f} s"]
     return "\n".join(lines) + "\n"
 

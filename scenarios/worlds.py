@@ -426,7 +426,8 @@ class RobotWorld:
         Returns
         -------
         RobotWorld
-            The world at its start, the robot at rest.
+            A new episode whose ``crowd`` is the given one and whose
+            ``velocity_uncertainty`` is ``velocity_uncertainty``.
 
         Raises
         ------

@@ -42,6 +42,11 @@ def run(capsys, *argv) -> tuple[int, str, str]:
     return code, captured.out, captured.err
 
 
+def small_sweep(capsys, out, *argv) -> tuple[int, str, str]:
+    """``minimaxplan sweep ARGV`` in this process, without a progress bar, writing to ``out``."""
+    return run(capsys, "sweep", *argv, "--workers", "1", "--no-progress", "--out", out)
+
+
 # ------------------------------------------------------------------ the worlds
 @pytest.mark.parametrize(("count", "bound"), [(0, 0.3), (1, 0.1), (5, 0.3), (8, 0.6)])
 def test_a_crowd_world_is_the_pedestrian_world_with_the_cells_crowd(count, bound):
@@ -113,17 +118,9 @@ def test_summary_intervals_are_clopper_pearson_and_student_t():
 def test_a_small_pedestrian_sweep_writes_what_the_committed_sweep_holds(tmp_path, capsys):
     """The generalised command writes the committed sweep's cells, columns and episodes."""
     out = tmp_path / "sweep"
-    code, stdout, err = run(
-        capsys,
-        "sweep",
-        "--pedestrians", "1,8",
-        "--velocity-uncertainty", "0.6",
-        "--methods", "dwa",
-        "--episodes", "2",
-        "--workers", "1",
-        "--no-progress",
-        "--out", out,
-    )  # fmt: skip
+    code, stdout, err = small_sweep(
+        capsys, out, "--pedestrians", "1,8", "--velocity-uncertainty", "0.6", "--methods", "dwa", "--episodes", "2"
+    )
     assert code == 0, err
     assert re.search(r"\| 8 \| 0\.6 \| dwa \| \d/2 \|", stdout) and "Wall time of the run:" in stdout
     assert (out / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -137,7 +134,10 @@ def test_a_small_pedestrian_sweep_writes_what_the_committed_sweep_holds(tmp_path
     )
     assert list(document) == list(committed) and list(document["grid"]) == list(committed["grid"])
     assert document["grid"]["pedestrians"] == [1, 8] and len(document["rows"]) == 2
-    assert [list(r) for r in document["rows"]] == [list(committed["rows"][0])] * 2
+    # the rows' keys are the committed ones, and the run-time check's count beside its misses
+    # (the committed run read them from where the episodes no longer keep them: always None)
+    assert [list(r) for r in document["rows"]] == [[*committed["rows"][0], "boxes_checked"]] * 2
+    assert all(r["boxes_missed"] is None and r["boxes_checked"] is None for r in document["rows"])  # dwa predicts none
     with open(out / "sweep.csv", newline="") as handle:
         ours = list(csv.DictReader(handle))
     with open(COMMITTED / "sweep.csv", newline="") as handle:
@@ -158,31 +158,23 @@ def test_a_small_pedestrian_sweep_writes_what_the_committed_sweep_holds(tmp_path
 
 def test_a_small_highway_sweep_writes_one_row_per_density_and_method(tmp_path, capsys):
     out = tmp_path / "highway"
-    code, stdout, err = run(
-        capsys,
-        "sweep",
-        "--scenario", "highway",
-        "--vehicles", "5,25",
-        "--methods", "dwa,nominal",
-        "--episodes", "1",
-        "--workers", "1",
-        "--no-progress",
-        "--out", out,
-    )  # fmt: skip
+    code, stdout, err = small_sweep(
+        capsys, out, "--scenario", "highway", "--vehicles", "2,5", "--methods", "dwa,nominal", "--episodes", "1"
+    )
     assert code == 0, err
     header = "| vehicles | method | failures / episodes | failure 95% CI | collisions | off road | timeouts |"
     assert header in stdout
-    assert re.search(r"\| 25 \| nominal \| \d/1 \| \[", stdout)
+    assert re.search(r"\| 5 \| nominal \| \d/1 \| \[", stdout)
     document = json.loads((out / "sweep.json").read_text())
     assert document["grid"] == {
         "scenario": "highway",
-        "vehicles": [5, 25],
+        "vehicles": [2, 5],
         "methods": ["dwa", "nominal"],
         "episodes": 1,
         "seed": 0,
     }
     rows = document["rows"]
-    assert [(r["vehicles"], r["method"]) for r in rows] == [(5, "dwa"), (5, "nominal"), (25, "dwa"), (25, "nominal")]
+    assert [(r["vehicles"], r["method"]) for r in rows] == [(2, "dwa"), (2, "nominal"), (5, "dwa"), (5, "nominal")]
     for r in rows:
         assert r["collisions"] + r["off_road"] + r["timeouts"] == r["failures"] == r["episodes"] - r["successes"]
         assert 0.0 <= r["failure_ci95"][0] <= r["failure_rate"] <= r["failure_ci95"][1] <= 1.0
@@ -190,8 +182,8 @@ def test_a_small_highway_sweep_writes_one_row_per_density_and_method(tmp_path, c
         episodes = list(csv.DictReader(handle))
     assert len(episodes) == 4 and list(episodes[0])[:4] == ["vehicles", "scenario", "method", "seed"]
     assert {(e["vehicles"], e["scenario"]) for e in episodes} == {
+        ("2", "highway[2 vehicles]"),
         ("5", "highway[5 vehicles]"),
-        ("25", "highway[25 vehicles]"),
     }
     assert (out / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -214,6 +206,16 @@ def test_a_tjunction_sweep_is_the_same_for_the_same_seed():
     assert [r["scenario"] for r in first[1]] == ["tjunction[300 veh/h]", "tjunction[1200 veh/h]"]
     assert {r["seed"] for r in first[1]} == {3}
     assert summary() == first
+
+
+@pytest.mark.parametrize(("scenario", "axis"), [("highway", {"vehicles": [2]}), ("tjunction", {"arrival_rate": [300]})])
+def test_the_robust_method_runs_a_driving_cell_and_its_boxes_are_counted(scenario, axis):
+    study = run_sweep(scenario=scenario, **axis, methods=["robust"], episodes=1, workers=1, progress=False)
+    (row,) = study["rows"]
+    (episode,) = study["records"]
+    assert row["boxes_checked"] == episode["boxes_checked"] > 0
+    assert row["boxes_missed"] == episode["boxes_missed"] == 0
+    assert f"{row['boxes_checked']} predicted boxes checked against the true states, 0 missed" in sweep_markdown(study)
 
 
 # ------------------------------------------------------------------ the density worlds
