@@ -1,5 +1,7 @@
 """``minimaxplan sweep``: where each method breaks, beyond the paper's worlds.
 
+Usage::
+
     minimaxplan sweep --scenario pedestrian --pedestrians 1,3,5,8 --velocity-uncertainty 0.1,0.3,0.6
                       --methods robust,dwa,teb --episodes N [--seed S] [--workers W] --out DIR
     minimaxplan sweep --scenario highway --vehicles 5,10,15,25 --episodes N --out DIR
@@ -272,7 +274,7 @@ SWEEP_WORLDS: dict[str, SweepWorld] = {
                 True,
                 0,
                 defaults=DEFAULT_VEHICLES,
-                help="other vehicles on the highway (HighwayScenario.vehicle_count)",
+                help="counts of other vehicles on the highway (HighwayScenario.vehicle_count)",
             ),
         ),
         DEFAULT_ROAD_METHODS,
@@ -858,9 +860,10 @@ def plot_sweep(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     -----
     The pedestrian sweep plots against the crowd size, one column per velocity
     uncertainty; a driving sweep against its density (vehicles, or arrival rate in
-    veh/h per direction), in one column. Each method's points are shifted sideways by a
-    little (at most 12% of the closest spacing of the x values) so that their intervals
-    do not hide one another.
+    veh/h per direction), in one column, with a tick at each swept value. Each method's
+    points are shifted sideways by a little (at most 12% of the closest spacing of the x
+    values) so that their intervals do not hide one another; the travel-time axis does
+    not reach below 0 s.
     """
     import matplotlib
 
@@ -904,12 +907,15 @@ def plot_sweep(study: dict, path: str | pathlib.Path) -> pathlib.Path:
         if column_axis is not None:
             axes[0, c].set_title(f"{column_axis.label} +-{column_axis.format(value)} {column_axis.unit} per axis")
         axes[1, c].set_xlabel(x_axis.title)
+        axes[1, c].set_xticks(xs, [x_axis.format(x) for x in xs])
         axes[0, c].grid(alpha=0.3)
         axes[1, c].grid(alpha=0.3)
     top = max((r["failure_ci95"][1] for r in study["rows"]), default=1.0)
     axes[0, 0].set_ylim(-0.02, min(1.02, 1.1 * top + 0.02))  # the rows share it (sharey)
     axes[0, 0].set_ylabel("failure rate (95% CI)")
     axes[1, 0].set_ylabel("travel time of successes, s (95% CI)")
+    if axes[1, 0].get_ylim()[0] < 0:  # a wide t interval of few successes reaches below 0 s
+        axes[1, 0].set_ylim(bottom=0.0)
     axes[0, 0].legend()
     fig.suptitle(f"Where each method breaks: {grid['scenario']} world, {grid['episodes']} episodes per point")
     fig.tight_layout()
@@ -986,8 +992,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="failure rate and travel time per method over crowd size and uncertainty, or traffic density",
         description="Run every method over a grid of variants of one world: pedestrian counts and velocity "
         "uncertainties of the pedestrian world, the number of vehicles on the highway, or the main-road "
-        "arrival rate at the T-junction; write the failure rate (exact 95%% interval) and the travel time "
-        "(95%% interval) per cell and method as a table, a plot, JSON and CSV. A run has EPISODES x cells x "
+        "arrival rate at the T-junction; write the failure rate (exact 95% interval) and the travel time "
+        "(95% interval) per cell and method as a table, a plot, JSON and CSV. A run has EPISODES x cells x "
         "methods episodes (20 x 4 x 3 x 3 = 720 for the pedestrian defaults with --episodes 20).",
         epilog="Exit codes: 0 done; 2 a bad option, an unknown method, an axis of another world (one line on "
         "stderr, before any episode runs).",
