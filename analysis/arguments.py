@@ -11,6 +11,7 @@ they use it.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import pathlib
 import sys
@@ -23,7 +24,10 @@ __all__ = [
     "EXIT_USAGE",
     "count",
     "count_list",
+    "number_list",
+    "distinct",
     "name_list",
+    "add_run_options",
     "output_directory",
     "output_file",
     "report_error",
@@ -169,6 +173,114 @@ def count_list(minimum: int = 1) -> Callable[[str], list[int]]:
 
     parse.__name__ = "comma-separated integers"
     return parse
+
+
+def number_list(
+    minimum: float = 0.0, *, strict: bool = False, maximum: float | None = None, unit: str = ""
+) -> Callable[[str], list[float]]:
+    """An argparse type: a comma-separated, non-empty list of finite numbers in a range.
+
+    Parameters
+    ----------
+    minimum : float
+        The smallest accepted value (excluded if ``strict``).
+    strict : bool
+        Refuse ``minimum`` itself.
+    maximum : float, optional
+        The largest accepted value (included).
+    unit : str
+        The values' unit, named in the messages (e.g. ``"m/s"``).
+
+    Returns
+    -------
+    callable
+        ``str -> list[float]``, raising `argparse.ArgumentTypeError` naming the first bad
+        item.
+    """
+    relation = f"{'>' if strict else '>='} {minimum:g}" + ("" if maximum is None else f" and <= {maximum:g}")
+    suffix = f" ({unit})" if unit else ""
+
+    def parse(text: str) -> list[float]:
+        values = [_number(item, text) for item in _items(text, f"numbers {relation}{suffix}")]
+        for item, value in zip(text.split(","), values):
+            below = value <= minimum if strict else value < minimum
+            if not math.isfinite(value) or below or (maximum is not None and value > maximum):
+                raise argparse.ArgumentTypeError(
+                    f"every value must be a finite number {relation}{suffix}, got {item.strip()!r}"
+                )
+        return values
+
+    parse.__name__ = "comma-separated numbers"
+    return parse
+
+
+def _items(text: str, what: str) -> list[str]:
+    """The comma-separated items of ``text``, stripped; an error naming ``what`` if there are none."""
+    items = [item.strip() for item in text.split(",")]
+    if any(items):
+        return items
+    raise argparse.ArgumentTypeError(f"expected comma-separated {what}, got {text!r}")
+
+
+def _number(item: str, text: str) -> float:
+    try:
+        return float(item)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {item!r} in {text!r}") from None
+
+
+def distinct(parse: Callable[[str], list]) -> Callable[[str], list]:
+    """An argparse type: the list type ``parse``, whose values must not repeat.
+
+    Parameters
+    ----------
+    parse : callable
+        A list type (`count_list`, `number_list`, `name_list`).
+
+    Returns
+    -------
+    callable
+        ``str -> list``, raising `argparse.ArgumentTypeError` (``values must not
+        repeat``) for a repeated value.
+    """
+
+    def checked(text: str) -> list:
+        values = parse(text)
+        if len(set(values)) != len(values):
+            raise argparse.ArgumentTypeError(f"values must not repeat, got {text!r}")
+        return values
+
+    checked.__name__ = getattr(parse, "__name__", "list")
+    return checked
+
+
+def add_run_options(
+    parser: argparse.ArgumentParser,
+    *,
+    episodes: int,
+    episodes_help: str,
+    seed_help: str = "world seed of the first episode (>= 0)",
+) -> None:
+    """Add the options of a command that runs seeded episodes in local processes.
+
+    ``--episodes`` (an integer >= 1), ``--seed`` (>= 0), ``--workers`` (>= 1; default
+    all cores) and ``--no-progress``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    episodes : int
+        The default of ``--episodes``.
+    episodes_help : str
+        Its help (what one episode count counts).
+    seed_help : str
+        The help of ``--seed``.
+    """
+    parser.add_argument("--episodes", type=count(1), default=episodes, help=episodes_help)
+    parser.add_argument("--seed", type=count(0), default=0, help=seed_help)
+    parser.add_argument("--workers", type=count(1), default=None, help="local processes (>= 1; default: all cores)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def name_list(text: str) -> list[str]:

@@ -15,6 +15,7 @@ disturbances.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,7 +23,13 @@ from scipy import ndimage
 
 from minimaxplan.models.errors import InputError, MinimaxplanError
 from minimaxplan.models.system import UncertainLinearSystem
-from minimaxplan.models.validation import as_choice, as_count, as_finite_array, check_instance
+from minimaxplan.models.validation import (
+    as_choice,
+    as_count,
+    as_finite_array,
+    as_positive_scalar,
+    check_instance,
+)
 
 from .geometry import CircularObstacles, MovingObstacles, fcl_disc_collisions
 from .rewards import GoalReward
@@ -34,6 +41,7 @@ __all__ = [
     "EpisodeOver",
     "WorldLayout",
     "PedestrianCrowd",
+    "crossing_crowd",
     "RobotWorld",
     "make_world",
     "generate_layout",
@@ -214,9 +222,46 @@ class PedestrianCrowd:
         return self.positions.shape[0]
 
 
-def _crowd(rng: np.random.Generator, count: int, start, goal) -> PedestrianCrowd:
-    """Pedestrians timed to cross the route near the robot's expected passage."""
+def crossing_crowd(rng: np.random.Generator, count: int, start, goal) -> PedestrianCrowd:
+    """``count`` pedestrians timed to cross the route from ``start`` to ``goal`` near the robot's passage.
+
+    The crowd of the pedestrian world (`make_world`), drawn from ``rng``: each
+    pedestrian crosses the segment at a fraction U[0.3, 0.8] of its length, from either
+    side, within ``PEDESTRIAN_CROSSING_SPREAD`` of the perpendicular, at a speed
+    ``U(PEDESTRIAN_SPEED)``, timed to arrive about when a robot at
+    ``CROSSING_TIMING_SPEED`` would, and starting at least 2 m plus its radius from
+    ``start``.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The stream the crowd is drawn from; it stays the crowd's (its heading walk).
+    count : int
+        Number of pedestrians (>= 0).
+    start, goal : array_like, shape (2,)
+        The robot's start and goal, m (distinct).
+
+    Returns
+    -------
+    PedestrianCrowd
+        The pedestrians at rest on their heading walk (deviations 0), radius
+        ``PEDESTRIAN_RADIUS``.
+
+    Raises
+    ------
+    InputError
+        If ``rng`` is not a `numpy.random.Generator`, ``count`` is not an integer >= 0,
+        or ``start`` and ``goal`` coincide.
+    DimensionError
+        If ``start`` or ``goal`` is not of shape (2,).
+    """
+    check_instance("rng", rng, np.random.Generator)
+    count = as_count("count", count, minimum=0)
+    start = as_finite_array("start", start, (2,))
+    goal = as_finite_array("goal", goal, (2,))
     route = goal - start
+    if not np.any(route):
+        raise InputError(f"start and goal must differ, got {start.tolist()} for both")
     length = np.linalg.norm(route)
     route_heading = np.arctan2(route[1], route[0])
     position_list: list[np.ndarray] = []
@@ -252,6 +297,23 @@ def _crowd(rng: np.random.Generator, count: int, start, goal) -> PedestrianCrowd
     )
 
 
+def _check_crowd(crowd: PedestrianCrowd, velocity_uncertainty: float) -> None:
+    """Raise unless ``crowd``'s arrays describe one set of pedestrians whose velocities respect the bound."""
+    m = as_finite_array("crowd.positions", crowd.positions, (None, 2)).shape[0]
+    for name, shape in (("announced", (m, 2)), ("speeds", (m,)), ("headings", (m,)), ("deviations", (m,))):
+        as_finite_array(f"crowd.{name}", getattr(crowd, name), shape)
+    radii = as_finite_array("crowd.radii", crowd.radii, (m,))
+    if np.any(radii <= 0):
+        raise InputError(f"crowd.radii must be > 0, got {radii.tolist()}")
+    check_instance("crowd.rng", crowd.rng, np.random.Generator)
+    error = np.abs(np.asarray(crowd.velocities) - np.asarray(crowd.announced))
+    if error.size and float(error.max()) > velocity_uncertainty:
+        raise InputError(
+            f"the crowd's true velocities lie up to {float(error.max()):.6g} m/s per axis from the announced ones, "
+            f"beyond velocity_uncertainty={velocity_uncertainty:g} m/s"
+        )
+
+
 class RobotWorld:
     """One seeded episode of robot navigation; see `make_world`.
 
@@ -275,6 +337,9 @@ class RobotWorld:
         The true state (px, py, vx, vy); starts at rest at ``start``.
     step_index
         Sub-steps applied so far; ``time = step_index * dt``.
+    velocity_uncertainty
+        Per-axis bound on the pedestrians' ``true - announced`` velocity that planners
+        are told, m/s (`PEDESTRIAN_VELOCITY_UNCERTAINTY`, or that of `with_crowd`).
     outcome
         "running", "goal", "collision" or "timeout"; ``done`` once it is not "running".
     measurement
@@ -301,19 +366,91 @@ class RobotWorld:
         pedestrian_rng = np.random.default_rng(pedestrian_seq)
         if kind == "pedestrian":
             count = int(pedestrian_rng.integers(PEDESTRIAN_COUNT[0], PEDESTRIAN_COUNT[1] + 1))
-            self.crowd = _crowd(pedestrian_rng, count, self.start, self.goal)
+            crowd = crossing_crowd(pedestrian_rng, count, self.start, self.goal)
         else:
-            self.crowd = _crowd(pedestrian_rng, 0, self.start, self.goal)
+            crowd = crossing_crowd(pedestrian_rng, 0, self.start, self.goal)
         self.goal_reward = GoalReward(self.goal, obstacles=self.obstacles, robot_radius=params.robot_radius)
-        self._initial_pedestrians = (self.crowd.positions.copy(), self.crowd.announced.copy())
         self.state = np.concatenate([self.start, np.zeros(2)])
         self.step_index = 0
-        # Only the pedestrians' radii matter here: their true positions are passed at evaluation.
-        self._true_reward = (
-            self.goal_reward.with_obstacles(moving_obstacles=self.pedestrians) if len(self.crowd) else self.goal_reward
-        )
+        self.velocity_uncertainty = PEDESTRIAN_VELOCITY_UNCERTAINTY
+        self._install_crowd(crowd)
         self.outcome = "running"
         self.last_disturbance = np.zeros(2)
+
+    def _install_crowd(self, crowd: PedestrianCrowd) -> None:
+        self.crowd = crowd
+        self._initial_pedestrians = (crowd.positions.copy(), crowd.announced.copy())
+        # Only the pedestrians' radii matter here: their true positions are passed at evaluation.
+        self._true_reward = (
+            self.goal_reward.with_obstacles(moving_obstacles=self.pedestrians) if len(crowd) else self.goal_reward
+        )
+
+    @classmethod
+    def with_crowd(
+        cls,
+        kind: str,
+        seed: int,
+        crowd: PedestrianCrowd | Callable[[np.ndarray, np.ndarray], PedestrianCrowd],
+        *,
+        velocity_uncertainty: float = PEDESTRIAN_VELOCITY_UNCERTAINTY,
+        measurement: str = "uniform",
+        params: RobotParameters = DEFAULT_ROBOT,
+    ) -> RobotWorld:
+        """The world of ``kind`` and ``seed`` with the pedestrians of ``crowd`` instead of its own.
+
+        Layout, friction, disturbances and measurement noise are those of
+        ``make_world(kind, seed, measurement=measurement, params=params)``; only the
+        crowd and the velocity uncertainty that planners are told
+        (`pedestrians`) differ.
+
+        Parameters
+        ----------
+        kind : {"static", "pedestrian"}
+            The world whose layout is kept.
+        seed : int
+            World seed (>= 0).
+        crowd : PedestrianCrowd or callable
+            The pedestrians, or a function ``(start, goal) -> PedestrianCrowd`` called
+            with (copies of) the world's start and goal, e.g. a `crossing_crowd` with a
+            stream of the caller's. The world owns it from here on (it advances it).
+        velocity_uncertainty : float
+            Per-axis bound u on ``true - announced`` velocity that the world announces,
+            m/s (finite, >= 0). The crowd's heading walk must keep its true velocities
+            within it at all times, or the predicted boxes are not sound; a crowd whose
+            current velocities already leave it is refused.
+        measurement : {"uniform", "gaussian"}
+            As in `make_world`.
+        params : RobotParameters
+            As in `make_world`.
+
+        Returns
+        -------
+        RobotWorld
+            A new episode whose ``crowd`` is the given one and whose
+            ``velocity_uncertainty`` is ``velocity_uncertainty``.
+
+        Raises
+        ------
+        InputError
+            For an argument of `make_world` out of range, a ``crowd`` that is neither a
+            `PedestrianCrowd` nor a callable returning one, a velocity uncertainty that
+            is negative or not finite, non-finite crowd arrays, radii <= 0, or current
+            velocities farther than ``velocity_uncertainty`` from the announced ones.
+        DimensionError
+            If the crowd's arrays do not describe the same number of pedestrians
+            (positions and announced (m, 2), speeds, headings, deviations and radii (m,)).
+        """
+        bound = as_positive_scalar("velocity_uncertainty", velocity_uncertainty, allow_zero=True)
+        if not isinstance(crowd, PedestrianCrowd) and not callable(crowd):
+            raise InputError(f"crowd must be a PedestrianCrowd or a callable, got {type(crowd).__name__}")
+        world = cls(kind, seed, measurement=measurement, params=params)
+        if not isinstance(crowd, PedestrianCrowd):
+            crowd = crowd(world.start.copy(), world.goal.copy())
+            check_instance("crowd", crowd, PedestrianCrowd, "a PedestrianCrowd (returned by the crowd callable)")
+        _check_crowd(crowd, bound)
+        world.velocity_uncertainty = bound
+        world._install_crowd(crowd)
+        return world
 
     # ------------------------------------------------------------ observation
     @property
@@ -339,14 +476,15 @@ class RobotWorld:
     @property
     def pedestrians(self) -> MovingObstacles:
         """What planners may know of the pedestrians now: current positions (observed
-        exactly), announced velocities, per-axis velocity uncertainty, radii, as
+        exactly), announced velocities, per-axis velocity uncertainty
+        (`velocity_uncertainty`), radii, as
         `MovingObstacles` whose ``time0`` is the current sub-step index (the boxes are
         sound from here on)."""
         return MovingObstacles(
             self.crowd.positions.copy(),
             self.crowd.announced.copy(),
             self.crowd.radii.copy(),
-            velocity_uncertainty=PEDESTRIAN_VELOCITY_UNCERTAINTY,
+            velocity_uncertainty=self.velocity_uncertainty,
             dt=self.params.dt,
             time0=self.step_index,
         )
