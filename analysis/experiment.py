@@ -26,6 +26,7 @@ from scipy import stats
 from minimaxplan.models.errors import InputError, MinimaxplanError
 from minimaxplan.models.validation import as_count
 
+from .driving_table import write_driving_table
 from .episode import DEFAULT_CONFIG, EpisodeJob, EpisodeRecord, LoopConfig, make_job, run_job
 from .registry import resolve, scenario_factory
 
@@ -301,7 +302,7 @@ def markdown_table(summary: Sequence[dict]) -> str:
 
 
 def write_outputs(result: ExperimentResult, out_dir: str | os.PathLike) -> pathlib.Path:
-    """Write summary.json, episodes.csv and table.md into ``out_dir``; returns its path."""
+    """Write summary.json, episodes.csv and table.md (and table4.md for driving runs) into ``out_dir``; returns its path."""
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.json").write_text(json.dumps(list(result.summary), indent=2, allow_nan=True) + "\n")
@@ -315,6 +316,7 @@ def write_outputs(result: ExperimentResult, out_dir: str | os.PathLike) -> pathl
         + assumption4_note(result.records)
         + f"\nWall time of the run: {result.wall_time_s:.1f} s\n"
     )
+    write_driving_table(rows, out)
     return out
 
 
