@@ -321,21 +321,19 @@ def _run(args: argparse.Namespace) -> int:
     from .registry import UnknownScenario, UnsupportedScenario
 
     road = args.scenario in ROAD_SCENARIOS
+    samples: Sequence[int] = DEFAULT_SAMPLES
+    episodes, horizon = DEFAULT_EPISODES, DEFAULT_HORIZON
+    out = pathlib.Path("out/suboptimality")
     if road:
         from . import road_suboptimality as study_module
 
-        defaults = (
-            study_module.ROAD_DEFAULT_SAMPLES,
-            study_module.ROAD_DEFAULT_EPISODES,
-            study_module.ROAD_DEFAULT_HORIZON,
-            pathlib.Path(f"out/suboptimality-{args.scenario}"),
-        )
-    else:
-        defaults = (DEFAULT_SAMPLES, DEFAULT_EPISODES, DEFAULT_HORIZON, pathlib.Path("out/suboptimality"))
-    samples, episodes, horizon, out = (
-        given if given is not None else default
-        for given, default in zip((args.samples, args.episodes, args.horizon, args.out), defaults, strict=True)
-    )
+        samples = study_module.ROAD_DEFAULT_SAMPLES
+        episodes, horizon = study_module.ROAD_DEFAULT_EPISODES, study_module.ROAD_DEFAULT_HORIZON
+        out = pathlib.Path(f"out/suboptimality-{args.scenario}")
+    samples = samples if args.samples is None else args.samples
+    episodes = episodes if args.episodes is None else args.episodes
+    horizon = horizon if args.horizon is None else args.horizon
+    out = out if args.out is None else pathlib.Path(args.out)
     try:
         if road:
             study = study_module.road_suboptimality_study(
@@ -363,7 +361,6 @@ def _run(args: argparse.Namespace) -> int:
         return report_error("suboptimality", exc, option="--scenario")
     except MinimaxplanError as exc:
         return report_error("suboptimality", exc)
-    out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "suboptimality.json").write_text(json.dumps(study, indent=2) + "\n")
     (out / "suboptimality.md").write_text(text)

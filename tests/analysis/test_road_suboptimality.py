@@ -72,6 +72,10 @@ def _step_episode(world, method, decisions: int) -> None:
             x = x_next
 
 
+def _boxes(belief) -> tuple:
+    return (belief.theta_a.low.tolist(), belief.theta_a.high.tolist(), belief.theta_b.low.tolist(), belief.theta_b.high.tolist())
+
+
 @pytest.mark.parametrize("kind", ["highway", "tjunction"])
 def test_the_learner_is_frozen_after_the_warm_up(kind):
     n = 3
@@ -85,19 +89,47 @@ def test_the_learner_is_frozen_after_the_warm_up(kind):
     assert learner.step == n
     # every vehicle in view throughout the warm-up was seen at its N + 1 sub-steps: N transitions
     assert max(len(track.states) for track in learner.tracks.values()) == n + 1
-    frozen = {a: b.to_dict() for a, b in method.learner.beliefs().items()}
+    frozen = {a: b.to_dict() for a, b in method.frozen_learner.frozen.items()}
     assert frozen and frozen == {a: b.to_dict() for a, b in learner.beliefs().items()}
     _step_episode(world, method, 2)
     assert world.world.step_index == n + 2 * world.substeps
-    assert learner.step == n  # not fed: the episode's measurements were ignored
-    assert {a: b.to_dict() for a, b in method.learner.beliefs().items()} == frozen
+    assert learner.step == n  # not fed: the episode's measurements taught it nothing
     assert {a: b.to_dict() for a, b in learner.beliefs(agents=list(frozen)).items()} == frozen
+    # the beliefs the last decision forecast under: the frozen theta boxes, placed on the measurement
+    used = method.learner.beliefs()
+    assert used and set(used) <= set(frozen)
+    for agent, belief in used.items():
+        made = method.frozen_learner.frozen[agent]
+        assert _boxes(belief) == _boxes(made)
+        if kind == "tjunction":
+            assert set(belief.routes) <= set(made.routes)
     report = method.report()
     assert report["frozen_step"] == report["learner_step"] == n
     assert len(report["decisions"]) == 2
     assert report["frozen_beliefs"] == [frozen[a] for a in sorted(frozen)]
     with pytest.raises(InputError, match="frozen"):
         method.learner.observe(world.measure())
+
+
+def test_frozen_beliefs_follow_the_vehicles_lanes_with_the_prior_geometry():
+    """A lane change after the freeze stays covered: the lanes are the prior's at the current measurement."""
+    from minimaxplan.scenarios.traffic_models import prior_belief
+
+    scenario = WarmedRoadScenario("highway", 10)
+    world = scenario.make_world(0, DEFAULT_CONFIG)
+    method = FrozenRobustMethod(scenario, DEFAULT_CONFIG)
+    method.start(world)
+    observation = world.measure()
+    method.frozen_learner.see(observation)
+    used = method.learner.beliefs()
+    assert used
+    for row, agent in enumerate(observation.ids):
+        if int(agent) in used:
+            prior = prior_belief(int(agent), observation.vehicles[row], world.world.road, world.world.scenario)
+            assert (used[int(agent)].lanes, used[int(agent)].routes) == (prior.lanes, prior.routes)
+    # the frozen lanes themselves were narrower for some vehicle (what missed boxes before)
+    frozen = method.frozen_learner.frozen
+    assert any(len(frozen[a].lanes) < len(used[a].lanes) for a in used)
 
 
 def test_an_unfrozen_learner_would_have_changed():
