@@ -399,8 +399,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--scenario",
         default=ROBOT_SCENARIO,
-        help=f"the world: a robot scenario (default: {ROBOT_SCENARIO}) or a road world "
-        f"({', '.join(ROAD_SCENARIOS)})",
+        help=f"the world: a robot scenario (default: {ROBOT_SCENARIO}) or a road world ({', '.join(ROAD_SCENARIOS)})",
     )
     parser.add_argument(
         "--samples",

@@ -73,7 +73,12 @@ def _step_episode(world, method, decisions: int) -> None:
 
 
 def _boxes(belief) -> tuple:
-    return (belief.theta_a.low.tolist(), belief.theta_a.high.tolist(), belief.theta_b.low.tolist(), belief.theta_b.high.tolist())
+    return (
+        belief.theta_a.low.tolist(),
+        belief.theta_a.high.tolist(),
+        belief.theta_b.low.tolist(),
+        belief.theta_b.high.tolist(),
+    )
 
 
 @pytest.mark.parametrize("kind", ["highway", "tjunction"])
@@ -148,9 +153,7 @@ def test_an_unfrozen_learner_would_have_changed():
     assert learner.step == 13 and frozen.frozen_step == 3
     now = learner.beliefs(agents=list(frozen.frozen))
     assert any(now[a].to_dict() != frozen.frozen[a].to_dict() for a in frozen.frozen)
-    assert {a: b.to_dict() for a, b in frozen.beliefs().items()} == {
-        a: b.to_dict() for a, b in frozen.frozen.items()
-    }
+    assert {a: b.to_dict() for a, b in frozen.beliefs().items()} == {a: b.to_dict() for a, b in frozen.frozen.items()}
 
 
 def test_the_oracle_and_the_robust_method_start_from_the_same_warm_up_state():
@@ -225,3 +228,38 @@ def test_the_study_rejects_bad_arguments_before_any_episode(no_work, kwargs, mes
 def test_a_warm_up_needs_a_positive_length():
     with pytest.raises(InputError, match="warmup"):
         WarmedRoadScenario("highway", 0)
+
+
+def test_the_scenario_option_picks_the_study(tmp_path, capsys, monkeypatch):
+    """The default stays the robot's study (no scenario passed); a robot name is passed on; a road name goes to the road study."""
+    from minimaxplan.analysis import suboptimality
+
+    calls = []
+
+    def robot(samples, **kwargs):
+        calls.append(("robot", list(samples), kwargs))
+        rows = [{"n": n, "mean": 1.0, "max": 1.0, "min": 1.0, "per_episode": [1.0], "failures": 0} for n in samples]
+        fit = suboptimality.fit_trend([r["n"] for r in rows], [r["mean"] for r in rows])
+        return {"scenario": "x", "episodes": 1, "horizon_decisions": 1, "seed": 0, "rows": rows, "fit": fit}
+
+    def road(kind, samples, **kwargs):
+        calls.append((kind, list(samples), kwargs))
+        study = robot(samples)
+        calls.pop()
+        for row in study["rows"]:
+            row.update(
+                oracle_failures=0, robust_speed=1.0, oracle_speed=2.0, boxes_checked=1, boxes_missed=0, warmup_ended=0
+            )
+        return {**study, "warmup": "the ego holds IDLE"}
+
+    monkeypatch.setattr(suboptimality, "suboptimality_study", robot)
+    monkeypatch.setattr(study_module, "road_suboptimality_study", road)
+    for argv in ([], ["--scenario", "static"], ["--scenario", "pedestrian"], ["--scenario", "tjunction"]):
+        code, _, err = run(capsys, "suboptimality", *argv, "--samples", "2,5", "--out", tmp_path)
+        assert code == 0, err
+    assert [c[0] for c in calls] == ["robot", "robot", "robot", "tjunction"]
+    assert "scenario" not in calls[0][2] and "scenario" not in calls[1][2]
+    assert calls[2][2]["scenario"] == "pedestrian"
+    assert (calls[0][2]["episodes"], calls[0][2]["horizon"]) == (20, 24)
+    assert (calls[3][2]["episodes"], calls[3][2]["horizon"]) == (10, 10)
+    assert "robust speed" in (tmp_path / "suboptimality.md").read_text()
