@@ -30,14 +30,22 @@ __all__ = [
     "fit_trend",
     "degenerate_fit",
     "plot_study",
+    "draw_suboptimality",
     "markdown",
     "register",
     "DEFAULT_SAMPLES",
+    "DEFAULT_EPISODES",
+    "DEFAULT_HORIZON",
+    "ROAD_SCENARIOS",
     "TREND_PARAMETERS",
 ]
 
 #: The values of N of the default study.
 DEFAULT_SAMPLES = (2, 5, 10, 20, 50, 100, 200, 400)
+#: Episodes per N of the default study.
+DEFAULT_EPISODES = 20
+#: Decisions per episode of the default study.
+DEFAULT_HORIZON = 24
 #: The number of parameters (a, b) of the trend ``a + b log(N) / N``.
 TREND_PARAMETERS = 2
 
@@ -112,9 +120,9 @@ def degenerate_fit(ns: Sequence[float], values: Sequence[float]) -> str | None:
 def suboptimality_study(
     samples: Iterable[int] = DEFAULT_SAMPLES,
     *,
-    episodes: int = 20,
+    episodes: int = DEFAULT_EPISODES,
     seed: int = 0,
-    horizon: int = 24,
+    horizon: int = DEFAULT_HORIZON,
     scenario: str = "static",
     workers: int | None = None,
     progress: bool = True,
@@ -232,13 +240,34 @@ def plot_study(study: dict, path: str | pathlib.Path) -> pathlib.Path:
         ``path``.
     """
     import matplotlib
-    import numpy as np
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    n = np.array([r["n"] for r in study["rows"]], dtype=float)
     fig, ax = plt.subplots(figsize=(6, 4))
+    draw_suboptimality(ax, study)
+    ax.set_title(f"Suboptimality over {study['horizon_decisions']} decisions, {study['episodes']} episodes")
+    fig.tight_layout()
+    out = pathlib.Path(path)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def draw_suboptimality(ax: Any, study: dict) -> None:
+    """Draw a study's mean and max suboptimality against N, and its trend or warning, on ``ax``.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        The axes (log N on x); no title is set.
+    study : dict
+        A study with ``rows`` (``n``, ``mean``, ``max``) and ``fit`` (`fit_trend`), as
+        `suboptimality_study` and `road_suboptimality.road_suboptimality_study` return.
+    """
+    import numpy as np
+
+    n = np.array([r["n"] for r in study["rows"]], dtype=float)
     ax.plot(n, [r["mean"] for r in study["rows"]], "o-", label="mean over episodes")
     ax.plot(n, [r["max"] for r in study["rows"]], "s--", label="max over episodes")
     fit = study["fit"]
@@ -250,13 +279,7 @@ def plot_study(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     ax.set_xscale("log")
     ax.set_xlabel("N, transitions observed before planning")
     ax.set_ylabel("oracle return - robust return")
-    ax.set_title(f"Suboptimality over {study['horizon_decisions']} decisions, {study['episodes']} episodes")
     ax.legend()
-    fig.tight_layout()
-    out = pathlib.Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
 
 
 def markdown(study: dict) -> str:
@@ -285,28 +308,69 @@ def markdown(study: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: The worlds of the road study (`minimaxplan.scenarios.road_world.ROAD_WORLD_KINDS`,
+#: named here so that ``--help`` imports neither numpy nor the road modules).
+ROAD_SCENARIOS = ("highway", "tjunction")
+#: The robot's world of the default study.
+ROBOT_SCENARIO = "static"
+
+
 def _run(args: argparse.Namespace) -> int:
     from minimaxplan.models import MinimaxplanError
 
+    from .registry import UnknownScenario, UnsupportedScenario
+
+    road = args.scenario in ROAD_SCENARIOS
+    samples: Sequence[int] = DEFAULT_SAMPLES
+    episodes, horizon = DEFAULT_EPISODES, DEFAULT_HORIZON
+    out = pathlib.Path("out/suboptimality")
+    if road:
+        from . import road_suboptimality as study_module
+
+        samples = study_module.ROAD_DEFAULT_SAMPLES
+        episodes, horizon = study_module.ROAD_DEFAULT_EPISODES, study_module.ROAD_DEFAULT_HORIZON
+        out = pathlib.Path(f"out/suboptimality-{args.scenario}")
+    samples = samples if args.samples is None else args.samples
+    episodes = episodes if args.episodes is None else args.episodes
+    horizon = horizon if args.horizon is None else args.horizon
+    out = out if args.out is None else pathlib.Path(args.out)
     try:
-        study = suboptimality_study(
-            args.samples,
-            episodes=args.episodes,
-            seed=args.seed,
-            horizon=args.horizon,
-            workers=args.workers,
-            progress=not args.no_progress,
-        )
+        if road:
+            study = study_module.road_suboptimality_study(
+                args.scenario,
+                samples,
+                episodes=episodes,
+                seed=args.seed,
+                horizon=horizon,
+                workers=args.workers,
+                progress=not args.no_progress,
+            )
+            text = study_module.road_markdown(study)
+        else:
+            study = suboptimality_study(
+                samples,
+                episodes=episodes,
+                seed=args.seed,
+                horizon=horizon,
+                workers=args.workers,
+                progress=not args.no_progress,
+                **({} if args.scenario == ROBOT_SCENARIO else {"scenario": args.scenario}),
+            )
+            text = markdown(study)
+    except (UnknownScenario, UnsupportedScenario) as exc:
+        return report_error("suboptimality", exc, option="--scenario")
     except MinimaxplanError as exc:
         return report_error("suboptimality", exc)
-    out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "suboptimality.json").write_text(json.dumps(study, indent=2) + "\n")
-    (out / "suboptimality.md").write_text(markdown(study))
-    plot_study(study, out / "suboptimality.png")
+    (out / "suboptimality.md").write_text(text)
+    if road:
+        study_module.plot_road_study(study, out / "suboptimality.png")
+    else:
+        plot_study(study, out / "suboptimality.png")
     if study["fit"].get("warning") is not None:
         print(f"minimaxplan suboptimality: warning: {study['fit']['warning']}", file=sys.stderr)
-    print(markdown(study))
+    print(text)
     print(f"outputs written to {out}/")
     return 0
 
@@ -324,21 +388,45 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="Figure 6: suboptimality against the number of samples N",
         description="For each N, run EPISODES robust episodes that learn from N prior transitions, "
         "and EPISODES oracle episodes on the same worlds; report the oracle's return minus the robust "
-        "planner's. A run has EPISODES x (1 + number of values of N) episodes (180 with the defaults).",
+        "planner's. A run has EPISODES x (1 + number of values of N) episodes (180 with the defaults). "
+        "With --scenario highway or tjunction (the road worlds), each world first runs N sub-steps with "
+        "the ego holding IDLE; the robust method learns from those N transitions per vehicle, then its "
+        "beliefs are frozen, and it and the oracle each drive HORIZON decisions from that same state "
+        "(EPISODES x 2 x number of values of N episodes; 120 with the road defaults); the outputs add "
+        "the failures of both, their mean speeds and the run-time check of the robust boxes.",
         epilog="Exit codes: 0 done; 2 a bad option (one line on stderr, before any episode runs).",
+    )
+    parser.add_argument(
+        "--scenario",
+        default=ROBOT_SCENARIO,
+        help=f"the world: a robot scenario (default: {ROBOT_SCENARIO}) or a road world ({', '.join(ROAD_SCENARIOS)})",
     )
     parser.add_argument(
         "--samples",
         type=count_list(1),
-        default=list(DEFAULT_SAMPLES),
-        help=f"comma-separated values of N, each >= 1 (default: {','.join(map(str, DEFAULT_SAMPLES))})",
+        default=None,
+        help=f"comma-separated values of N, each >= 1 (default: {','.join(map(str, DEFAULT_SAMPLES))}); "
+        "the road worlds: 1,2,5,10,20,50",
     )
-    parser.add_argument("--episodes", type=count(1), default=20, help="episodes per value of N (>= 1)")
-    parser.add_argument("--horizon", type=count(1), default=24, help="decisions per episode (>= 1)")
+    parser.add_argument(
+        "--episodes",
+        type=count(1),
+        default=None,
+        help=f"episodes per value of N, >= 1 (default: {DEFAULT_EPISODES}); the road worlds: 10",
+    )
+    parser.add_argument(
+        "--horizon",
+        type=count(1),
+        default=None,
+        help=f"decisions per episode, >= 1 (default: {DEFAULT_HORIZON}); the road worlds: 10",
+    )
     parser.add_argument("--seed", type=count(0), default=0, help="world seed of the first episode (>= 0)")
     parser.add_argument("--workers", type=count(1), default=None, help="local processes (>= 1; default: all cores)")
     parser.add_argument(
-        "--out", type=output_directory, default=pathlib.Path("out/suboptimality"), help="output directory"
+        "--out",
+        type=output_directory,
+        default=None,
+        help="output directory (default: out/suboptimality); the road worlds: out/suboptimality-SCENARIO",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=_run)
