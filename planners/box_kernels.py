@@ -43,15 +43,15 @@ from ..kernels.reward_protocol import (
 
 __all__ = ["IntervalKernel", "SCRATCH_ROWS", "propagate", "propagate_into", "scratch_width", "stack_rewards_kernel"]
 
-# numba's disk cache checks only a function's own source file: the kernels below inline
-# `box_primitives`, so they close over its digest and recompile when it changes.
+# numba's disk cache checks only a function's own source file: the kernels below call into
+# `box_primitives` (compiled into their cached code), so they close over its digest and recompile when it changes.
 _PRIMITIVES_VERSION = sources_digest(box_primitives.__file__)
 
-# The box code's one compiled body (`_step`) is an internal function: no Python wrapper, no
-# reference counting (it allocates nothing). Its small helpers are inlined into it by numba;
-# nothing larger is (numba's inliner copies the callee's IR block by block with its whole
-# variable scope: inlining the box code into `substep` and `propagate` took 15 s of a 23 s
-# cold start, see benchmarks/bench_cold_start.py).
+# The box code is compiled once, as one internal function (`_step`), with its helpers as internal
+# functions too: no Python wrapper, no reference counting (they allocate nothing), no numba inlining
+# (LLVM inlines them). numba's inliner (``inline="always"``) copies the callee's IR block by block with
+# its whole variable scope: inlining the box code into `substep` and `propagate` took 15 s of a 23 s cold
+# start, and gave a slower kernel (see benchmarks/bench_cold_start.py).
 _INTERNAL = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True, "_nrt": False}
 
 
@@ -84,7 +84,7 @@ IntervalKernel.__doc__ = (
 )
 
 
-@njit(inline="always")
+@njit(**_INTERNAL)
 def _vertex_bound(z, columns, out, total):
     """``out[j] = max_v sum_i columns[v, i, j] z[i]``: the box over k vertex matrices (columns (k, 2p, 2p)).
 
@@ -106,7 +106,7 @@ def _vertex_bound(z, columns, out, total):
             out[j] = _maximum(out[j], total[j])
 
 
-@njit(inline="always")
+@njit(**_INTERNAL)
 def _add_products(columns, vector, out):
     """``out[j] += sum_i columns[i, j] vector[i]``, the sum over i in order."""
     for i in range(columns.shape[0]):
@@ -115,7 +115,7 @@ def _add_products(columns, vector, out):
             out[j] += columns[i, j] * vi
 
 
-@njit(inline="always")
+@njit(**_INTERNAL)
 def _magnitudes(z, mag):
     """``mag[i] = max(|lower_i|, |upper_i|)``, a bound on |x_i| over the box (NaN propagates)."""
     p = mag.shape[0]
@@ -131,8 +131,8 @@ def _step(z, m, slot, a, core, out, error, scratch, linear, finish):
     action slot ``slot``, and ``error`` (p,) its rounding bound before the drift. With
     ``finish``: the rest, on ``out`` (``error`` read only): the drift, the bounds, the
     saturation path. `substep` runs both; `propagate`'s open loop without saturation
-    runs the first part once per hypothesis and the second per action. One compiled
-    function for both (its small helpers inlined), so the box code compiles once.
+    runs the first part once per hypothesis and the second per action: one compiled
+    function for every caller, so the box code compiles once.
     """
     p = z.shape[0] // 2
     mag = scratch[4, :p]  # the box's magnitudes (the saturation path reads them)
@@ -224,8 +224,6 @@ def _step(z, m, slot, a, core, out, error, scratch, linear, finish):
     for j in range(p):
         out[j] = _minimum(out[j], open_box[j] + w[m, j] + through[j] + open_rounding[j])
         out[p + j] = _minimum(out[p + j], open_box[p + j] + w[m, p + j] + through[p + j] + open_rounding[j])
-
-
 
 
 def _make_substep(version: int):
