@@ -27,6 +27,7 @@ from __future__ import annotations
 import functools
 import math
 from collections import namedtuple
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -52,7 +53,7 @@ _PRIMITIVES_VERSION = sources_digest(box_primitives.__file__)
 # (LLVM inlines them). numba's inliner (``inline="always"``) copies the callee's IR block by block with
 # its whole variable scope: inlining the box code into `substep` and `propagate` took 15 s of a 23 s cold
 # start, and gave a slower kernel (see benchmarks/bench_cold_start.py).
-_INTERNAL = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True, "_nrt": False}
+_INTERNAL: dict[str, Any] = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True, "_nrt": False}
 
 
 IntervalKernel = namedtuple(
