@@ -51,8 +51,8 @@ _PRIMITIVES_VERSION = sources_digest(box_primitives.__file__)
 # The box code is compiled once, as one internal function (`_step`), with its helpers as internal
 # functions too: no Python wrapper, no reference counting (they allocate nothing), no numba inlining
 # (LLVM inlines them). numba's inliner (``inline="always"``) copies the callee's IR block by block with
-# its whole variable scope: inlining the box code into `substep` and `propagate` took 15 s of a 23 s cold
-# start, and gave a slower kernel (see benchmarks/bench_cold_start.py).
+# its whole variable scope: compiling `substep` and `propagate` with the box code inlined into each took
+# 18.6 s of the first plan's 28.4 s of CPU, and gave a slower kernel (see benchmarks/bench_cold_start.py).
 _INTERNAL: dict[str, Any] = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True, "_nrt": False}
 
 
