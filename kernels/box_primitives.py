@@ -7,7 +7,9 @@ Every compiled box computation of the project (the planner's interval arithmetic
 here, so that the compiled and the numpy-facing forms perform the same floating-point
 operations.
 
-All functions are ``numba.njit``; the scalar ones are inlined into their callers.
+All functions are ``numba.njit``. The scalar ones are ordinary compiled functions, which LLVM inlines
+into their compiled callers (not ``inline="always"``: numba's own inliner copies the callee's IR at each
+call site, which cost seconds of the first run's compile, see benchmarks/bench_cold_start.py).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from numba import njit
 __all__ = ["box_gap_sq", "box_gaps_sq", "maximum", "minimum"]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def maximum(a: float, b: float) -> float:
     """``np.maximum`` of two floats: the larger, NaN if either is NaN.
 
@@ -34,7 +36,7 @@ def maximum(a: float, b: float) -> float:
     return a if (a >= b or a != a) else b
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def minimum(a: float, b: float) -> float:
     """``np.minimum`` of two floats: the smaller, NaN if either is NaN.
 
@@ -51,7 +53,7 @@ def minimum(a: float, b: float) -> float:
     return a if (a <= b or a != a) else b
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def box_gap_sq(low_x, low_y, high_x, high_y, other_low_x, other_low_y, other_high_x, other_high_y) -> float:
     """The squared distance between two planar boxes (0 when they meet): the one box-disc gap.
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 import functools
 import math
 from collections import namedtuple
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -41,11 +42,18 @@ from ..kernels.reward_protocol import (
     sources_digest,
 )
 
-__all__ = ["IntervalKernel", "propagate", "stack_rewards_kernel"]
+__all__ = ["IntervalKernel", "SCRATCH_ROWS", "propagate", "propagate_into", "scratch_width", "stack_rewards_kernel"]
 
-# numba's disk cache checks only a function's own source file: the kernels below inline
-# `box_primitives`, so they close over its digest and recompile when it changes.
+# numba's disk cache checks only a function's own source file: the kernels below call into
+# `box_primitives` (compiled into their cached code), so they close over its digest and recompile when it changes.
 _PRIMITIVES_VERSION = sources_digest(box_primitives.__file__)
+
+# The box code is compiled once, as one internal function (`_step`), with its helpers as internal
+# functions too: no Python wrapper, no reference counting (they allocate nothing), no numba inlining
+# (LLVM inlines them). numba's inliner (``inline="always"``) copies the callee's IR block by block with
+# its whole variable scope: compiling `substep` and `propagate` with the box code inlined into each took
+# 18.6 s of the first plan's 28.4 s of CPU, and gave a slower kernel (see benchmarks/bench_cold_start.py).
+_INTERNAL: dict[str, Any] = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True, "_nrt": False}
 
 
 IntervalKernel = namedtuple(
@@ -77,7 +85,7 @@ IntervalKernel.__doc__ = (
 )
 
 
-@njit(cache=True, inline="always")
+@njit(**_INTERNAL)
 def _vertex_bound(z, columns, out, total):
     """``out[j] = max_v sum_i columns[v, i, j] z[i]``: the box over k vertex matrices (columns (k, 2p, 2p)).
 
@@ -99,7 +107,7 @@ def _vertex_bound(z, columns, out, total):
             out[j] = _maximum(out[j], total[j])
 
 
-@njit(cache=True, inline="always")
+@njit(**_INTERNAL)
 def _add_products(columns, vector, out):
     """``out[j] += sum_i columns[i, j] vector[i]``, the sum over i in order."""
     for i in range(columns.shape[0]):
@@ -108,7 +116,7 @@ def _add_products(columns, vector, out):
             out[j] += columns[i, j] * vi
 
 
-@njit(cache=True, inline="always")
+@njit(**_INTERNAL)
 def _magnitudes(z, mag):
     """``mag[i] = max(|lower_i|, |upper_i|)``, a bound on |x_i| over the box (NaN propagates)."""
     p = mag.shape[0]
@@ -116,21 +124,28 @@ def _magnitudes(z, mag):
         mag[i] = _maximum(abs(z[i]), abs(z[p + i]))
 
 
-@njit(cache=True, inline="always")
-def _linear_part(z, m, slot, core, out, error, scratch):
-    """``out = max_v Z(M_v) z`` for the closed loop's vertex matrices, ``error`` its rounding bound before the drift."""
-    closed, closed_error = core.closed, core.closed_error
+@njit(**_INTERNAL)
+def _step(z, m, slot, a, core, out, error, scratch, linear, finish):
+    """`substep`'s arithmetic on box ``z`` (2p,) of hypothesis m under controller a, in two parts.
+
+    With ``linear``: ``out = max_v Z(M_v) z`` for the closed loop's vertex matrices of
+    action slot ``slot``, and ``error`` (p,) its rounding bound before the drift. With
+    ``finish``: the rest, on ``out`` (``error`` read only): the drift, the bounds, the
+    saturation path. `substep` runs both; `propagate`'s open loop without saturation
+    runs the first part once per hypothesis and the second per action: one compiled
+    function for every caller, so the box code compiles once.
+    """
     p = z.shape[0] // 2
-    mag, total = scratch[4, :p], scratch[5, : 2 * p]
-    _magnitudes(z, mag)
-    _vertex_bound(z, closed[m, slot], out, total)
-    error[:] = 0.0
-    _add_products(closed_error[m, slot], mag, error)
-
-
-@njit(cache=True, inline="always")
-def _finish(z, m, a, core, out, error, scratch):
-    """The rest of `substep` after `_linear_part`: the drift, the bounds, the saturation path (``error`` is read only)."""
+    mag = scratch[4, :p]  # the box's magnitudes (the saturation path reads them)
+    if linear:
+        total = scratch[5, : 2 * p]
+        _magnitudes(z, mag)
+        _vertex_bound(z, core.closed[m, slot], out, total)
+        for j in range(p):
+            error[j] = 0.0
+        _add_products(core.closed_error[m, slot], mag, error)
+    if not finish:
+        return
     (
         closed,
         opened,
@@ -152,8 +167,7 @@ def _finish(z, m, a, core, out, error, scratch):
         input_error,
         tiny,
     ) = core
-    n = z.shape[0]
-    p = n // 2
+    n = 2 * p
     for j in range(p):
         bound = error[j] + drift_error[m, a, j]
         out[j] += drift[m, a, j] + bound
@@ -161,12 +175,13 @@ def _finish(z, m, a, core, out, error, scratch):
     if not saturating:
         return
     q = offsets.shape[1]
-    mag = scratch[4, :p]  # the box's magnitudes, from _linear_part
     kx = scratch[0, : 2 * q]
-    kx[:] = 0.0
+    for r in range(2 * q):
+        kx[r] = 0.0
     _add_products(gains[a], z, kx)  # [-(K x)_lo | (K x)_hi] over the box
     gain_rounding = scratch[7, :q]
-    gain_rounding[:] = tiny
+    for r in range(q):
+        gain_rounding[r] = tiny
     _add_products(gain_error[a], mag, gain_rounding)
     correction = scratch[1, : 2 * q]
     applied = scratch[2, : 2 * q]
@@ -186,10 +201,12 @@ def _finish(z, m, a, core, out, error, scratch):
     through = scratch[3, :n]
     input_mag = scratch[0, :q]  # kx is no longer needed
     _magnitudes(correction, input_mag)
-    through[:] = 0.0
+    for j in range(n):
+        through[j] = 0.0
     _add_products(inputs[m], correction, through)
     input_rounding = scratch[8, :p]
-    input_rounding[:] = tiny
+    for j in range(p):
+        input_rounding[j] = tiny
     _add_products(input_error[m], input_mag, input_rounding)
     for j in range(p):
         out[j] += through[j] + input_rounding[j]
@@ -197,7 +214,8 @@ def _finish(z, m, a, core, out, error, scratch):
     open_box = scratch[1, :n]  # the correction is no longer needed
     _vertex_bound(z, opened[m], open_box, scratch[5, :n])
     _magnitudes(applied, input_mag)
-    through[:] = 0.0
+    for j in range(n):
+        through[j] = 0.0
     _add_products(inputs[m], applied, through)
     open_rounding = scratch[8, :p]
     for j in range(p):
@@ -238,15 +256,84 @@ def _make_substep(version: int):
         one ulp outward. ``scratch`` is a (11, max(2p, 2q)) work array.
         """
         _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
-        n = z.shape[0]
-        error = scratch[6, : n // 2]
-        _linear_part(z, m, a if core.per_action else 0, core, out, error, scratch)
-        _finish(z, m, a, core, out, error, scratch)
+        slot = a if core.per_action else np.int64(0)
+        yes = np.bool_(True)  # not a literal: the same typing of `_step` as `propagate`'s
+        _step(z, m, slot, a, core, out, scratch[6, : z.shape[0] // 2], scratch, yes, yes)
 
     return njit(cache=True)(substep)
 
 
 substep = _make_substep(_PRIMITIVES_VERSION)
+
+
+#: The rows of the work array of `propagate_into` (its width: `scratch_width`).
+SCRATCH_ROWS = 11
+
+
+@njit(inline="always")
+def scratch_width(core, n_box):
+    """The width of `propagate_into`'s work array for boxes of ``n_box`` = 2p numbers: ``max(2p, 2q)``.
+
+    Parameters
+    ----------
+    core : IntervalKernel
+        The transition's arrays.
+    n_box : int
+        2p.
+
+    Returns
+    -------
+    int
+    """
+    return max(n_box, 2 * core.offsets.shape[1])
+
+
+@njit(inline="always")
+def propagate_into(z0, actions, core, stack, scratch):
+    """Every sub-step of every (hypothesis, action) from the boxes ``z0`` into ``stack`` (compiled code only).
+
+    `propagate` with the caller's work array: the compiled search allocates it once
+    per search, not once per expansion (numba inlines this loop into both callers).
+
+    Parameters
+    ----------
+    z0 : ndarray (R, 2p)
+        One box per hypothesis (R = M) or one shared box (R = 1).
+    actions : ndarray (n,) of int64
+        Controller indices.
+    core : IntervalKernel
+        The transition's arrays.
+    stack : ndarray (S, M, n, 2p)
+        Receives the box after each sub-step s.
+    scratch : ndarray (SCRATCH_ROWS, scratch_width(core, 2p))
+        Work array (overwritten).
+    """
+    n_sub, n_models, n_actions, n = stack.shape
+    # Open loop without saturation: the first sub-step's product is the same for every action
+    shared = not core.per_action and not core.saturating
+    base, base_error = scratch[9, :n], scratch[10, : n // 2]
+    error = scratch[6, : n // 2]
+    # an int64 and bools, not literals: one typing of `_step` for every call
+    no_slot, yes, no = np.int64(0), np.bool_(True), np.bool_(False)
+    for m in range(n_models):
+        start = z0[m if z0.shape[0] > 1 else 0]
+        if shared:
+            _step(start, m, no_slot, no_slot, core, base, base_error, scratch, yes, no)
+        for i in range(n_actions):
+            a = actions[i]
+            slot = a if core.per_action else no_slot
+            source = start
+            first = 0
+            if shared:
+                out = stack[0, m, i]
+                for j in range(n):
+                    out[j] = base[j]
+                _step(start, m, no_slot, a, core, out, base_error, scratch, no, yes)
+                source = out
+                first = 1
+            for s in range(first, n_sub):
+                _step(source, m, slot, a, core, stack[s, m, i], error, scratch, yes, yes)
+                source = stack[s, m, i]
 
 
 def _make_propagate(version: int):
@@ -257,34 +344,11 @@ def _make_propagate(version: int):
 
         ``z0`` (R, 2p) holds one box per hypothesis (R = M) or one shared box (R = 1);
         ``actions`` (n,) are controller indices; ``stack`` (S, M, n, 2p) receives the box
-        after each sub-step s.
+        after each sub-step s (`propagate_into` with a work array of its own).
         """
         _ = version  # ties numba's cache entry to the box primitives' source (see _PRIMITIVES_VERSION)
-        n_sub, n_models, n_actions, n = stack.shape
-        width = max(n, 2 * core.offsets.shape[1])
-        scratch = np.empty((11, width))
-        # Open loop without saturation: the first sub-step's product is the same for every action
-        shared = not core.per_action and not core.saturating
-        base, base_error = scratch[9, :n], scratch[10, : n // 2]
-        no_slot = np.int64(0)  # an int64, not a literal 0: one typing of the inlined `_linear_part` for both callers
-        for m in range(n_models):
-            start = z0[m if z0.shape[0] > 1 else 0]
-            if shared:
-                _linear_part(start, m, no_slot, core, base, base_error, scratch)
-            for i in range(n_actions):
-                a = actions[i]
-                source = start
-                first = 0
-                if shared:
-                    out = stack[0, m, i]
-                    for j in range(n):
-                        out[j] = base[j]
-                    _finish(start, m, a, core, out, base_error, scratch)
-                    source = out
-                    first = 1
-                for s in range(first, n_sub):
-                    substep(source, m, a, core, stack[s, m, i], scratch)
-                    source = stack[s, m, i]
+        scratch = np.empty((SCRATCH_ROWS, scratch_width(core, stack.shape[3])))
+        propagate_into(z0, actions, core, stack, scratch)
 
     return njit(cache=True)(propagate)
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..kernels.reward_protocol import compile_per_params_type, sources_digest
 from . import tree_ops
-from .box_kernels import pessimistic_rewards, propagate, reward_sources
+from .box_kernels import SCRATCH_ROWS, pessimistic_rewards, propagate_into, reward_sources, scratch_width
 
 # Module globals, not closure cells: numba keys a cached closure by its cells' pickles, and a
 # dispatcher's pickle differs from process to process (a closure over `tree_ops.reset` & co.
@@ -106,6 +106,7 @@ def search_kernel(params_type: type):
         n_models, n_actions = rewards.shape
         substeps, n_box = stack.shape[0], stack.shape[3]
         capacity = tree.parent.shape[0]
+        scratch = np.empty((SCRATCH_ROWS, scratch_width(kernel, n_box)))
         if not resume:
             reset(tree)
             root = boxes.root  # copied element by element: an array assignment compiles numba's shape-error formatting
@@ -124,7 +125,7 @@ def search_kernel(params_type: type):
                 if not terminal[leaf, m]:
                     alive = True
             if alive:
-                propagate(z[leaf], actions, kernel, stack)
+                propagate_into(z[leaf], actions, kernel, stack, scratch)
                 pessimistic_rewards(stack, time + depth[leaf] * substeps, params, rewards, new_terminal)
                 for a in range(n_actions):
                     for m in range(n_models):

@@ -62,8 +62,13 @@ REWARD_ERROR = -2
 # The operations are compiled without numba's reference counting (they allocate nothing): each read of
 # an array field of `TreeArrays` would otherwise cost an atomic increment and decrement, which the
 # compiled search pays on every expansion (measured: +15% on a whole search with M = |A| = 4, one
-# sub-step). The entry points called from Python (`start`, `expand_and_select`, `best_path`) keep it.
-_NO_REFCOUNTS: dict[str, Any] = {"cache": True, "_nrt": False}
+# sub-step). The entry points called from Python (`start`, `expand_and_select`, `best_path`) keep it, and
+# only they have a Python wrapper: the others are called from compiled code only (a wrapper unboxing the
+# 18 fields of `TreeArrays` is compiled for nothing; see benchmarks/bench_cold_start.py). The heap helpers
+# are not cached either: they are compiled only with a caller, into its cached code. None is inlined by
+# numba (its inliner copies the callee's IR with its whole scope, block by block: seconds of a cold start).
+_NO_REFCOUNTS: dict[str, Any] = {"cache": True, "_nrt": False, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+_INTERNAL: dict[str, Any] = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True, "_nrt": False}
 
 
 class TreeArrays(NamedTuple):
@@ -196,7 +201,7 @@ def grow(tree: TreeArrays, capacity: int, discounts: np.ndarray) -> TreeArrays:
 
 
 # ------------------------------------------------------------------ frontier
-@njit(**_NO_REFCOUNTS)
+@njit(**_INTERNAL)
 def _path_before(first, second, parent, action, depth):
     """Whether leaf ``first``'s action path is lexicographically before leaf ``second``'s."""
     d1, d2 = depth[first], depth[second]
@@ -216,7 +221,7 @@ def _path_before(first, second, parent, action, depth):
     return action[a] < action[b]
 
 
-@njit(cache=True, inline="always")
+@njit(**_INTERNAL)
 def _before(i, j, key, parent, action, depth):
     """Heap order: larger b-value (``key``) first, then the smaller action path."""
     if key[i] != key[j]:
@@ -224,7 +229,7 @@ def _before(i, j, key, parent, action, depth):
     return _path_before(i, j, parent, action, depth)
 
 
-@njit(cache=True, inline="always")
+@njit(**_INTERNAL)
 def _heap_push(heap, size, node, key, parent, action, depth):
     """Push ``node`` on ``heap[:size]``; returns the new size."""
     position = size
@@ -238,7 +243,7 @@ def _heap_push(heap, size, node, key, parent, action, depth):
     return size + 1
 
 
-@njit(cache=True, inline="always")
+@njit(**_INTERNAL)
 def _heap_pop(heap, size, key, parent, action, depth):
     """Pop the first node of ``heap[:size]``; returns it (the new size is ``size - 1``)."""
     top = heap[0]

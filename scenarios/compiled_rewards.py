@@ -91,7 +91,7 @@ def _is(params, cls) -> bool:
     return isinstance(params, types.BaseNamedTuple) and getattr(params, "instance_class", None) is cls
 
 
-@njit(inline="always")
+@njit
 def _collides(c, z, p, t):
     """beta = 0 somewhere in the box: static discs, then the moving discs' predicted boxes at t."""
     ix, iy = c.position[0], c.position[1]

@@ -142,3 +142,92 @@ def test_cached_kernels_close_over_plain_digests_only():
     for kernel in kernels:
         cells = [cell.cell_contents for cell in kernel.py_func.__closure__ or ()]
         assert cells and all(type(value) is int for value in cells), (kernel.py_func.__qualname__, cells)
+
+
+# Run in a fresh process with an empty cache: the robot's first plan (the benchmark's), listening to
+# numba's compile events; prints one JSON line: {qualified name: [signature, ...]} of what compiled.
+FIRST_PLAN = r"""
+import json
+from collections import defaultdict
+
+import numpy as np
+from numba.core import event
+
+compiled = defaultdict(list)
+
+
+class Listener(event.Listener):
+    def on_start(self, ev):
+        dispatcher = ev.data["dispatcher"]
+        compiled[dispatcher.py_func.__module__ + ":" + dispatcher.py_func.__qualname__].append(str(ev.data["args"]))
+
+    def on_end(self, ev):
+        pass
+
+
+event.register("numba:compile", Listener())
+
+from minimaxplan.analysis.episode import LoopConfig
+from minimaxplan.analysis.robot_methods import velocity_controllers
+from minimaxplan.analysis.robot_scenario import RobotScenario
+from minimaxplan.planners.comparison import multi_model_robust_planner, root_state
+
+scenario, config = RobotScenario("pedestrian"), LoopConfig()
+world = scenario.make_world(0, config)
+pairs = [(h.system, h.system.theta) for h in scenario.hypotheses(world)]
+planner = multi_model_robust_planner(
+    pairs, scenario.objective(world, world.goal, uncertain=True), velocity_controllers(config),
+    gamma=config.gamma, budget=config.budget, substeps=world.params.substeps,
+)
+start = np.asarray(world.state, dtype=float)
+planner.plan(root_state(planner, start - 0.01, start + 0.01, time=0))
+assert planner.engine_used == "compiled", planner.engine_used
+print(json.dumps(compiled))
+"""
+
+
+@pytest.fixture(scope="module")
+def first_plan_compiles(tmp_path_factory):
+    """What the robot's first plan compiles in a fresh process with an empty numba cache."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path_factory.mktemp("numba-cache")))
+    done = subprocess.run([sys.executable, "-c", FIRST_PLAN], env=env, capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_the_first_plan_compiles_every_function_once(first_plan_compiles):
+    """One signature per function: no literal, layout or readonly specialisation compiles a kernel twice.
+
+    (A bool literal passed to the box code once compiled it three times, one per
+    combination of its two flags.)
+    """
+    ours = {name: signatures for name, signatures in first_plan_compiles.items() if name.startswith("minimaxplan.")}
+    assert "minimaxplan.planners.box_kernels:_step" in ours
+    assert any(name.startswith("minimaxplan.planners.compiled_search:search_kernel.") for name in ours)
+    twice = {name: signatures for name, signatures in ours.items() if len(signatures) != 1}
+    assert not twice
+
+
+def test_the_first_plan_compiles_the_box_code_once_and_no_python_entry_point(first_plan_compiles):
+    """The compiled search calls the box code itself, not the Python-facing kernels.
+
+    `propagate` and `substep` are the numpy-facing forms (the Python engine,
+    `IntervalModel.expand`); the tree's Python entry points (`start`,
+    `expand_and_select`) belong to the Python engine. The compiled engine's first plan
+    compiled `propagate` and `substep` too, each with a copy of the box code inlined by
+    numba (most of the 23 s the first plan took).
+    """
+    names = set(first_plan_compiles)
+    for entry in (
+        "minimaxplan.planners.box_kernels:_make_propagate.<locals>.propagate",
+        "minimaxplan.planners.box_kernels:_make_substep.<locals>.substep",
+        "minimaxplan.planners.tree_ops:start",
+        "minimaxplan.planners.tree_ops:expand_and_select",
+    ):
+        assert entry not in names
+    assert [name for name in names if name.endswith(":_step")] == ["minimaxplan.planners.box_kernels:_step"]
