@@ -99,7 +99,7 @@ def test_the_guide_has_what_the_task_names():
 
 
 def test_the_guide_runs_as_printed(tmp_path):
-    # One test, one run: the session compiles the reward kernel (20-30 s), and pytest-xdist
+    # One test, one run: the session compiles the reward kernel (about 10 s of CPU), and pytest-xdist
     # would run a module fixture once per worker.
     guide_run = _run_guide(tmp_path)
     outputs, session = guide_run["outputs"], guide_run["session"]
