@@ -38,6 +38,13 @@ nominal
     The same search on a point-like forecast: the nominal parameters (the priors'
     centres), the measured speed as the target speed, no lane change (the road without
     side groups), every route.
+oracle
+    The same search on the other vehicles' true future: a deep copy of the environment
+    stepped over the horizon with the ego holding its targets (as the road worlds'
+    oracle).
+
+The road worlds' DWA and TEB (`minimaxplan.analysis.road_methods`) drive `RoadWorld`s
+only: they raise `UnsupportedScenario` here.
 """
 
 from __future__ import annotations
@@ -71,7 +78,10 @@ __all__ = [
     "HighwayEnvWorld",
     "HighwayEnvRobustMethod",
     "HighwayEnvNominalMethod",
+    "HighwayEnvOracleMethod",
     "simulate_ego",
+    "learner_scenario",
+    "LEARNER_NOISE",
 ]
 
 #: Registered scenario name -> highway-env id.
@@ -456,6 +466,23 @@ class _SearchMethod(Method[HighwayEnvWorld]):
         return {"decisions": self.decisions}
 
 
+#: Measurement noise half-widths the learner is told (m, m, m/s, rad): highway-env's states
+#: are read exactly, but the learner's interval rows need a non-degenerate width (with
+#: zero noise an exact row is infeasible by one rounding error and eliminates the truth).
+LEARNER_NOISE = (1e-6, 1e-6, 1e-6, 1e-7)
+
+
+def learner_scenario(scenario):
+    """The forecast's constants with `LEARNER_NOISE` as measurement noise (the learner's view).
+
+    Parameters
+    ----------
+    scenario : HighwayScenario or TJunctionScenario
+        The adapter's.
+    """
+    return dataclasses.replace(scenario, measurement_noise=LEARNER_NOISE)
+
+
 def _removal_free(world: HighwayEnvWorld, forecast: TrafficForecast, substeps: int) -> np.ndarray:
     """Vehicles that highway-env cannot remove during the decision (intersection-v0 removes
     vehicles 4 L before the end of their exit lane): their boxes stay within 80 m of the
@@ -489,7 +516,7 @@ class HighwayEnvRobustMethod(_SearchMethod):
         if "highway" in world.adapter.env_id and road is not None and scenario is not None:
             from .traffic_learning import TrafficLearner
 
-            self.learner = TrafficLearner(road, scenario)
+            self.learner = TrafficLearner(road, learner_scenario(scenario))
             self._learned: float | None = None
 
     def _learn(self, observation: Observation) -> None:
@@ -577,6 +604,54 @@ class HighwayEnvNominalMethod(_SearchMethod):
         )
 
 
+class HighwayEnvOracleMethod(_SearchMethod):
+    """The search against the other vehicles' true future (highway-env itself, the ego holding its targets)."""
+
+    def forecast(self, observation: Observation, reach, speed, heading) -> TrafficForecast:
+        """The true states of a deep copy of the environment stepped over `HORIZON`, the ego acting IDLE.
+
+        Parameters
+        ----------
+        observation : Observation
+            The current observation (its ids name the vehicles).
+        reach, speed, heading : numpy.ndarray
+            Unused (the copy's ego is simulated).
+
+        Notes
+        -----
+        The reference of the suboptimality study, like `RoadOracleMethod`: the true
+        parameters, target speeds, lane changes and routes (highway-env's own
+        vehicles), the ego holding its current target lane and speed. Every state of
+        the copy is a point box; a vehicle removed by highway-env has empty boxes.
+        """
+        adapter = self.world.adapter
+        base = adapter.env.unwrapped
+        twin = copy.deepcopy(base)
+        order = [adapter.agent_id(v) for v in base.road.vehicles]
+        index = {int(agent): j for j, agent in enumerate(observation.ids)}
+        steps = adapter.steps(HORIZON)
+        states = np.full((steps + 1, len(index), 4), np.nan)
+        pairs = [(index[a], v) for a, v in zip(order, twin.road.vehicles) if a in index]
+        for j, v in pairs:
+            states[0, j] = (v.position[0], v.position[1], v.speed, v.heading)
+        for n in range(1, steps + 1):
+            twin.road.act()
+            twin.road.step(adapter.dt)
+            present = {id(v) for v in twin.road.vehicles}
+            for j, v in pairs:
+                if id(v) in present:
+                    states[n, j] = (v.position[0], v.position[1], v.speed, v.heading)
+        scenario = adapter.scenario
+        assert scenario is not None
+        boxes = _rect_boxes(np.nan_to_num(states), scenario.vehicle)
+        gone = np.isnan(states).any(axis=2)
+        boxes[gone] = (np.inf, np.inf, -np.inf, -np.inf)
+        filled = np.where(gone[..., None], 0.0, states)
+        return TrafficForecast(
+            boxes, filled, filled, np.zeros(gone.shape, dtype=bool), np.asarray(observation.ids, dtype=int), adapter.dt
+        )
+
+
 @functools.lru_cache(maxsize=8)
 def _without_side_groups(road: Road) -> Road:
     return Road(
@@ -599,3 +674,4 @@ if highway_env_installed():
         register_scenario(_name, functools.partial(HighwayEnvScenario, _env_id))
     register_method("robust", HighwayEnvRobustMethod)
     register_method("nominal", HighwayEnvNominalMethod)
+    register_method("oracle", HighwayEnvOracleMethod)

@@ -45,7 +45,7 @@ import numpy as np
 
 from minimaxplan.models.errors import InputError
 
-from .road import ArcLane, Road, StraightLane
+from .road import STRAIGHT, ArcLane, Road, StraightLane
 from .road_world import HighwayScenario, Observation, TJunctionScenario
 from .traffic_models import TrafficForecast, VehicleBelief, forecast_traffic, prior_belief
 from .vehicles import BehaviourParameters, TrafficRules, VehicleParameters
@@ -544,7 +544,7 @@ class HighwayEnvAdapter:
         ego_speed=None,
         ego_heading=None,
         beliefs: Mapping[int, VehicleBelief] | None = None,
-        road_edges: bool = False,
+        road_edges: bool | None = None,
     ) -> TrafficForecast:
         """`forecast_traffic` of an observation over ``horizon`` seconds at highway-env's step.
 
@@ -558,9 +558,12 @@ class HighwayEnvAdapter:
             As `forecast_traffic` (shape ``(steps + 1, 4)`` and ``(steps + 1, 2)``).
         beliefs : mapping, optional
             Per agent; default: `prior_belief` of every vehicle (the reference priors).
-        road_edges : bool
-            Cut coarse boxes to the road (False by default: highway-env's turning
-            vehicles are not known to keep every corner in a lane strip).
+        road_edges : bool, optional
+            Cut coarse boxes to the road (`forecast_traffic`: sound while highway-env's
+            vehicles keep their rectangles on the lanes). Default: True on a road of
+            straight lanes only (highway-fast-v0, where the containment tests measure
+            it), False otherwise (highway-env's turning vehicles are not known to keep
+            every corner in a lane strip).
 
         Returns
         -------
@@ -581,7 +584,7 @@ class HighwayEnvAdapter:
             ego_reach=ego_reach,
             ego_speed=ego_speed,
             ego_heading=ego_heading,
-            road_edges=road_edges,
+            road_edges=bool(np.all(self.road.kinds == STRAIGHT)) if road_edges is None else bool(road_edges),
         )
 
     @property

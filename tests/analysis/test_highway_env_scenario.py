@@ -45,14 +45,17 @@ def _quiet():
         yield
 
 
-def test_scenarios_are_registered_with_robust_and_nominal():
+def test_scenarios_are_registered_with_robust_nominal_and_oracle():
     assert set(HIGHWAY_ENV_SCENARIOS) <= set(scenario_names())
     scenario = HighwayEnvScenario("highway-fast-v0")
-    expected = {"robust": HighwayEnvRobustMethod, "nominal": HighwayEnvNominalMethod}
+    from minimaxplan.analysis.highway_env_scenario import HighwayEnvOracleMethod
+
+    expected = {"robust": HighwayEnvRobustMethod, "nominal": HighwayEnvNominalMethod, "oracle": HighwayEnvOracleMethod}
     for method, cls in expected.items():
         assert resolve(method_factory(method, scenario, LoopConfig())) is cls
-    with pytest.raises(UnsupportedScenario):
-        method_factory("dwa", scenario, LoopConfig())
+    for baseline in ("dwa", "teb"):  # the road worlds' baselines drive RoadWorlds only
+        with pytest.raises(UnsupportedScenario):
+            method_factory(baseline, scenario, LoopConfig())
     with pytest.raises(UnsupportedScenario):
         HighwayEnvRobustMethod(RoadScenario("highway"), LoopConfig())
     with pytest.raises(InputError, match="env_id"):
@@ -117,3 +120,22 @@ def test_nominal_method_predicts_nothing_to_check():
     record = run_job(make_job("highway-env:intersection-v0", "nominal", 0, LoopConfig(max_decisions=2)))
     assert record.decisions == 2 and record.boxes_checked == 0
     assert [d["action"] for d in record.extra["decisions"]][0] in ("SLOWER", "IDLE", "FASTER")
+
+
+def test_oracle_method_searches_highway_envs_true_future():
+    from minimaxplan.analysis.highway_env_scenario import HighwayEnvOracleMethod
+
+    scenario = HighwayEnvScenario("intersection-v0")
+    world = scenario.make_world(0, LoopConfig())
+    method = HighwayEnvOracleMethod(scenario, LoopConfig())
+    method.start(world)
+    before = world.true_states()
+    observation = world.measure()
+    steps = world.adapter.steps(5.0)
+    forecast = method.forecast(observation, None, None, None)
+    assert forecast.boxes.shape == (steps + 1, len(observation.ids), 4)
+    np.testing.assert_array_equal(forecast.state_lower[0], observation.vehicles)
+    for name, state in world.true_states().items():  # the copy leaves the episode untouched
+        np.testing.assert_array_equal(state, before[name])
+    policy = method.decide(observation)
+    assert not hasattr(policy, "predicted_boxes")
