@@ -589,7 +589,7 @@ class HighwayEnvNominalMethod(_SearchMethod):
                 theta_b=Box(b, b),
                 lanes=(lane,),
                 routes=routes,
-                target_speed=(float(state[2]), float(state[2])),
+                target_speed=(max(float(state[2]), 0.0),) * 2,
             )
         return forecast_traffic(
             observation,

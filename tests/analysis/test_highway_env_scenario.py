@@ -139,3 +139,20 @@ def test_oracle_method_searches_highway_envs_true_future():
         np.testing.assert_array_equal(state, before[name])
     policy = method.decide(observation)
     assert not hasattr(policy, "predicted_boxes")
+
+
+def test_nominal_forecast_takes_a_reversing_vehicle():
+    """highway-env lets a braking vehicle's speed go below 0 (MIN_SPEED = -40 m/s)."""
+    import dataclasses
+
+    scenario = HighwayEnvScenario("intersection-v0")
+    world = scenario.make_world(0, LoopConfig())
+    method = HighwayEnvNominalMethod(scenario, LoopConfig())
+    method.start(world)
+    observation = world.measure()
+    vehicles = observation.vehicles.copy()
+    vehicles[:, 2] = -0.3
+    steps = world.adapter.steps(5.0)
+    empty = np.tile([np.inf, np.inf, -np.inf, -np.inf], (steps + 1, 1))
+    forecast = method.forecast(dataclasses.replace(observation, vehicles=vehicles), empty, None, None)
+    assert forecast.boxes.shape == (steps + 1, len(observation.ids), 4)
