@@ -1,9 +1,11 @@
 """highway-env's highway-fast-v0 and intersection-v0 as registered scenarios (the ``vehicle`` extra).
 
 Importing this module registers the scenarios ``highway-env:highway-fast-v0`` and
-``highway-env:intersection-v0`` and their methods ``robust`` and ``nominal`` when
-highway-env is installed (it checks with `importlib.util.find_spec`, without importing
-it; highway-env is imported when a world is made).
+``highway-env:intersection-v0`` and their methods ``robust``, ``nominal`` and ``oracle``
+when highway-env is installed (it checks with `importlib.util.find_spec`, without
+importing it; highway-env is imported when a world is made). The road worlds' ``dwa``
+and ``teb`` do not support these scenarios, so a run of every registered scenario and
+method must leave them out unless it names them.
 
 The world (`HighwayEnvWorld`) is one highway-env environment with ``LinearVehicle``
 other vehicles, read through `minimaxplan.scenarios.highway_env_adapter`. A sub-step is

@@ -75,7 +75,6 @@ BUILTIN_MODULES = (
     "minimaxplan.analysis.road_scenario",
     "minimaxplan.analysis.road_methods",
     "minimaxplan.analysis.road_planning",
-    "minimaxplan.analysis.highway_env_scenario",
 )
 
 _QUALIFIED_NAME = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
