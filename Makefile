@@ -2,8 +2,8 @@
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
-# `make test` needs the dev, cluster (Dask) and gym extras; `make bench` also the
-# bench extra (highway-env, the reference implementation it compares against).
+# `make test` needs the dev, cluster (Dask), gym and vehicle (highway-env) extras; `make
+# bench` also the bench extra (highway-env, the reference implementation it compares against).
 STAMP_BASE  := $(VENV)/.installed-dev
 STAMP_BENCH := $(VENV)/.installed-bench
 STAMP_DOCS  := $(VENV)/.installed-docs
@@ -15,11 +15,11 @@ $(PY):
 
 $(STAMP_BASE): pyproject.toml | $(PY)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[dev,cluster,gym]"
+	$(PY) -m pip install --quiet -e ".[dev,cluster,gym,vehicle]"
 	touch $@
 
 $(STAMP_BENCH): $(STAMP_BASE)
-	$(PY) -m pip install --quiet -e ".[dev,cluster,gym,bench]"
+	$(PY) -m pip install --quiet -e ".[dev,cluster,gym,vehicle,bench]"
 	touch $@
 
 demo: $(STAMP_BASE)

@@ -1,0 +1,679 @@
+"""highway-env's highway-fast-v0 and intersection-v0 as registered scenarios (the ``vehicle`` extra).
+
+Importing this module registers the scenarios ``highway-env:highway-fast-v0`` and
+``highway-env:intersection-v0`` and their methods ``robust``, ``nominal`` and ``oracle``
+when highway-env is installed (it checks with `importlib.util.find_spec`, without
+importing it; highway-env is imported when a world is made). The road worlds' ``dwa``
+and ``teb`` do not support these scenarios, so a run of every registered scenario and
+method must leave them out unless it names them.
+
+The world (`HighwayEnvWorld`) is one highway-env environment with ``LinearVehicle``
+other vehicles, read through `minimaxplan.scenarios.highway_env_adapter`. A sub-step is
+one highway-env simulation step (0.2 s on highway-fast-v0, 1/15 s on intersection-v0);
+a decision lasts ``simulation_frequency`` sub-steps (1 s, highway-env's default policy
+frequency); the control is a meta-action index (shape (1,)) in the planner's naming
+(`HIGHWAY_ACTIONS`, `TJUNCTION_ACTIONS`), applied at a decision's first sub-step and
+followed by IDLE, which is what highway-env does with its own policy frequency.
+Outcomes: "collision" (highway-env's ``crashed``), "off_road", "goal" (the intersection:
+highway-env's ``has_arrived``; the highway: the time limit reached without a crash) and
+"timeout" (the intersection's time limit).
+
+Why these methods and not `minimaxplan.analysis.road_planning`'s: those drive a
+`RoadWorld` (`EgoSetup` reads its `TrafficState`, and the ego model `BicycleModel` runs
+the library's ego controllers, whose trajectory is not highway-env's ``MDPVehicle``'s:
+highway-env's steering controller is another law, with arcsin and a heading-rate
+stage). Here the ego's future under an action sequence is highway-env's own
+(`simulate_ego`: a copy of its ``MDPVehicle`` on the same lanes, the same code, bit for
+bit; the run-time check verifies it), and the methods search every sequence of
+`SEARCH_DECISIONS` meta-actions, then IDLE, over the forecast horizon:
+
+robust
+    `forecast_traffic` (the adapter's, prior beliefs from the reference priors) of every
+    vehicle over `HORIZON` s at highway-env's step, the ego's reach over every action
+    sequence as the leaders' input; a sequence's value is the discounted sum of the
+    reward (highway-env's, normalised) along the ego's predicted states, 0 from the first
+    sub-step at which the ego's rectangle box meets a vehicle's box (a possible
+    collision). A `PredictingPolicy`: the ego's predicted state and every forecast
+    vehicle's state box are checked after each sub-step (``boxes_checked``,
+    ``boxes_missed``).
+nominal
+    The same search on a point-like forecast: the nominal parameters (the priors'
+    centres), the measured speed as the target speed, no lane change (the road without
+    side groups), every route.
+oracle
+    The same search on the other vehicles' true future: a deep copy of the environment
+    stepped over the horizon with the ego holding its targets (as the road worlds'
+    oracle).
+
+The road worlds' DWA and TEB (`minimaxplan.analysis.road_methods`) drive `RoadWorld`s
+only: they raise `UnsupportedScenario` here.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import functools
+import importlib.util
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from minimaxplan.models import Box
+from minimaxplan.models.errors import InputError
+from minimaxplan.planners.bicycle_model import HIGHWAY_ACTIONS, TJUNCTION_ACTIONS
+from minimaxplan.scenarios.road import Road
+from minimaxplan.scenarios.road_world import Observation
+from minimaxplan.scenarios.traffic_models import TrafficForecast, VehicleBelief
+from minimaxplan.scenarios.vehicles import vehicle_corners
+
+from .episode import LoopConfig
+from .registry import Method, Policy, Scenario, UnsupportedScenario, register_method, register_scenario
+from .road_planning import conservative_first
+
+__all__ = [
+    "HIGHWAY_ENV_SCENARIOS",
+    "HORIZON",
+    "SEARCH_DECISIONS",
+    "HighwayEnvScenario",
+    "HighwayEnvWorld",
+    "HighwayEnvRobustMethod",
+    "HighwayEnvNominalMethod",
+    "HighwayEnvOracleMethod",
+    "simulate_ego",
+    "learner_scenario",
+    "LEARNER_NOISE",
+]
+
+#: Registered scenario name -> highway-env id.
+HIGHWAY_ENV_SCENARIOS = {
+    "highway-env:highway-fast-v0": "highway-fast-v0",
+    "highway-env:intersection-v0": "intersection-v0",
+}
+#: The forecast's horizon, s (the planner's 5 s).
+HORIZON = 5.0
+#: Decisions whose meta-actions are enumerated (then IDLE until the horizon).
+SEARCH_DECISIONS = 2
+#: highway-env's meta-action names that move the ego's target lane or speed.
+_IDLE = "IDLE"
+
+
+class _StubRoad:
+    """What an ``MDPVehicle`` reads of its road when it acts and steps alone: the lanes."""
+
+    def __init__(self, network) -> None:
+        self.network = network
+        self.record_history = False
+        self.np_random = np.random.RandomState(0)  # used by next_lane only without a route
+        self.vehicles: list = []
+        self.objects: list = []
+
+
+def simulate_ego(ego, network, names: list[str], substeps: int, dt: float) -> np.ndarray:
+    """highway-env's ego under a sequence of meta-actions, alone on its lanes.
+
+    Parameters
+    ----------
+    ego : highway_env.vehicle.controller.MDPVehicle
+        The controlled vehicle now (not modified).
+    network : highway_env.road.road.RoadNetwork
+        The lanes.
+    names : list of str
+        highway-env meta-action names, one per decision.
+    substeps : int
+        Simulation steps per decision.
+    dt : float
+        Simulation step, s.
+
+    Returns
+    -------
+    numpy.ndarray, shape (len(names) * substeps + 1, 4)
+        ``(x, y, v, psi)`` now and after every simulation step.
+
+    Notes
+    -----
+    Replays what highway-env's ``step`` does to the ego at every simulation step: the
+    action type's ``act(name)`` at the first step of a decision (IDLE after), the
+    road's ``act()``, then ``step(dt)``. The ego's controllers read only its own state
+    and its lanes, so away from a collision this is its trajectory bit for bit.
+    """
+    twin = copy.copy(ego)
+    twin.road = _StubRoad(network)
+    twin.position = np.array(ego.position, dtype=float)
+    twin.route = list(ego.route) if ego.route else ego.route
+    twin.action = dict(ego.action)
+    twin.history = type(ego.history)(maxlen=1)
+    out = [np.array([twin.position[0], twin.position[1], twin.speed, twin.heading])]
+    for name in names:
+        for k in range(substeps):
+            twin.act(name if k == 0 else _IDLE)
+            twin.act()
+            twin.step(dt)
+            out.append(np.array([twin.position[0], twin.position[1], twin.speed, twin.heading]))
+    return np.array(out)
+
+
+class HighwayEnvWorld:
+    """One highway-env episode as the registry's `World` and `GroundTruthWorld`.
+
+    Parameters
+    ----------
+    env_id : str
+        A value of `HIGHWAY_ENV_SCENARIOS`.
+    seed : int
+        highway-env's seed.
+
+    Attributes
+    ----------
+    adapter : HighwayEnvAdapter
+        The environment and its reading into the library's road and observations.
+    actions : tuple
+        The planner's actions (`HIGHWAY_ACTIONS` or `TJUNCTION_ACTIONS`).
+    """
+
+    def __init__(self, env_id: str, seed: int) -> None:
+        from minimaxplan.scenarios.highway_env_adapter import HighwayEnvAdapter, meta_action
+
+        self._meta_action = meta_action
+        self.adapter = HighwayEnvAdapter(env_id, config={"normalize_reward": True})
+        hz = int(self.adapter.env.unwrapped.config["simulation_frequency"])
+        # one env.step per simulation step; the decision period stays highway-env's 1 s
+        self.adapter.env.unwrapped.configure({"policy_frequency": hz})
+        self.seed = int(seed)
+        self.adapter.reset(self.seed)
+        self._substeps = hz
+        # SLOWER first, then IDLE: the search breaks ties towards braking (`conservative_first`)
+        self.actions = conservative_first(HIGHWAY_ACTIONS if "highway" in env_id else TJUNCTION_ACTIONS)
+        self._outcome = "running"
+        self._reward = 1.0
+        self.step_index = 0
+
+    # -------------------------------------------------------------- World protocol
+    @property
+    def substeps(self) -> int:
+        """Simulation steps per decision (highway-env's 1 s)."""
+        return self._substeps
+
+    @property
+    def done(self) -> bool:
+        """True once the episode has ended."""
+        return self._outcome != "running"
+
+    @property
+    def outcome(self) -> str:
+        """ "running", then "goal", "collision", "off_road" or "timeout"."""
+        return self._outcome
+
+    @property
+    def time(self) -> float:
+        """Simulated time, s."""
+        return self.step_index * self.adapter.dt
+
+    @property
+    def position(self) -> np.ndarray:
+        """The ego's ``(x, y)``, m."""
+        return np.array(self.adapter.env.unwrapped.vehicle.position, dtype=float)
+
+    @property
+    def state(self) -> np.ndarray:
+        """The ego's ``(x, y, v, psi)``."""
+        ego = self.adapter.env.unwrapped.vehicle
+        return np.array([ego.position[0], ego.position[1], ego.speed, ego.heading], dtype=float)
+
+    @property
+    def params(self) -> Any:
+        """The forecast's constants (``dt`` for the trace)."""
+        return self.adapter.scenario
+
+    def measure(self) -> Observation:
+        """The ego and the other vehicles' exact kinematics (`HighwayEnvAdapter.observe`)."""
+        return self.adapter.observe()
+
+    def apply(self, u: np.ndarray) -> str:
+        """One simulation step with the planner's action index ``u[0]`` (into `actions`).
+
+        Parameters
+        ----------
+        u : numpy.ndarray, shape (1,)
+            The action's index in `actions`.
+        """
+        if self.done:
+            raise InputError("the episode is over")
+        k = int(np.asarray(u).reshape(-1)[0])
+        if not 0 <= k < len(self.actions):
+            raise InputError(f"action index must lie in [0, {len(self.actions)}), got {k}")
+        env = self.adapter.env
+        _, reward, terminated, truncated, _ = env.step(self._meta_action(env, self.actions[k][0]))
+        self.step_index += 1
+        self._reward = float(np.clip(reward, 0.0, 1.0))
+        base = env.unwrapped
+        ego = base.vehicle
+        if ego.crashed:
+            self._outcome = "collision"
+        elif not ego.on_road:
+            self._outcome = "off_road"
+        elif terminated:
+            self._outcome = "goal"  # the intersection: arrived
+        elif truncated:
+            self._outcome = "goal" if "highway" in self.adapter.env_id else "timeout"
+        return self._outcome
+
+    def reward(self) -> float:
+        """highway-env's normalised reward of the last step, clipped to [0, 1]."""
+        return self._reward
+
+    def true_states(self) -> dict[str, np.ndarray]:
+        """``"ego"`` and ``"vehicle j"`` (the adapter's ids): ``(x, y, v, psi)``."""
+        base = self.adapter.env.unwrapped
+        states = {"ego": self.state}
+        for v in base.road.vehicles:
+            if v is not base.vehicle:
+                states[f"vehicle {self.adapter.agent_id(v)}"] = np.array(
+                    [v.position[0], v.position[1], v.speed, v.heading], dtype=float
+                )
+        return states
+
+    def to_dict(self) -> dict:
+        """The environment id, seed and highway-env configuration, and the ego's final state."""
+        config = {k: v for k, v in self.adapter.env.unwrapped.config.items() if isinstance(v, (int, float, str, bool))}
+        return {"env_id": self.adapter.env_id, "seed": self.seed, "config": config, "ego": self.state.tolist()}
+
+
+class HighwayEnvScenario(Scenario[HighwayEnvWorld]):
+    """A highway-env environment as a scenario (one seeded `HighwayEnvWorld` per episode).
+
+    Parameters
+    ----------
+    env_id : str
+        A value of `HIGHWAY_ENV_SCENARIOS`.
+    """
+
+    def __init__(self, env_id: str) -> None:
+        if env_id not in HIGHWAY_ENV_SCENARIOS.values():
+            raise InputError(f"env_id must be one of {sorted(HIGHWAY_ENV_SCENARIOS.values())}, got {env_id!r}")
+        self.env_id = env_id
+
+    def __repr__(self) -> str:
+        return f"HighwayEnvScenario({self.env_id!r})"
+
+    def make_world(self, seed: int, config: LoopConfig) -> HighwayEnvWorld:
+        """The episode's environment, reset with ``seed`` (after restoring highway-env's class constants).
+
+        Parameters
+        ----------
+        seed : int
+            The episode's seed.
+        config : LoopConfig
+            The loop settings (``measurement`` must be "uniform": highway-env's states are read exactly).
+        """
+        if config.measurement != "uniform":
+            raise InputError(f"highway-env worlds are measured exactly, got measurement {config.measurement!r}")
+        return HighwayEnvWorld(self.env_id, seed)
+
+
+# ------------------------------------------------------------------ methods
+class _SearchPolicy:
+    """The chosen action at the decision's first sub-step, IDLE after; the predicted boxes."""
+
+    def __init__(self, action: int, idle: int, predicted: Mapping[int, Mapping[str, tuple]]) -> None:
+        self.action = action
+        self.idle = idle
+        self._predicted = predicted
+        self._calls = 0
+
+    def control(self, measurement: Observation) -> np.ndarray:
+        """The action index (shape (1,))."""
+        self._calls += 1
+        return np.array([self.action if self._calls == 1 else self.idle], dtype=float)
+
+
+class _PredictingSearchPolicy(_SearchPolicy):
+    def predicted_boxes(self, substep: int) -> Mapping[str, tuple]:
+        """The ego's predicted point and the forecast vehicles' state boxes after ``substep``."""
+        return self._predicted.get(substep, {})
+
+
+def _rect_boxes(states: np.ndarray, vehicle) -> np.ndarray:
+    corners = vehicle_corners(states, vehicle)
+    return np.concatenate([corners.min(axis=-2), corners.max(axis=-2)], axis=-1)
+
+
+class _SearchMethod(Method[HighwayEnvWorld]):
+    """The exhaustive search over `SEARCH_DECISIONS` meta-actions shared by robust and nominal."""
+
+    predicting = False
+
+    def __init__(self, scenario: Any, config: LoopConfig) -> None:
+        if not isinstance(scenario, HighwayEnvScenario):
+            raise UnsupportedScenario(f"{type(self).__name__} drives highway-env scenarios only")
+        self.scenario = scenario
+        self.config = config
+
+    def start(self, world: HighwayEnvWorld) -> None:
+        """Remember the world; enumerate the action sequences.
+
+        Parameters
+        ----------
+        world : HighwayEnvWorld
+            The episode.
+        """
+        self.world = world
+        n = len(world.actions)
+        grids = np.meshgrid(*[np.arange(n)] * SEARCH_DECISIONS, indexing="ij")
+        self.sequences = np.stack([g.ravel() for g in grids], axis=1)
+        self.decisions: list[dict] = []
+
+    def forecast(self, observation: Observation, reach, speed, heading) -> TrafficForecast:
+        """The other vehicles' boxes over the horizon (abstract)."""
+        raise NotImplementedError
+
+    def _reward(self, states: np.ndarray) -> np.ndarray:
+        """highway-env's normalised reward of predicted ego states without collision."""
+        base = self.world.adapter.env.unwrapped
+        config = base.config
+        if "highway" in self.world.adapter.env_id:
+            lo, hi = config["reward_speed_range"]
+            speed = np.clip((states[:, 2] * np.cos(states[:, 3]) - lo) / (hi - lo), 0.0, 1.0)
+            lanes = int(config["lanes_count"])
+            width = float(self.world.adapter.road.widths[0]) if self.world.adapter.road is not None else 4.0
+            lane = np.clip(np.round(states[:, 1] / width), 0, lanes - 1) / max(lanes - 1, 1)
+            raw = config["high_speed_reward"] * speed + config["right_lane_reward"] * lane
+            top = config["high_speed_reward"] + config["right_lane_reward"]
+            return (raw - config["collision_reward"]) / (top - config["collision_reward"])
+        lo, hi = config["reward_speed_range"]
+        speed = np.clip((states[:, 2] - lo) / (hi - lo), 0.0, 1.0)
+        return (config["high_speed_reward"] * speed - config["collision_reward"]) / (
+            config["arrived_reward"] - config["collision_reward"]
+        )
+
+    def decide(self, measurement: Observation) -> Policy:
+        """Search every action sequence against the forecast; hold the best first action.
+
+        Parameters
+        ----------
+        measurement : Observation
+            The current (exact) observation.
+        """
+        world = self.world
+        base = world.adapter.env.unwrapped
+        S, dt = world.substeps, world.adapter.dt
+        steps = world.adapter.steps(HORIZON)
+        tail = int(np.ceil(steps / S)) - SEARCH_DECISIONS
+        names = [a[0] for a in world.actions]
+        swap = {"LANE_LEFT": "LANE_RIGHT", "LANE_RIGHT": "LANE_LEFT"}  # the planner's -> highway-env's
+        trajectories = np.stack(
+            [
+                simulate_ego(
+                    base.vehicle,
+                    base.road.network,
+                    [swap.get(names[k], names[k]) for k in seq] + [_IDLE] * max(tail, 0),
+                    S,
+                    dt,
+                )[: steps + 1]
+                for seq in self.sequences
+            ]
+        )  # (sequences, steps + 1, 4)
+        scenario = world.adapter.scenario
+        if scenario is None:
+            raise InputError("the world's adapter has not been reset")
+        vehicle = scenario.vehicle
+        boxes = _rect_boxes(trajectories, vehicle)  # (sequences, steps + 1, 4)
+        reach = np.concatenate([boxes[..., :2].min(axis=0), boxes[..., 2:].max(axis=0)], axis=1)
+        reach = np.concatenate([np.nextafter(reach[:, :2], -np.inf), np.nextafter(reach[:, 2:], np.inf)], axis=1)
+        speed = np.stack([trajectories[..., 2].min(axis=0), trajectories[..., 2].max(axis=0)], axis=1)
+        heading = np.stack([trajectories[..., 3].min(axis=0), trajectories[..., 3].max(axis=0)], axis=1)
+        speed = np.stack([np.nextafter(speed[:, 0], -np.inf), np.nextafter(speed[:, 1], np.inf)], axis=1)
+        heading = np.stack([np.nextafter(heading[:, 0], -np.inf), np.nextafter(heading[:, 1], np.inf)], axis=1)
+        forecast = self.forecast(measurement, reach, speed, heading)
+        other = forecast.boxes  # (steps + 1, m, 4)
+        overlap = (
+            (boxes[:, :, None, 0] <= other[None, :, :, 2])
+            & (other[None, :, :, 0] <= boxes[:, :, None, 2])
+            & (boxes[:, :, None, 1] <= other[None, :, :, 3])
+            & (other[None, :, :, 1] <= boxes[:, :, None, 3])
+        )
+        hit: np.ndarray = np.any(overlap, axis=2)  # (sequences, steps + 1)
+        hit[:, 0] = False
+        alive = ~np.logical_or.accumulate(hit, axis=1)
+        rewards = np.stack([self._reward(t) for t in trajectories]) * alive
+        discount = self.config.gamma ** (np.arange(steps + 1) / S)
+        values = (rewards[:, 1:] * discount[1:]).sum(axis=1)
+        best = int(np.argmax(values))  # ties: the first sequence (SLOWER first at the intersection)
+        first = int(self.sequences[best, 0])
+        predicted: dict[int, dict[str, tuple]] = {}
+        if self.predicting:
+            ego = trajectories[best]
+            limit = _removal_free(world, forecast, S)
+            for k in range(1, S + 1):
+                row = {"ego": (ego[k], ego[k])}
+                for j, agent in enumerate(forecast.ids):
+                    if limit[j]:
+                        row[f"vehicle {int(agent)}"] = (forecast.state_lower[k, j], forecast.state_upper[k, j])
+                predicted[k] = row
+        self.decisions.append(
+            {
+                "step": int(world.step_index),
+                "action": names[first],
+                "value": float(values[best]),
+                "safe_sequences": int(alive[:, -1].sum()),
+            }
+        )
+        idle = names.index(_IDLE)
+        cls = _PredictingSearchPolicy if self.predicting else _SearchPolicy
+        return cls(first, idle, predicted)
+
+    def report(self) -> dict:
+        """The decisions' actions, values and counts of sequences without a possible collision."""
+        return {"decisions": self.decisions}
+
+
+#: Measurement noise half-widths the learner is told (m, m, m/s, rad): highway-env's states
+#: are read exactly, but the learner's interval rows need a non-degenerate width (with
+#: zero noise an exact row is infeasible by one rounding error and eliminates the truth).
+LEARNER_NOISE = (1e-6, 1e-6, 1e-6, 1e-7)
+
+
+def learner_scenario(scenario):
+    """The forecast's constants with `LEARNER_NOISE` as measurement noise (the learner's view).
+
+    Parameters
+    ----------
+    scenario : HighwayScenario or TJunctionScenario
+        The adapter's.
+    """
+    return dataclasses.replace(scenario, measurement_noise=LEARNER_NOISE)
+
+
+def _removal_free(world: HighwayEnvWorld, forecast: TrafficForecast, substeps: int) -> np.ndarray:
+    """Vehicles that highway-env cannot remove during the decision (intersection-v0 removes
+    vehicles 4 L before the end of their exit lane): their boxes stay within 80 m of the
+    junction's centre; every vehicle on the highway."""
+    m = len(forecast.ids)
+    if "intersection" not in world.adapter.env_id:
+        return np.ones(m, dtype=bool)
+    box = forecast.boxes[: substeps + 1]
+    finite = np.all(np.isfinite(box), axis=(0, 2))
+    far = np.max(np.abs(box), axis=(0, 2))
+    return finite & (far < 80.0)
+
+
+class HighwayEnvRobustMethod(_SearchMethod):
+    """The search against `forecast_traffic`'s sound boxes under prior beliefs (see the module docstring)."""
+
+    predicting = True
+
+    def start(self, world: HighwayEnvWorld) -> None:
+        """Enumerate the sequences; on the highway, a `TrafficLearner` of the episode.
+
+        Parameters
+        ----------
+        world : HighwayEnvWorld
+            The episode.
+        """
+        super().start(world)
+        self.learner: Any = None
+        self.prior_fallbacks: set[int] = set()
+        road, scenario = world.adapter.road, world.adapter.scenario
+        if "highway" in world.adapter.env_id and road is not None and scenario is not None:
+            from .traffic_learning import TrafficLearner
+
+            self.learner = TrafficLearner(road, learner_scenario(scenario))
+            self._learned: float | None = None
+
+    def _learn(self, observation: Observation) -> None:
+        if self.learner is not None and observation.time != self._learned:
+            self.learner.observe(observation)
+            self._learned = observation.time
+
+    def observe(self, transition) -> None:
+        """Feed the learner the sub-step's observation (the highway)."""
+        self._learn(transition.next_measured)
+
+    def forecast(self, observation: Observation, reach, speed, heading) -> TrafficForecast:
+        """The adapter's forecast over `HORIZON` with the ego's reach.
+
+        Parameters
+        ----------
+        observation : Observation
+            The current observation.
+        reach, speed, heading : numpy.ndarray
+            The ego's rectangle boxes, speed and heading bounds over every sequence.
+        """
+        beliefs: dict[int, VehicleBelief] = {}
+        if self.learner is not None:
+            self._learn(observation)
+            for agent in observation.ids:
+                try:
+                    beliefs.update(self.learner.beliefs([int(agent)]))
+                except InputError:  # every hypothesis eliminated: highway-env is not the learner's model
+                    self.prior_fallbacks.add(int(agent))
+        return self.world.adapter.forecast(
+            observation, HORIZON, ego_reach=reach, ego_speed=speed, ego_heading=heading, beliefs=beliefs
+        )
+
+    def report(self) -> dict:
+        """The decisions and the vehicles whose learned belief fell back to the prior."""
+        return {"decisions": self.decisions, "prior_fallbacks": sorted(self.prior_fallbacks)}
+
+
+class HighwayEnvNominalMethod(_SearchMethod):
+    """The search against a nominal forecast (priors' centres, measured speed as target, no lane change)."""
+
+    def forecast(self, observation: Observation, reach, speed, heading) -> TrafficForecast:
+        """Point parameters, the measured speed as target speed, the road without side groups.
+
+        Parameters
+        ----------
+        observation : Observation
+            The current observation.
+        reach, speed, heading : numpy.ndarray
+            The ego's rectangle boxes, speed and heading bounds over every sequence.
+        """
+        from minimaxplan.scenarios.traffic_models import forecast_traffic
+
+        adapter = self.world.adapter
+        road = adapter.road
+        assert road is not None and adapter.scenario is not None
+        flat = _without_side_groups(road)
+        behaviour = adapter.scenario.behaviour
+        a = np.mean(behaviour.theta_a_prior, axis=0)
+        b = np.mean(behaviour.theta_b_prior, axis=0)
+        beliefs: dict[int, VehicleBelief] = {}
+        for agent, state in zip(observation.ids, observation.vehicles):
+            prior = adapter.prior(int(agent), state)
+            _, off = flat.frenet(np.array(prior.lanes), state[0], state[1])
+            lane = int(np.array(prior.lanes)[np.argmin(np.abs(off))])
+            routes = tuple(r for r in prior.routes if r[0] == lane) or ((lane,),)
+            beliefs[int(agent)] = dataclasses.replace(
+                prior,
+                theta_a=Box(a, a),
+                theta_b=Box(b, b),
+                lanes=(lane,),
+                routes=routes,
+                target_speed=(max(float(state[2]), 0.0),) * 2,
+            )
+        return forecast_traffic(
+            observation,
+            flat,
+            adapter.scenario,
+            beliefs,
+            steps=adapter.steps(HORIZON),
+            ego_reach=reach,
+            ego_speed=speed,
+            ego_heading=heading,
+            road_edges=False,
+        )
+
+
+class HighwayEnvOracleMethod(_SearchMethod):
+    """The search against the other vehicles' true future (highway-env itself, the ego holding its targets)."""
+
+    def forecast(self, observation: Observation, reach, speed, heading) -> TrafficForecast:
+        """The true states of a deep copy of the environment stepped over `HORIZON`, the ego acting IDLE.
+
+        Parameters
+        ----------
+        observation : Observation
+            The current observation (its ids name the vehicles).
+        reach, speed, heading : numpy.ndarray
+            Unused (the copy's ego is simulated).
+
+        Notes
+        -----
+        The reference of the suboptimality study, like `RoadOracleMethod`: the true
+        parameters, target speeds, lane changes and routes (highway-env's own
+        vehicles), the ego holding its current target lane and speed. Every state of
+        the copy is a point box; a vehicle removed by highway-env has empty boxes.
+        """
+        adapter = self.world.adapter
+        base = adapter.env.unwrapped
+        twin = copy.deepcopy(base)
+        order = [adapter.agent_id(v) for v in base.road.vehicles]
+        index = {int(agent): j for j, agent in enumerate(observation.ids)}
+        steps = adapter.steps(HORIZON)
+        states = np.full((steps + 1, len(index), 4), np.nan)
+        pairs = [(index[a], v) for a, v in zip(order, twin.road.vehicles) if a in index]
+        for j, v in pairs:
+            states[0, j] = (v.position[0], v.position[1], v.speed, v.heading)
+        for n in range(1, steps + 1):
+            twin.road.act()
+            twin.road.step(adapter.dt)
+            present = {id(v) for v in twin.road.vehicles}
+            for j, v in pairs:
+                if id(v) in present:
+                    states[n, j] = (v.position[0], v.position[1], v.speed, v.heading)
+        scenario = adapter.scenario
+        assert scenario is not None
+        boxes = _rect_boxes(np.nan_to_num(states), scenario.vehicle)
+        gone = np.isnan(states).any(axis=2)
+        boxes[gone] = (np.inf, np.inf, -np.inf, -np.inf)
+        filled = np.where(gone[..., None], 0.0, states)
+        return TrafficForecast(
+            boxes, filled, filled, np.zeros(gone.shape, dtype=bool), np.asarray(observation.ids, dtype=int), adapter.dt
+        )
+
+
+@functools.lru_cache(maxsize=8)
+def _without_side_groups(road: Road) -> Road:
+    return Road(
+        lanes=road.lanes,
+        names=road.names,
+        connections=road.connections,
+        priorities=road.priorities,
+        areas=road.areas,
+        conflict_distance=road.conflict_distance,
+    )
+
+
+def highway_env_installed() -> bool:
+    """Whether highway-env can be imported (checked without importing it)."""
+    return importlib.util.find_spec("highway_env") is not None
+
+
+if highway_env_installed():
+    for _name, _env_id in HIGHWAY_ENV_SCENARIOS.items():
+        register_scenario(_name, functools.partial(HighwayEnvScenario, _env_id))
+    register_method("robust", HighwayEnvRobustMethod)
+    register_method("nominal", HighwayEnvNominalMethod)
+    register_method("oracle", HighwayEnvOracleMethod)
