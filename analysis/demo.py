@@ -160,13 +160,13 @@ def _run(args: argparse.Namespace) -> int:
     from .animate import animate_episode
     from .experiment import markdown_table, run_experiment, write_outputs
     from .plots import plot_experiment
-    from .registry import method_names, scenario_names
+    from .registry import default_scenario_names, method_names
 
     print(report(run(seed=args.seed)), flush=True)
     if args.episodes == 0:
         return 0
     print(f"\nShort experiment: {args.episodes} episodes per method in each world (paper: 100)", flush=True)
-    scenarios = scenario_names()
+    scenarios = default_scenario_names()
     try:
         result = run_experiment(scenarios, method_names(), episodes=args.episodes, seed=args.seed, workers=args.workers)
         out = write_outputs(result, args.out)

@@ -81,11 +81,11 @@ def run_and_report(
 def _run(args: argparse.Namespace) -> int:
     from minimaxplan.models import MinimaxplanError
 
-    from .registry import UnknownMethod, UnknownScenario, UnsupportedScenario, method_names, scenario_names
+    from .registry import UnknownMethod, UnknownScenario, UnsupportedScenario, default_scenario_names, method_names
 
     try:
         table, out = run_and_report(
-            args.scenario or scenario_names(),
+            args.scenario or default_scenario_names(),
             args.methods or method_names(),
             episodes=args.episodes,
             seed=args.seed,

@@ -673,7 +673,7 @@ def highway_env_installed() -> bool:
 
 if highway_env_installed():
     for _name, _env_id in HIGHWAY_ENV_SCENARIOS.items():
-        register_scenario(_name, functools.partial(HighwayEnvScenario, _env_id))
+        register_scenario(_name, functools.partial(HighwayEnvScenario, _env_id), in_default_runs=False)
     register_method("robust", HighwayEnvRobustMethod)
     register_method("nominal", HighwayEnvNominalMethod)
     register_method("oracle", HighwayEnvOracleMethod)

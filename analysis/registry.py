@@ -58,6 +58,7 @@ __all__ = [
     "register_scenario",
     "register_method",
     "scenario_names",
+    "default_scenario_names",
     "method_names",
     "scenario_factory",
     "method_factory",
@@ -75,6 +76,7 @@ BUILTIN_MODULES = (
     "minimaxplan.analysis.road_scenario",
     "minimaxplan.analysis.road_methods",
     "minimaxplan.analysis.road_planning",
+    "minimaxplan.analysis.highway_env_scenario",
 )
 
 _QUALIFIED_NAME = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
@@ -382,6 +384,8 @@ class Method(abc.ABC, Generic[WorldT]):
 
 # -------------------------------------------------------------------- registries
 _SCENARIOS: dict[str, Factory] = {}
+#: Registered scenarios left out of runs that name none (`register_scenario(..., in_default_runs=False)`).
+_OPTIONAL_SCENARIOS: set[str] = set()
 _METHODS: dict[str, list[Factory]] = {}
 _builtins_loaded = False
 _builtins_loading = False
@@ -430,7 +434,7 @@ def _checked_factory(kind: str, name: str, factory: Factory) -> Factory:
     return factory
 
 
-def register_scenario(name: str, factory: Factory) -> None:
+def register_scenario(name: str, factory: Factory, *, in_default_runs: bool = True) -> None:
     """Make the scenario ``name`` available to `run_experiment` and to ``--scenario``.
 
     Parameters
@@ -439,6 +443,10 @@ def register_scenario(name: str, factory: Factory) -> None:
         The scenario's name in records, tables and on the command line.
     factory
         ``factory() -> Scenario``: a picklable callable or ``"module:qualname"``.
+    in_default_runs
+        Whether a run that names no scenario (``minimaxplan experiment`` without
+        ``--scenario``, ``minimaxplan demo``) includes it (`default_scenario_names`);
+        False for scenarios that only some methods drive (the highway-env worlds).
 
     Raises
     ------
@@ -451,6 +459,10 @@ def register_scenario(name: str, factory: Factory) -> None:
     if known is not None and known is not factory and known != factory:
         raise InputError(f"scenario {name!r} is already registered (factory {known!r})")
     _SCENARIOS[name] = factory
+    if in_default_runs:
+        _OPTIONAL_SCENARIOS.discard(name)
+    else:
+        _OPTIONAL_SCENARIOS.add(name)
 
 
 def register_method(name: str, factory: Factory) -> None:
@@ -482,6 +494,12 @@ def scenario_names() -> list[str]:
     """The registered scenario names, in registration order."""
     _load_builtins()
     return list(_SCENARIOS)
+
+
+def default_scenario_names() -> list[str]:
+    """The scenarios of a run that names none: those registered with ``in_default_runs`` (in order)."""
+    _load_builtins()
+    return [name for name in _SCENARIOS if name not in _OPTIONAL_SCENARIOS]
 
 
 def method_names() -> list[str]:

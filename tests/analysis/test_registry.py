@@ -20,6 +20,7 @@ from minimaxplan.analysis import (
     UnknownScenario,
     UnsupportedScenario,
     World,
+    default_scenario_names,
     method_names,
     register_method,
     register_scenario,
@@ -220,6 +221,15 @@ def test_registered_names_and_unknown_names():
     with pytest.raises(UnknownMethod, match=r"method must be one of the registered methods \['robust', "):
         run_experiment(["static"], ["magic"], episodes=1)
     assert issubclass(UnknownScenario, InputError) and issubclass(UnknownMethod, InputError)
+
+
+def test_a_scenario_left_out_of_default_runs_is_registered_but_not_run_by_default():
+    register_scenario("toy-optional", "minimaxplan.analysis.registry:Scenario", in_default_runs=False)
+    assert "toy-optional" in scenario_names() and "toy-optional" not in default_scenario_names()
+    assert default_scenario_names()[:4] == ["static", "pedestrian", "highway", "tjunction"]
+    assert not any(name.startswith("highway-env:") for name in default_scenario_names())
+    register_scenario("toy-optional", "minimaxplan.analysis.registry:Scenario")  # the same factory, now by default
+    assert "toy-optional" in default_scenario_names()
 
 
 def test_a_method_rejects_a_scenario_it_does_not_support():
