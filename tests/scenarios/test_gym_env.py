@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from minimaxplan.scenarios.driving_reward import true_reward
+from minimaxplan.scenarios.driving_reward import true_reward, world_reward
 
 if os.environ.get("CI") == "true":
     import gymnasium
@@ -194,11 +194,15 @@ def test_tjunction_reward_grows_with_the_progress_to_the_goal():
     world = make_road_world("tjunction", 0)
     start = world.ego_state[:2]
     assert true_reward(world) == pytest.approx(1 / 1.4, rel=1e-12)  # at the start: no progress yet
-    goal = world.road.position_at(world.goal_lanes[0], world.goal_s)
+    region = world_reward(world).goal  # where the world counts the goal as reached
+    nearest = np.clip(start, region[:2], region[2:])  # so every point between start and it is nearest to it too
     states = world.traffic.states.copy()
-    states[0, :2] = (start + goal) / 2
+    states[0, :2] = (start + nearest) / 2
     world.traffic = dataclasses.replace(world.traffic, states=states)
     assert true_reward(world) == pytest.approx((1 + 0.4 * 0.5) / 1.4, rel=1e-12)
+    states[0, :2] = world.road.position_at(world.goal_lanes[0], world.goal_s + 1.0)
+    world.traffic = dataclasses.replace(world.traffic, states=states)
+    assert true_reward(world) == 1.0
 
 
 def test_road_env_rejects_bad_actions_and_step_before_reset():
