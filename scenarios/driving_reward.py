@@ -25,7 +25,7 @@ ego model (`minimaxplan.planners.BicycleModel`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -389,23 +389,7 @@ class DrivingReward(RewardFamily):
         time_offset : int
             Their row 0's absolute sub-step.
         """
-        return DrivingReward(
-            obstacles,
-            time_offset,
-            self.road,
-            off_road_margin=self.off_road_margin,
-            length=self.length,
-            width=self.width,
-            speed_weight=self.speed_weight,
-            max_speed=self.max_speed,
-            lane_weight=self.lane_weight,
-            lane_values=self.lane_values,
-            lane_width=self.lane_width,
-            lane_origin=self.lane_origin,
-            goal_weight=self.goal_weight,
-            goal=self.goal,
-            goal_scale=self.goal_scale,
-        )
+        return replace(self, obstacles=obstacles, time_offset=time_offset)
 
     # ------------------------------------------------------------ family hooks
     @property

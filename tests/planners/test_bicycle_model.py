@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from minimaxplan.kernels.bicycle import apply_action, ego_control
 from minimaxplan.models.errors import InputError
@@ -227,3 +229,33 @@ class _NoFallback:
 
     def step(self, state, action):
         return self._model.step(state, action)
+
+
+@settings(max_examples=12, deadline=None)
+@given(
+    boxes=st.lists(
+        st.tuples(st.floats(5.0, 60.0), st.integers(0, 2), st.floats(-8.0, 8.0), st.floats(1.0, 10.0)),
+        min_size=1,
+        max_size=3,
+    ),
+    rows=st.integers(6, 21),
+    budget=st.integers(1, 60),
+    gamma=st.floats(0.5, 0.95),
+)
+def test_property_fallback_bounds_stay_below_the_robust_value(boxes, rows, budget, gamma):
+    """Random obstacles (moving, any lane), table lengths, budgets and discounts: L <= V* <= U, and L only rises."""
+    world, controller, model, state = _ego_setup("highway")
+    x = state.x
+    n = np.arange(rows)[:, None] * 0.1
+    tables = []
+    for ahead, lane, speed, length in boxes:
+        cx = x[0] + ahead + speed * n[:, 0]
+        y = 4.0 * lane
+        tables.append(np.stack([cx - length / 2, np.full(rows, y - 1.0), cx + length / 2, np.full(rows, y + 1.0)], 1))
+    table = np.stack(tables, axis=1)
+    models = [model.with_reward(DrivingReward.highway(table, 0, world.road))]
+    exact = _robust_value(models, state, (rows - 2) // 5 + 1, gamma)  # the table ends within the last decision
+    decision = RobustTreePlanner(models, models[0].actions, gamma=gamma, budget=budget).plan(state)
+    paper = RobustTreePlanner([_NoFallback(models[0])], models[0].actions, gamma=gamma, budget=budget).plan(state)
+    assert decision.lower <= exact + 1e-9 <= decision.upper + 2e-9
+    assert decision.lower >= paper.lower and decision.upper == paper.upper
