@@ -1,0 +1,145 @@
+"""The reference planner of benchmarks/highway_env_reference_planner.py (the ``vehicle`` extra: these
+tests fail, not skip, when CI=true)."""
+
+import copy
+import importlib.util
+import os
+import pathlib
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+
+def _require_highway_env():
+    """highway_env, or a skip outside CI (a failure in CI, where the extra is installed)."""
+    if os.environ.get("CI") == "true":
+        import highway_env
+
+        return highway_env
+    return pytest.importorskip("highway_env")
+
+
+highway_env = _require_highway_env()
+
+from highway_env.vehicle.uncertainty.prediction import IntervalVehicle  # noqa: E402
+
+from minimaxplan.scenarios.driving_reward import DrivingReward  # noqa: E402
+from minimaxplan.scenarios.highway_env_adapter import HighwayEnvAdapter, meta_action  # noqa: E402
+
+_PATH = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "highway_env_reference_planner.py"
+
+
+def _load():
+    spec = importlib.util.spec_from_file_location("highway_env_reference_planner", _PATH)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("highway_env_reference_planner", module)
+    spec.loader.exec_module(module)
+    return module
+
+
+reference = _load()
+ACTIONS = ("SLOWER", "IDLE", "LANE_LEFT", "LANE_RIGHT", "FASTER")
+
+
+@pytest.fixture
+def scene():
+    warnings.simplefilter("ignore")
+    adapter = HighwayEnvAdapter("highway-fast-v0")
+    adapter.reset(0)
+    reward = DrivingReward.highway(np.zeros((1, 0, 4)), 0, adapter.road)
+    yield adapter, reward
+    adapter.close()
+
+
+def _snapshot(env):
+    return [
+        (type(v).__name__, v.position.copy(), float(v.speed), float(v.heading), bool(v.crashed))
+        + ((v.interval.position.copy(),) if isinstance(v, IntervalVehicle) else ())
+        for v in env.road.vehicles
+    ]
+
+
+def _same(a, b):
+    return len(a) == len(b) and all(
+        x[0] == y[0] and all(np.array_equal(np.asarray(p), np.asarray(q)) for p, q in zip(x[1:], y[1:]))
+        for x, y in zip(a, b)
+    )
+
+
+def test_interval_root_replaces_the_other_vehicles_and_puts_the_ego_last(scene):
+    adapter, _ = scene
+    base = adapter.env.unwrapped
+    before = _snapshot(base)
+    root = reference.interval_root(adapter.env)
+    assert root.road.vehicles[-1] is root.vehicle
+    assert not isinstance(root.vehicle, IntervalVehicle)
+    others = root.road.vehicles[:-1]
+    assert others and all(isinstance(v, IntervalVehicle) for v in others)
+    assert root.config["policy_frequency"] == 1
+    # the environment it copies is untouched: still LinearVehicles, the ego first, same states
+    assert _same(_snapshot(base), before)
+    assert not any(isinstance(v, IntervalVehicle) for v in base.road.vehicles)
+
+
+def test_reference_planner_at_budget_3_expands_3_nodes_and_returns_a_valid_action(scene):
+    adapter, reward = scene
+    root = reference.interval_root(adapter.env)
+    metas = [meta_action(adapter.env, name) for name in ACTIONS]
+    planner = reference.HighwayEnvReferencePlanner(
+        metas, reference.driving_reward_of(reward), gamma=0.9, budget=3, horizon_decisions=5
+    )
+    decision = planner.plan(root)
+    assert 0 <= decision.action < len(ACTIONS)
+    assert not decision.solved
+    assert decision.expansions == 3
+    assert planner.expanded_nodes() == 3
+    assert decision.env_steps == 3 * len(ACTIONS)
+    # the root action is the one of largest lower bound, and the root's bounds are its children's
+    lowers = [child.lower for child in planner.root.children]
+    assert decision.action == int(np.argmax(lowers))
+    assert decision.lower == max(lowers)
+    assert decision.lower <= decision.upper <= 1 / (1 - 0.9)
+
+
+def test_reference_copies_are_independent(scene):
+    adapter, reward = scene
+    root = reference.interval_root(adapter.env)
+    metas = [meta_action(adapter.env, name) for name in ACTIONS]
+    planner = reference.HighwayEnvReferencePlanner(
+        metas, reference.driving_reward_of(reward), gamma=0.9, budget=3, horizon_decisions=5
+    )
+    before = _snapshot(root)
+    planner.plan(root)
+    # planning stepped copies only: the root environment is unchanged
+    assert _same(_snapshot(root), before)
+    assert root.steps == adapter.env.unwrapped.steps
+    child = next(c for c in planner.root.children if c.children)
+    grandchild = child.children[0]
+    assert child.env is not root and grandchild.env is not child.env
+    assert child.env.steps == root.steps + 5 and grandchild.env.steps == child.env.steps + 5
+    assert not np.array_equal(child.env.vehicle.position, root.vehicle.position)
+    # stepping a child does not change its parent
+    parent_before = _snapshot(child.env)
+    copy.deepcopy(grandchild.env)  # copying is not stepping either
+    grandchild.env.step(metas[1])
+    assert _same(_snapshot(child.env), parent_before)
+
+
+def test_depth_rule_and_crash_reward(scene):
+    adapter, reward = scene
+    root = reference.interval_root(adapter.env)
+    metas = [meta_action(adapter.env, name) for name in ACTIONS]
+    value = reference.driving_reward_of(reward)
+    planner = reference.HighwayEnvReferencePlanner(metas, value, gamma=0.9, budget=3, horizon_decisions=1)
+    decision = planner.plan(root)
+    # beyond one decision every transition is 0 and terminal, without stepping a copy
+    assert decision.env_steps == len(ACTIONS)
+    deeper = [c for child in planner.root.children for c in child.children]
+    assert deeper and all(c.terminal and c.env is None and c.ret == c.parent.ret for c in deeper)
+    crashed = copy.deepcopy(root)
+    free, terminal = value(crashed)
+    assert not terminal and 0 < free <= 1
+    crashed.vehicle.crashed = True
+    assert value(crashed) == (0.0, True)
