@@ -223,6 +223,48 @@ def _summary(values: list[float]) -> dict:
     return {"median": float(np.median(values)), "min": float(np.min(values)), "max": float(np.max(values))}
 
 
+def summarise(rows: list[dict], budgets) -> dict:
+    """Per environment and budget: medians and ranges over the scenes of the times and ratios."""
+    tables: dict = {}
+    for env_id in STARTS:
+        mine = [r for r in rows if r["env"] == env_id]
+        if not mine:
+            continue
+        table = {"scenes": len(mine), "decide_s": _summary([r["decide_s"] for r in mine]), "budgets": {}}
+        for budget in budgets:
+            cells = [r["budgets"][str(budget)] for r in mine]
+            table["budgets"][str(budget)] = {
+                "library_whole_s": _summary([c["library"]["whole_s"] for c in cells]),
+                "library_search_s": _summary([c["library"]["search_s"] for c in cells]),
+                "library_forecast_s": _summary([c["library"]["forecast_s"] for c in cells]),
+                "reference_s": _summary([c["reference"]["time_s"] for c in cells]),
+                "ratio_whole": _summary([c["ratio_whole"] for c in cells]),
+                "ratio_search": _summary([c["ratio_search"] for c in cells]),
+                "library_search_full_s": _summary([c["library"]["search_free_s"] for c in cells]),
+                "ratio_search_full": _summary([c["ratio_search_full"] for c in cells]),
+                "library_expansions": _summary([c["library"]["expansions"] for c in cells]),
+                "library_full_expansions": _summary([c["library"]["free_expansions"] for c in cells]),
+                "reference_expansions": _summary([c["reference"]["expansions"] for c in cells]),
+                "reference_env_steps": _summary([c["reference"]["env_steps"] for c in cells]),
+                "reference_per_expansion_s": _summary(
+                    [c["reference"]["time_s"] / max(c["reference"]["expansions"], 1) for c in cells]
+                ),
+                "library_full_per_expansion_s": _summary(
+                    [c["library"]["search_free_s"] / max(c["library"]["free_expansions"], 1) for c in cells]
+                ),
+                "ratio_per_expansion": _summary(
+                    [
+                        (c["reference"]["time_s"] / max(c["reference"]["expansions"], 1))
+                        / (c["library"]["search_free_s"] / max(c["library"]["free_expansions"], 1))
+                        for c in cells
+                    ]
+                ),
+                "same_action": sum(c["library"]["action"] == c["reference"]["action"] for c in cells),
+            }
+        tables[env_id] = table
+    return tables
+
+
 def main(seeds: int = 2, budgets: tuple[int, ...] = BUDGETS) -> dict:
     """Warm the kernels, time every scene and budget; write the tables."""
     warnings.simplefilter("ignore")
@@ -275,30 +317,7 @@ def main(seeds: int = 2, budgets: tuple[int, ...] = BUDGETS) -> dict:
                     )
                 rows.append(row)
                 scene.close()
-    tables = {}
-    for env_id in STARTS:
-        mine = [r for r in rows if r["env"] == env_id]
-        if not mine:
-            continue
-        table = {"scenes": len(mine), "decide_s": _summary([r["decide_s"] for r in mine]), "budgets": {}}
-        for budget in budgets:
-            cells = [r["budgets"][str(budget)] for r in mine]
-            table["budgets"][str(budget)] = {
-                "library_whole_s": _summary([c["library"]["whole_s"] for c in cells]),
-                "library_search_s": _summary([c["library"]["search_s"] for c in cells]),
-                "library_forecast_s": _summary([c["library"]["forecast_s"] for c in cells]),
-                "reference_s": _summary([c["reference"]["time_s"] for c in cells]),
-                "ratio_whole": _summary([c["ratio_whole"] for c in cells]),
-                "ratio_search": _summary([c["ratio_search"] for c in cells]),
-                "library_search_full_s": _summary([c["library"]["search_free_s"] for c in cells]),
-                "ratio_search_full": _summary([c["ratio_search_full"] for c in cells]),
-                "library_expansions": _summary([c["library"]["expansions"] for c in cells]),
-                "library_full_expansions": _summary([c["library"]["free_expansions"] for c in cells]),
-                "reference_expansions": _summary([c["reference"]["expansions"] for c in cells]),
-                "reference_env_steps": _summary([c["reference"]["env_steps"] for c in cells]),
-                "same_action": sum(c["library"]["action"] == c["reference"]["action"] for c in cells),
-            }
-        tables[env_id] = table
+    tables = summarise(rows, budgets)
     results = {
         "machine": f"{platform.machine()} {platform.python_implementation()} {platform.python_version()}, "
         f"{os.cpu_count()} cores shared with other jobs",
@@ -364,13 +383,41 @@ def markdown(results: dict) -> str:
                 f"{_cell(c['ratio_whole'], fmt='.0f')} | {_cell(c['ratio_search'], fmt='.0f')} | "
                 f"{_cell(c['ratio_search_full'], fmt='.0f')} | {c['same_action']}/{table['scenes']} |"
             )
+        lines += [
+            "",
+            "Per expansion (the same amount of work): the reference's time over its expansions, the library's "
+            "search at full K over its K expansions.",
+            "",
+            "| K | reference expansions | reference env.steps | reference per expansion (ms) | "
+            "library per expansion at full K (ms) | ratio per expansion |",
+            "|---|---|---|---|---|---|",
+        ]
+        for budget, c in table["budgets"].items():
+            lines.append(
+                f"| {budget} | {_cell(c['reference_expansions'], fmt='.0f')} | "
+                f"{_cell(c['reference_env_steps'], fmt='.0f')} | {_cell(c['reference_per_expansion_s'], 1e3)} | "
+                f"{_cell(c['library_full_per_expansion_s'], 1e3)} | {_cell(c['ratio_per_expansion'], fmt='.0f')} |"
+            )
         lines.append("")
     return "\n".join(lines) + "\n"
+
+
+def render() -> dict:
+    """Re-derive the tables and the Markdown from the rows of the saved run (no new measurement)."""
+    results = json.loads((RESULTS / "highway_env_planner.json").read_text())
+    results["tables"] = summarise(results["rows"], results["budgets"])
+    (RESULTS / "highway_env_planner.json").write_text(json.dumps(results, indent=2) + "\n")
+    (RESULTS / "highway_env_planner.md").write_text(markdown(results))
+    return results
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=2)
     parser.add_argument("--budgets", default=",".join(map(str, BUDGETS)))
+    parser.add_argument("--render", action="store_true", help="re-render the tables of the saved run only")
     arguments = parser.parse_args()
-    main(arguments.seeds, tuple(int(b) for b in arguments.budgets.split(",")))
+    if arguments.render:
+        print(markdown(render()))
+    else:
+        main(arguments.seeds, tuple(int(b) for b in arguments.budgets.split(",")))
