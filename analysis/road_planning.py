@@ -19,8 +19,16 @@ robust
     `TrafficLearner` (LP elimination of its intentions, LP boxes of its parameters):
     boxes that contain the vehicle for every parameter, intention, switch time,
     disturbance and measurement noise the data allow. The ego is a possible leader of
-    the vehicles behind it: its reach over any action sequence (`ego_reach`) enters
-    the forecast.
+    the vehicles behind it, and a vehicle beside it may not change into its lane while
+    the world's gap rule fails against it: its reach (`ego_reach`) enters the forecast.
+    On the highway there are two forecasts: one from the reach over every action
+    sequence, the obstacles of every path, and one from the reach of the lane-keeping
+    actions (`lane_keeping_actions`), the obstacles of the paths that have not changed
+    lane (`BicycleModel`'s ``lane_keeping_reward``). Sound because a forecast's boxes
+    up to a sub-step read the reach only up to it (tested): a path that keeps its lane
+    up to sub-step n is, up to n, a lane-keeping trajectory. Without the second one
+    the ego, whose reach may leave its lane within a second, could never rule out a
+    cut-in beside it, and every plan would end in a possible collision.
 nominal
     Certainty equivalence: the other vehicles simulated from their measured states
     under the LinearVehicle law with the least-squares parameters and the
@@ -33,12 +41,14 @@ oracle
 The robust method's policy is a `PredictingPolicy`: after every sub-step of an
 executed decision, the episode loop checks that the true ego equals its predicted
 point and that every forecast vehicle lies in its state box (``boxes_checked``,
-``boxes_missed``).
+``boxes_missed``): the boxes of the lane-keeping forecast when the executed action
+keeps the lane, else those of the forecast for any ego.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -50,6 +60,7 @@ from minimaxplan.planners import RobustTreePlanner
 from minimaxplan.planners.bicycle_model import (
     HIGHWAY_ACTIONS,
     HIGHWAY_TARGET_SPEEDS,
+    LANE_KEEPING_PREFIX,
     TJUNCTION_ACTIONS,
     TJUNCTION_TARGET_SPEEDS,
     BicycleModel,
@@ -73,8 +84,11 @@ __all__ = [
     "RoadNominalMethod",
     "RoadOracleMethod",
     "EgoSetup",
+    "ObstacleTables",
     "conservative_first",
     "ego_reach",
+    "lane_keeping_actions",
+    "lane_keeping_reach",
     "point_forecast",
 ]
 
@@ -152,6 +166,21 @@ class EgoSetup:
 REACH_DECISIONS = 2
 
 
+def lane_keeping_actions(actions: tuple) -> tuple[int, ...]:
+    """The indices of the actions that do not change the target lane (speed changes only).
+
+    Parameters
+    ----------
+    actions : tuple of (str, int, int)
+        ``(name, speed change, lane change)`` per action (`EgoSetup.actions`).
+
+    Returns
+    -------
+    tuple of int
+    """
+    return tuple(i for i, (_, _, lane_change) in enumerate(actions) if lane_change == 0)
+
+
 def ego_reach(model: BicycleModel, root, speed_bounds: tuple[float, float], steps: int, dt: float, vehicle):
     """Boxes that contain the ego's whole rectangle, speed and heading at each sub-step under any action sequence.
 
@@ -214,12 +243,7 @@ def ego_reach(model: BicycleModel, root, speed_bounds: tuple[float, float], step
     reach = np.empty((steps + 1, 4))
     speed = np.empty((steps + 1, 2))
     heading = np.empty((steps + 1, 2))
-    for n, at_n in enumerate(per_step):
-        corners = vehicle_corners(at_n, vehicle).reshape(-1, 2)
-        reach[n, :2] = np.nextafter(corners.min(axis=0), -np.inf)
-        reach[n, 2:] = np.nextafter(corners.max(axis=0), np.inf)
-        speed[n] = np.nextafter(at_n[:, 2].min(), -np.inf), np.nextafter(at_n[:, 2].max(), np.inf)
-        heading[n] = np.nextafter(at_n[:, 3].min(), -np.inf), np.nextafter(at_n[:, 3].max(), np.inf)
+    _hull_rows(per_step, vehicle, reach, speed, heading)
     last = per_step[-1]
     centre_lo, centre_hi = last[:, :2].min(axis=0), last[:, :2].max(axis=0)
     half_diagonal = 0.5 * float(np.hypot(vehicle.length, vehicle.width))
@@ -229,6 +253,84 @@ def ego_reach(model: BicycleModel, root, speed_bounds: tuple[float, float], step
         reach[n, 2:] = np.nextafter(centre_hi + radius, np.inf)
         speed[n] = low, high
         heading[n] = -np.pi, np.pi
+    return reach, speed, heading
+
+
+def _hull_rows(per_step: list, vehicle, reach: np.ndarray, speed: np.ndarray, heading: np.ndarray) -> None:
+    """Rows ``n < len(per_step)`` of the reach: the boxes of the rectangles, speeds and headings at n, rounded outward."""
+    for n, at_n in enumerate(per_step):
+        corners = vehicle_corners(at_n, vehicle).reshape(-1, 2)
+        reach[n, :2] = np.nextafter(corners.min(axis=0), -np.inf)
+        reach[n, 2:] = np.nextafter(corners.max(axis=0), np.inf)
+        speed[n] = np.nextafter(at_n[:, 2].min(), -np.inf), np.nextafter(at_n[:, 2].max(), np.inf)
+        heading[n] = np.nextafter(at_n[:, 3].min(), -np.inf), np.nextafter(at_n[:, 3].max(), np.inf)
+
+
+def lane_keeping_reach(model: BicycleModel, root, actions: tuple[int, ...], steps: int, vehicle):
+    """The ego's exact reach along the lane-keeping family: `LANE_KEEPING_PREFIX` decisions of ``actions``, then one held.
+
+    Parameters
+    ----------
+    model : BicycleModel
+        The ego (deterministic).
+    root : BicycleState
+        Its state now.
+    actions : tuple of int
+        The actions that do not change the target lane (`lane_keeping_actions`).
+    steps : int
+        H.
+    vehicle : VehicleParameters
+        The ego's rectangle.
+
+    Returns
+    -------
+    reach : numpy.ndarray, shape (steps + 1, 4)
+        ``[x_lo, y_lo, x_hi, y_hi]``: the boxes of the rectangles of every path of the
+        family at each sub-step, rounded outward.
+    speed, heading : numpy.ndarray, shape (steps + 1, 2)
+        ``(low, high)`` of the speed (m/s) and heading (rad).
+
+    Notes
+    -----
+    Every path of the family is rolled out with the model to the horizon (``3^D``
+    prefixes for three actions and D = `LANE_KEEPING_PREFIX`, each continued by every
+    held action): the boxes are exact (the ego is a point), with no growth bound, so
+    that the ego's lateral position stays known over the whole forecast. This is the
+    reach of `BicycleModel`'s ``lane_keeping_reward``: the paths with ``kept`` states.
+    """
+    check_instance("model", model, BicycleModel)
+    steps = as_count("steps", steps)
+    if not actions or any(a not in model.actions for a in actions):
+        raise InputError(f"actions must be a non-empty tuple of the model's actions {model.actions}, got {actions!r}")
+    S = model.substeps
+    decisions = -(-steps // S)
+    prefix = min(LANE_KEEPING_PREFIX, decisions)
+    frontier = [root]
+    per_step = [np.asarray(root.x, dtype=float)[None]]
+    for _ in range(prefix):
+        nxt, rows = [], []
+        for state in frontier:
+            for a in actions:
+                sub, _, after = model.predict(state, a)
+                nxt.append(after)
+                rows.append(sub)
+        frontier = nxt
+        block = np.stack(rows, axis=1)  # (S, sequences, 4)
+        per_step.extend(block[k] for k in range(S))
+    held = [(state, a) for state in frontier for a in actions]
+    for _ in range(decisions - prefix):
+        rows, moved = [], []
+        for state, a in held:
+            sub, _, after = model.predict(state, a)
+            moved.append((after, a))
+            rows.append(sub)
+        held = moved
+        block = np.stack(rows, axis=1)
+        per_step.extend(block[k] for k in range(S))
+    reach = np.empty((steps + 1, 4))
+    speed = np.empty((steps + 1, 2))
+    heading = np.empty((steps + 1, 2))
+    _hull_rows(per_step[: steps + 1], vehicle, reach, speed, heading)
     return reach, speed, heading
 
 
@@ -290,6 +392,32 @@ def point_forecast(world: RoadWorld, traffic, ego: EgoSetup, level: int, lane: i
     return out
 
 
+@dataclass(frozen=True, eq=False)
+class ObstacleTables:
+    """One decision's obstacle tables for the planner's reward, and the boxes the runtime check reads.
+
+    Attributes
+    ----------
+    table : numpy.ndarray, shape (H+1, m, 4)
+        Boxes ``[x_lo, y_lo, x_hi, y_hi]`` of the other vehicles' rectangles per sub-step,
+        for any ego trajectory of the planner (the reward of `BicycleModel`).
+    checked : dict
+        Sub-step (1-based) to ``{name: (lower, upper)}`` state boxes that the episode loop
+        checks the true states against after each sub-step of the executed decision.
+    lane_keeping_table : numpy.ndarray or None
+        The same for an ego that keeps its target lane (the ``lane_keeping_reward`` of
+        `BicycleModel`); None when every action keeps the lane or the method does not
+        make the distinction.
+    lane_keeping_checked : dict or None
+        The boxes to check when the executed decision keeps the lane.
+    """
+
+    table: np.ndarray
+    checked: dict
+    lane_keeping_table: np.ndarray | None = None
+    lane_keeping_checked: dict | None = None
+
+
 class _EgoPolicy:
     """The ego's controllers at one speed level and target lane for one decision (a `PredictingPolicy`)."""
 
@@ -342,8 +470,8 @@ class RoadPlanningMethod(Method[DrivingWorld]):
         self.level, self.lane = self.ego.level, self.ego.lane
         self.decisions: list[dict] = []
 
-    def obstacles(self, observation: Observation) -> tuple[np.ndarray, dict]:
-        """The obstacle table (H+1, m, 4) of this decision and the state boxes to check (abstract)."""
+    def obstacles(self, observation: Observation) -> ObstacleTables:
+        """The obstacle tables of this decision and the state boxes to check (abstract)."""
         raise NotImplementedError
 
     def decide(self, measurement: Observation) -> Policy:
@@ -356,12 +484,19 @@ class RoadPlanningMethod(Method[DrivingWorld]):
         """
         world = self.world.world
         t = world.step_index
-        table, checked = self.obstacles(measurement)
-        model = self.model.with_reward(self.ego.reward.with_obstacles(table, t))
+        tables = self.obstacles(measurement)
+        keeping = tables.lane_keeping_table
+        model = self.model.with_reward(
+            self.ego.reward.with_obstacles(tables.table, t),
+            lane_keeping_reward=None if keeping is None else self.ego.reward.with_obstacles(keeping, t),
+        )
         planner = RobustTreePlanner([model], model.actions, gamma=self.config.gamma, budget=self.config.budget)
         root = model.initial_state(measurement.ego, level=self.level, lane=self.lane, time=t)
         decision = planner.plan(root)
         states, _, after = model.predict(root, decision.action)
+        checked = tables.checked
+        if keeping is not None and after.kept and tables.lane_keeping_checked is not None:
+            checked = tables.lane_keeping_checked
         predicted: dict[int, dict[str, tuple]] = {}
         for k in range(1, states.shape[0] + 1):
             boxes = {"ego": (states[k - 1], states[k - 1])}
@@ -430,17 +565,36 @@ class RoadRobustMethod(_LearningMethod):
         super().start(world)
         self.guaranteed_lost = 0
 
-    def obstacles(self, observation: Observation) -> tuple[np.ndarray, dict]:
-        """`forecast_traffic` under the learner's beliefs; the state boxes of the decision's sub-steps to check."""
+    def obstacles(self, observation: Observation) -> ObstacleTables:
+        """`forecast_traffic` under the learner's beliefs, for any ego and for an ego that keeps its lane.
+
+        The forecast depends on the ego's reach: a vehicle beside the ego may not change
+        into the ego's lane while the gap rule fails against the ego, which a reach that
+        may leave the lane cannot show. On the highway a second forecast from the reach
+        of the lane-keeping actions gives the table of paths that keep their lane.
+        """
         self._learn(observation)
         road_world = self.world.world
+        root = self.model.initial_state(observation.ego, level=self.level, lane=self.lane, time=road_world.step_index)
+        beliefs: dict[int, VehicleBelief] = self.learner.beliefs()
         scenario = road_world.scenario
         speeds = np.asarray(self.ego.speeds)
         v = float(observation.ego[2])
         bounds = (min(v, float(speeds.min())), max(v, float(speeds.max())))
-        root = self.model.initial_state(observation.ego, level=self.level, lane=self.lane, time=road_world.step_index)
-        reach, speed, heading = ego_reach(self.model, root, bounds, FORECAST_STEPS, scenario.dt, scenario.vehicle)
-        beliefs: dict[int, VehicleBelief] = self.learner.beliefs()
+        reach = ego_reach(self.model, root, bounds, FORECAST_STEPS, scenario.dt, scenario.vehicle)
+        table, checked = self._forecast(observation, beliefs, reach, count=True)
+        keeping = lane_keeping_actions(self.ego.actions)
+        if len(keeping) == self.model.n_actions:
+            return ObstacleTables(table, checked)
+        keep_reach = lane_keeping_reach(self.model, root, keeping, FORECAST_STEPS, scenario.vehicle)
+        keep_table, keep_checked = self._forecast(observation, beliefs, keep_reach, count=False)
+        return ObstacleTables(table, checked, keep_table, keep_checked)
+
+    def _forecast(self, observation: Observation, beliefs, ego: tuple, *, count: bool):
+        """One forecast from the ego's ``(reach, speed, heading)``: its boxes and the state boxes to check."""
+        road_world = self.world.world
+        scenario = road_world.scenario
+        reach, speed, heading = ego
         forecast: TrafficForecast = forecast_traffic(
             observation,
             road_world.road,
@@ -452,9 +606,10 @@ class RoadRobustMethod(_LearningMethod):
             ego_heading=heading,
             ego_route=self.ego.route or None,
         )
-        self.guaranteed_lost += int(
-            (~np.asarray(forecast.guaranteed[: self.world.substeps + 1], dtype=bool)).any(axis=0).sum()
-        )
+        if count:
+            self.guaranteed_lost += int(
+                (~np.asarray(forecast.guaranteed[: self.world.substeps + 1], dtype=bool)).any(axis=0).sum()
+            )
         checked: dict[int, dict[str, tuple]] = {}
         substeps = self.world.substeps
         last = forecast.boxes[substeps]
@@ -490,16 +645,16 @@ class RoadRobustMethod(_LearningMethod):
 class RoadOracleMethod(RoadPlanningMethod):
     """Tree search on the true traffic (true states, parameters, target speeds, intentions; no disturbance)."""
 
-    def obstacles(self, observation: Observation) -> tuple[np.ndarray, dict]:
+    def obstacles(self, observation: Observation) -> ObstacleTables:
         """`point_forecast` from the world's true traffic."""
         world = self.world.world
-        return point_forecast(world, world.traffic, self.ego, self.level, self.lane, FORECAST_STEPS), {}
+        return ObstacleTables(point_forecast(world, world.traffic, self.ego, self.level, self.lane, FORECAST_STEPS), {})
 
 
 class RoadNominalMethod(_LearningMethod):
     """Certainty equivalence: the least-squares parameters and minimum-error routes of the learner."""
 
-    def obstacles(self, observation: Observation) -> tuple[np.ndarray, dict]:
+    def obstacles(self, observation: Observation) -> ObstacleTables:
         """`point_forecast` from the measured states with the learner's estimates."""
         self._learn(observation)
         world = self.world.world
@@ -546,7 +701,7 @@ class RoadNominalMethod(_LearningMethod):
             committed=np.zeros(n, dtype=bool),
             yield_time=np.zeros(n),
         )
-        return point_forecast(world, traffic, self.ego, self.level, self.lane, FORECAST_STEPS), {}
+        return ObstacleTables(point_forecast(world, traffic, self.ego, self.level, self.lane, FORECAST_STEPS), {})
 
 
 register_method("robust", RoadRobustMethod)

@@ -178,7 +178,14 @@ def _model_building() -> dict:
     from minimaxplan.analysis.traffic_learning import TrafficLearner
 
     timings: dict = {}
-    originals = (road_planning.forecast_traffic, TrafficLearner.observe, TrafficLearner.beliefs, RobustTreePlanner.plan)
+    originals = (
+        road_planning.forecast_traffic,
+        TrafficLearner.observe,
+        TrafficLearner.beliefs,
+        RobustTreePlanner.plan,
+        road_planning.ego_reach,
+        road_planning.lane_keeping_reach,
+    )
 
     def timed(key, function):
         def wrapper(*args, **kwargs):
@@ -196,8 +203,10 @@ def _model_building() -> dict:
         TrafficLearner.observe = timed("learner", originals[1])
         TrafficLearner.beliefs = timed("learner", originals[2])
         RobustTreePlanner.plan = timed("planning", originals[3])
+        road_planning.ego_reach = timed("reach", originals[4])
+        road_planning.lane_keeping_reach = timed("reach", originals[5])
         for world in ("highway", "tjunction"):
-            per = {"forecast": [], "learner": [], "planning": []}
+            per = {"forecast": [], "learner": [], "planning": [], "reach": []}
             for seed in MODEL_SEEDS:
                 timings.clear()
                 record = run_episode(world, "robust", seed)
@@ -206,7 +215,8 @@ def _model_building() -> dict:
             result[world] = {key: 1e3 * float(np.mean(values)) for key, values in per.items()}
     finally:
         road_planning.forecast_traffic = originals[0]
-        TrafficLearner.observe, TrafficLearner.beliefs, RobustTreePlanner.plan = originals[1:]
+        TrafficLearner.observe, TrafficLearner.beliefs, RobustTreePlanner.plan = originals[1:4]
+        road_planning.ego_reach, road_planning.lane_keeping_reach = originals[4:]
     return result
 
 
@@ -306,11 +316,13 @@ def main() -> dict:
         "",
         f"Model building per decision inside robust episodes (seeds {', '.join(map(str, MODEL_SEEDS))}), ms:",
         "",
-        "| world | learner (LP elimination) | forecast | planning |",
-        "|---|---:|---:|---:|",
+        "| world | learner (LP elimination) | ego reach | forecast (highway: two, any ego and lane keeping) | planning |",
+        "|---|---:|---:|---:|---:|",
     ]
     for world, row in building.items():
-        lines.append(f"| {world} | {row['learner']:.1f} | {row['forecast']:.1f} | {row['planning']:.1f} |")
+        lines.append(
+            f"| {world} | {row['learner']:.1f} | {row['reach']:.1f} | {row['forecast']:.1f} | {row['planning']:.1f} |"
+        )
     lines.append("")
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "driving.md").write_text("\n".join(lines))

@@ -19,6 +19,14 @@ of them collides. `fallback_values` (the planner's `FallbackModel` protocol) bou
 the return of holding one action from a state, which `RobustTreePlanner` adds to a
 leaf's lower bound: the search then prefers plans after which braking (or keeping
 the speed) stays collision-free over the whole forecast.
+
+A model may carry a second reward, ``lane_keeping_reward``, for the paths of the
+*lane-keeping family*: at most `LANE_KEEPING_PREFIX` decisions of actions that do not
+change the target lane, then one such action held (`BicycleState.kept`). It is the
+same reward on an obstacle table forecast for an ego that moves only along these
+paths, which may be smaller (the other vehicles' behaviour depends on the ego's: a
+vehicle beside it may not cut in). Transitions and held continuations of such paths
+read it; every other transition reads ``reward``.
 """
 
 from __future__ import annotations
@@ -52,6 +60,7 @@ __all__ = [
     "BicycleModel",
     "ego_controller",
     "MAX_FALLBACK_DECISIONS",
+    "LANE_KEEPING_PREFIX",
 ]
 
 #: The highway's actions (the paper's) as (name, speed-level change, lane change: +1 left, -1 right).
@@ -160,12 +169,25 @@ class BicycleState(NamedTuple):
         The target lane (a lane index of the `LaneGeometry`).
     time : int
         The absolute sub-step index.
+    keep_depth : int
+        The decisions since the root along a path of the lane-keeping family (see the
+        module docstring), -1 once the path has left it (a lane change took effect, or
+        the action changed after the prefix).
+    keep_hold : int
+        The speed change + 1 of the action held after the prefix (0, 1, 2), -1 before.
     """
 
     x: np.ndarray
     level: int
     lane: int
     time: int
+    keep_depth: int = 0
+    keep_hold: int = -1
+
+    @property
+    def kept(self) -> bool:
+        """Whether the path from the root is of the lane-keeping family (then ``lane_keeping_reward`` applies)."""
+        return self.keep_depth >= 0
 
 
 #: numba options of the ego kernels: cached on disk, no reference counting (see `_compile_without_refcounts`).
@@ -230,6 +252,11 @@ def _expand_kernel(params_type: type):
     return _compile_without_refcounts(expand_actions, params_type)
 
 
+#: Decisions of lane-keeping actions of any kind before the lane-keeping family holds one
+#: action (`BicycleModel`'s ``lane_keeping_reward``; the reach that its table is forecast
+#: from enumerates 3^LANE_KEEPING_PREFIX prefixes, each continued by every held action).
+LANE_KEEPING_PREFIX = 3
+
 #: The most decisions a continuation is rolled out for (it stops earlier at the first terminal
 #: transition, at the latest where the reward's obstacle table ends).
 MAX_FALLBACK_DECISIONS = 10_000
@@ -278,6 +305,20 @@ def _fallback_kernel(params_type: type):
     return _compile_without_refcounts(fallback_returns, params_type)
 
 
+def _reward_params(name: str, reward: Any):
+    """The compiled params of a reward argument, checked (`BicycleModel`)."""
+    params = getattr(reward, "kernel_params", None)
+    if params is None or not has_compiled_minimum(params):
+        raise InputError(
+            f"{name} must expose kernel_params with a registered compiled box minimum "
+            f"(minimaxplan.kernels.register_reward_params), got {type(reward).__name__}"
+        )
+    needed = getattr(reward, "min_state_dim", 4)
+    if needed is not None and needed > 4:
+        raise DimensionError(f"{name} reads state coordinates up to index {needed - 1}, but the ego has 4 states")
+    return params
+
+
 class BicycleModel:
     """The ego as a deterministic `VectorisedModel` for `RobustTreePlanner` (see the module docstring).
 
@@ -295,6 +336,15 @@ class BicycleModel:
         `TJUNCTION_ACTIONS`); the planner's actions are their indices.
     substeps : int
         Sub-steps per decision (5: 0.5 s at dt = 0.1 s).
+    lane_keeping_reward : CompiledBoxReward, optional
+        The reward of the transitions of the lane-keeping family's paths (states with
+        ``kept``: at most `LANE_KEEPING_PREFIX` decisions of actions that keep the target
+        lane, then one of them held), with the compiled params type of ``reward``: the
+        same reward on an obstacle table forecast for an ego that moves only along such
+        paths, which may be smaller (a vehicle beside the ego cannot cut in while the ego
+        occupies its gap; see `minimaxplan.analysis.road_planning`). Its table must
+        contain the obstacles for every trajectory of the family; ``reward``'s for every
+        trajectory. None (the default): ``reward`` everywhere.
 
     Raises
     ------
@@ -312,17 +362,25 @@ class BicycleModel:
     controls (`predict`).
     """
 
-    def __init__(self, controller: EgoController, reward: Any, actions: Sequence, *, substeps: int = 5) -> None:
+    def __init__(
+        self,
+        controller: EgoController,
+        reward: Any,
+        actions: Sequence,
+        *,
+        substeps: int = 5,
+        lane_keeping_reward: Any = None,
+    ) -> None:
         check_instance("controller", controller, EgoController)
-        params = getattr(reward, "kernel_params", None)
-        if params is None or not has_compiled_minimum(params):
-            raise InputError(
-                "reward must expose kernel_params with a registered compiled box minimum "
-                f"(minimaxplan.kernels.register_reward_params), got {type(reward).__name__}"
-            )
-        needed = getattr(reward, "min_state_dim", 4)
-        if needed is not None and needed > 4:
-            raise DimensionError(f"reward reads state coordinates up to index {needed - 1}, but the ego has 4 states")
+        params = _reward_params("reward", reward)
+        keep_params = None
+        if lane_keeping_reward is not None:
+            keep_params = _reward_params("lane_keeping_reward", lane_keeping_reward)
+            if type(keep_params) is not type(params):
+                raise InputError(
+                    "lane_keeping_reward must have the kernel_params type of reward "
+                    f"({type(params).__name__}), got {type(keep_params).__name__}"
+                )
         try:
             table = [(str(name), int(ds), int(dl)) for name, ds, dl in actions]
         except (TypeError, ValueError):
@@ -331,11 +389,13 @@ class BicycleModel:
             raise InputError(f"actions must be a non-empty sequence of changes in {{-1, 0, 1}}, got {actions!r}")
         self.controller = controller
         self.reward = reward
+        self.lane_keeping_reward = lane_keeping_reward
         self.substeps = as_count("substeps", substeps)
         self.action_names = tuple(name for name, _, _ in table)
         self._speed_changes = np.array([ds for _, ds, _ in table], dtype=np.int64)
         self._lane_changes = np.array([dl for _, _, dl in table], dtype=np.int64)
         self._params = params
+        self._keep_params = keep_params
         params_type: type = type(params)  # mypy infers type[Any], which it does not treat as Hashable
         self._kernel = _expand_kernel(params_type)
         self._index_cache: tuple[Any, np.ndarray] | None = None
@@ -351,20 +411,47 @@ class BicycleModel:
         """The planner's actions: the indices ``0 .. n_actions - 1``."""
         return tuple(range(self.n_actions))
 
-    def with_reward(self, reward: Any) -> BicycleModel:
+    def with_reward(self, reward: Any, *, lane_keeping_reward: Any = None) -> BicycleModel:
         """The same ego with another reward (e.g. the next decision's obstacle table).
 
         Parameters
         ----------
         reward : CompiledBoxReward
             The new reward (as for the constructor).
+        lane_keeping_reward : CompiledBoxReward, optional
+            The new reward of paths that keep their lane (as for the constructor).
 
         Returns
         -------
         BicycleModel
         """
         actions = list(zip(self.action_names, self._speed_changes.tolist(), self._lane_changes.tolist()))
-        return BicycleModel(self.controller, reward, actions, substeps=self.substeps)
+        return BicycleModel(
+            self.controller, reward, actions, substeps=self.substeps, lane_keeping_reward=lane_keeping_reward
+        )
+
+    def _kept_after(self, state: BicycleState, index: np.ndarray) -> list[tuple[int, int]]:
+        """``(keep_depth, keep_hold)`` of each action's child (`BicycleState`): is the path still of the family?"""
+        lost = (-1, -1)
+        if state.keep_depth < 0:
+            return [lost] * index.shape[0]
+        out = []
+        for a in index.tolist():
+            change = int(self._lane_changes[a])
+            if change != 0:
+                _, lane = apply_action(self.controller, state.level, state.lane, 0, change)
+                if int(lane) != state.lane:  # the lane change takes effect
+                    out.append(lost)
+                    continue
+            # an action whose lane change has no effect moves the ego as its speed change alone
+            code = int(self._speed_changes[a]) + 1
+            if state.keep_depth < LANE_KEEPING_PREFIX:
+                out.append((state.keep_depth + 1, -1))
+            elif state.keep_hold in (-1, code):
+                out.append((state.keep_depth + 1, code))
+            else:
+                out.append(lost)
+        return out
 
     def _action_index(self, actions) -> np.ndarray:
         cache = self._index_cache
@@ -406,9 +493,33 @@ class BicycleModel:
         meta = np.empty((n, 2), dtype=np.int64)
         rewards = np.empty(n)
         terminals = np.empty(n, dtype=bool)
+        after = self._kept_after(state, index)
+        kept = [depth >= 0 for depth, _ in after]
+        if self._keep_params is None or not any(kept):
+            self._run_expand(self._params, state, index, out_x, meta, rewards, terminals)
+        elif all(kept):
+            self._run_expand(self._keep_params, state, index, out_x, meta, rewards, terminals)
+        else:
+            mask = np.array(kept)
+            for params, rows in ((self._keep_params, mask), (self._params, ~mask)):
+                part = np.flatnonzero(rows)
+                o_x, o_m = np.empty((part.shape[0], 4)), np.empty((part.shape[0], 2), dtype=np.int64)
+                o_r, o_t = np.empty(part.shape[0]), np.empty(part.shape[0], dtype=bool)
+                self._run_expand(params, state, index[part], o_x, o_m, o_r, o_t)
+                out_x[part], meta[part], rewards[part], terminals[part] = o_x, o_m, o_r, o_t
+        out_x.setflags(write=False)
+        time = state.time + self.substeps
+        levels, lanes = meta[:, 0].tolist(), meta[:, 1].tolist()
+        return (
+            [BicycleState(out_x[i], levels[i], lanes[i], time, *after[i]) for i in range(n)],
+            rewards,
+            terminals,
+        )
+
+    def _run_expand(self, params, state: BicycleState, index, out_x, meta, rewards, terminals) -> None:
         self._kernel(
             self.controller,
-            self._params,
+            params,
             state.x,
             state.level,
             state.lane,
@@ -422,10 +533,6 @@ class BicycleModel:
             rewards,
             terminals,
         )
-        out_x.setflags(write=False)
-        time = state.time + self.substeps
-        levels, lanes = meta[:, 0].tolist(), meta[:, 1].tolist()
-        return [BicycleState(out_x[i], levels[i], lanes[i], time) for i in range(n)], rewards, terminals
 
     def step(self, state: BicycleState, action) -> tuple[BicycleState, float, bool]:
         """One transition ``(next_state, reward, terminal)`` (see `expand`).
@@ -475,20 +582,38 @@ class BicycleModel:
         out = np.empty(n)
         params_type: type = type(self._params)  # mypy infers type[Any], which it does not treat as Hashable
         kernel = _fallback_kernel(params_type)
-        kernel(
-            self.controller,
-            self._params,
-            xs,
-            meta[:, 0].copy(),
-            meta[:, 1].copy(),
-            meta[:, 2].copy(),
-            self._speed_changes,
-            self._lane_changes,
-            self.substeps,
-            gamma,
-            self._scratch,
-            out,
-        )
+        every = np.ones(self.n_actions, dtype=bool)
+        groups = [(self._params, np.ones(n, dtype=bool), every)]
+        if self._keep_params is not None and any(state.kept for state in states):
+            # a path of the family that holds an action of the family stays in it: the lane-keeping
+            # table; any other continuation (a lane change, even one without effect, or another
+            # action than the one already held) is bounded on the table for any ego
+            hold = np.array([state.keep_hold if state.kept else -2 for state in states])
+            groups = [(self._params, hold == -2, every)]
+            for code in (-1, 0, 1, 2):
+                family = (self._lane_changes == 0) & ((self._speed_changes + 1 == code) | (code == -1))
+                groups += [(self._keep_params, hold == code, family), (self._params, hold == code, ~family)]
+        out[:] = 0.0
+        for params, rows, held in groups:
+            if not rows.any() or not held.any():
+                continue
+            part = np.flatnonzero(rows)
+            values = np.empty(part.shape[0])
+            kernel(
+                self.controller,
+                params,
+                xs[part],
+                meta[part, 0].copy(),
+                meta[part, 1].copy(),
+                meta[part, 2].copy(),
+                self._speed_changes[held],
+                self._lane_changes[held],
+                self.substeps,
+                gamma,
+                self._scratch,
+                values,
+            )
+            out[part] = np.maximum(out[part], values)
         return out
 
     def predict(self, state: BicycleState, action) -> tuple[np.ndarray, np.ndarray, BicycleState]:
@@ -520,7 +645,8 @@ class BicycleModel:
         lane = bicycle_kernels.ego_rollout(self.controller, x0, level, lane, self.substeps, states, controls)
         final = states[-1].copy()
         final.setflags(write=False)
-        return states, controls, BicycleState(final, int(level), int(lane), state.time + self.substeps)
+        (after,) = self._kept_after(state, np.array([a]))
+        return states, controls, BicycleState(final, int(level), int(lane), state.time + self.substeps, *after)
 
     def initial_state(self, x, *, level: int, lane: int, time: int = 0) -> BicycleState:
         """The planner's root state from the ego's (exactly known) state.

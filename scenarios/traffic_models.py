@@ -1244,11 +1244,14 @@ def forecast_traffic(
                     # gap acceptance: blocked by an agent certainly in the target lane whatever the states
                     d_lo, d_hi = pk_lo - s_hi[nb][:, None], pk_hi - s_lo[nb][:, None]
                     far = np.maximum(np.abs(d_lo), np.abs(d_hi)) - length
-                    need = (
-                        beh.standstill_distance
-                        + rules.lane_change_margin
-                        + beh.time_headway * np.minimum(v_lo[nb][:, None], kv_lo[None, :])
+                    # the rule's headway reads the follower's speed: the agent's when it is certainly
+                    # behind (d_hi < 0), the switching vehicle's when the agent is certainly ahead
+                    follower_lo = np.where(
+                        d_hi < 0.0,
+                        kv_lo[None, :],
+                        np.where(d_lo > 0.0, v_lo[nb][:, None], np.minimum(v_lo[nb][:, None], kv_lo[None, :])),
                     )
+                    need = beh.standstill_distance + rules.lane_change_margin + beh.time_headway * follower_lo
                     blocked = (in_strip & (far < need)).any(axis=1)
                     both = src_alive & fine_pair & (je_lo <= je_hi) & ~blocked
                     coarse_in = ok & alive[nb] & ~fine_pair

@@ -13,8 +13,12 @@ from minimaxplan.analysis.road_planning import (
     EgoSetup,
     conservative_first,
     ego_reach,
+    lane_keeping_actions,
+    lane_keeping_reach,
 )
+from minimaxplan.models import InputError
 from minimaxplan.planners import HIGHWAY_ACTIONS, TJUNCTION_ACTIONS, BicycleModel
+from minimaxplan.planners.bicycle_model import LANE_KEEPING_PREFIX
 from minimaxplan.scenarios import make_road_world
 from minimaxplan.scenarios.vehicles import vehicle_corners
 
@@ -71,6 +75,48 @@ def test_the_ego_reach_contains_every_action_sequence(kind, seed, actions):
             assert speed[n, 0] <= x[2] <= speed[n, 1]
             assert heading[n, 0] <= x[3] <= heading[n, 1]
     assert n >= REACH_DECISIONS * world.scenario.substeps
+
+
+@settings(max_examples=10, deadline=None)
+@given(
+    seed=st.integers(0, 5000),
+    actions=st.lists(st.integers(0, 2), min_size=LANE_KEEPING_PREFIX + 1, max_size=LANE_KEEPING_PREFIX + 1),
+)
+def test_the_lane_keeping_reach_contains_every_path_of_the_family(seed, actions):
+    """A prefix of lane-keeping actions, then one held to the horizon: inside `lane_keeping_reach` at
+    every sub-step, and every such path's states are `kept` for the model; the reach keeps the ego in
+    its lane's strip (no growth bound), unlike `ego_reach` beyond its enumerated decisions."""
+    world = make_road_world("highway", seed)
+    ego = EgoSetup(world)
+    model = BicycleModel(ego.controller, ego.reward, ego.actions, substeps=world.scenario.substeps)
+    keeping = lane_keeping_actions(ego.actions)
+    root = model.initial_state(world.ego_state, level=ego.level, lane=ego.lane, time=0)
+    reach, speed, heading = lane_keeping_reach(model, root, keeping, FORECAST_STEPS, world.scenario.vehicle)
+    plan = [keeping[a] for a in actions]
+    plan += [plan[-1]] * (FORECAST_STEPS // world.scenario.substeps - len(plan))
+    node, n = root, 0
+    for a in plan:
+        sub, _, node = model.predict(node, a)
+        assert node.kept
+        for x in sub:
+            n += 1
+            corners = vehicle_corners(x[None], world.scenario.vehicle)[0]
+            assert np.all(corners >= reach[n, :2]) and np.all(corners <= reach[n, 2:]), (n, x, reach[n])
+            assert speed[n, 0] <= x[2] <= speed[n, 1] and heading[n, 0] <= x[3] <= heading[n, 1]
+    assert n == FORECAST_STEPS
+    lane_y = world.ego_state[1]
+    assert np.all(reach[:, 1] > lane_y - 2.0) and np.all(reach[:, 3] < lane_y + 2.0)  # in the lane's 4 m strip
+    # a different action after the prefix leaves the family, so does a lane change
+    other = next(a for a in keeping if a != plan[LANE_KEEPING_PREFIX])
+    node = root
+    for a in plan[: LANE_KEEPING_PREFIX + 1] + [other]:
+        node = model.predict(node, a)[2]
+    assert not node.kept
+    change = next(a for a, (name, _, _) in enumerate(ego.actions) if name.startswith("LANE") and a not in keeping)
+    moved = model.predict(root, change)[2]
+    assert moved.kept is (moved.lane == root.lane)
+    with pytest.raises(InputError, match="actions"):
+        lane_keeping_reach(model, root, (), FORECAST_STEPS, world.scenario.vehicle)
 
 
 @pytest.mark.parametrize("kind", ["highway", "tjunction"])

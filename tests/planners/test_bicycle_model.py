@@ -11,6 +11,7 @@ from minimaxplan.planners import RobustTreePlanner
 from minimaxplan.planners.bicycle_model import (
     HIGHWAY_ACTIONS,
     HIGHWAY_TARGET_SPEEDS,
+    LANE_KEEPING_PREFIX,
     TJUNCTION_ACTIONS,
     TJUNCTION_TARGET_SPEEDS,
     BicycleModel,
@@ -241,9 +242,13 @@ class _NoFallback:
     rows=st.integers(6, 21),
     budget=st.integers(1, 60),
     gamma=st.floats(0.5, 0.95),
+    kept=st.one_of(st.none(), st.lists(st.booleans(), min_size=3, max_size=3)),
 )
-def test_property_fallback_bounds_stay_below_the_robust_value(boxes, rows, budget, gamma):
-    """Random obstacles (moving, any lane), table lengths, budgets and discounts: L <= V* <= U, and L only rises."""
+def test_property_fallback_bounds_stay_below_the_robust_value(boxes, rows, budget, gamma, kept):
+    """Random obstacles (moving, any lane), table lengths, budgets and discounts: L <= V* <= U, and L only rises.
+
+    With ``kept``, the paths that keep their lane see only the obstacles it marks (a
+    lane-keeping table): the brute force steps the same path-dependent rewards."""
     world, controller, model, state = _ego_setup("highway")
     x = state.x
     n = np.arange(rows)[:, None] * 0.1
@@ -253,9 +258,98 @@ def test_property_fallback_bounds_stay_below_the_robust_value(boxes, rows, budge
         y = 4.0 * lane
         tables.append(np.stack([cx - length / 2, np.full(rows, y - 1.0), cx + length / 2, np.full(rows, y + 1.0)], 1))
     table = np.stack(tables, axis=1)
-    models = [model.with_reward(DrivingReward.highway(table, 0, world.road))]
+    reward = DrivingReward.highway(table, 0, world.road)
+    keeping = None
+    if kept is not None:
+        keep_table = table.copy()
+        keep_table[:, ~np.array(kept[: len(boxes)])] = EMPTY
+        keeping = DrivingReward.highway(keep_table, 0, world.road)
+    models = [model.with_reward(reward, lane_keeping_reward=keeping)]
     exact = _robust_value(models, state, (rows - 2) // 5 + 1, gamma)  # the table ends within the last decision
     decision = RobustTreePlanner(models, models[0].actions, gamma=gamma, budget=budget).plan(state)
     paper = RobustTreePlanner([_NoFallback(models[0])], models[0].actions, gamma=gamma, budget=budget).plan(state)
     assert decision.lower <= exact + 1e-9 <= decision.upper + 2e-9
     assert decision.lower >= paper.lower and decision.upper == paper.upper
+
+
+def _lane_keeping_case():
+    """A highway ego with a general table (a box ahead in its lane and one to its left) and a lane-keeping one."""
+    world, controller, model, state = _ego_setup("highway")
+    x = state.x
+    general = _stopped_vehicle_ahead(float(x[1]), float(x[0]) + 16.0)[:31]
+    general[:, 1] = [x[0] + 5.0, x[1] + 2.0, x[0] + 12.0, x[1] + 6.0]
+    keeping = general.copy()
+    keeping[:, 0] = EMPTY  # e.g. the vehicle ahead cannot be there while the ego holds its lane
+    general_reward = DrivingReward.highway(general, 0, world.road)
+    keep_reward = DrivingReward.highway(keeping, 0, world.road)
+    both = model.with_reward(general_reward, lane_keeping_reward=keep_reward)
+    return world, state, both, model.with_reward(general_reward), model.with_reward(keep_reward)
+
+
+def test_paths_that_keep_their_lane_read_the_lane_keeping_table():
+    world, root, both, general, keeping = _lane_keeping_case()
+    names = both.action_names
+    children, rewards, terminals = both.expand(root, both.actions)
+    g_children, g_rewards, g_terminals = general.expand(root, general.actions)
+    k_children, k_rewards, k_terminals = keeping.expand(root, keeping.actions)
+    for a, name in enumerate(names):
+        changes = name.startswith("LANE")
+        assert children[a].kept is (not changes)
+        expected = (g_rewards, g_terminals) if changes else (k_rewards, k_terminals)
+        assert rewards[a] == expected[0][a] and terminals[a] == expected[1][a]
+        np.testing.assert_array_equal(children[a].x, g_children[a].x)
+    assert any(rewards[a] != g_rewards[a] for a in range(len(names)) if not names[a].startswith("LANE"))
+    # after a lane change, every path reads the general table
+    left = children[names.index("LANE_LEFT")]
+    grand, rewards, _ = both.expand(left, both.actions)
+    _, g_rewards, _ = general.expand(left, general.actions)
+    np.testing.assert_array_equal(rewards, g_rewards)
+    assert not any(child.kept for child in grand)
+    # predict agrees with expand on the flag
+    for a in both.actions:
+        assert both.predict(root, a)[2].kept is children[a].kept
+
+
+def test_a_lane_change_that_has_no_effect_keeps_the_lane():
+    world, controller, model, state = _ego_setup("highway")
+    lanes = controller.lanes
+    edge = next(lane for lane in range(lanes.kinds.shape[0]) if lanes.left_lane[lane] < 0)
+    root = model.initial_state(state.x, level=1, lane=edge)
+    left = model.action_names.index("LANE_LEFT")
+    child = model.expand(root, (left,))[0][0]
+    assert apply_action(controller, 1, edge, 0, 1)[1] == edge and child.kept
+    right = model.action_names.index("LANE_RIGHT")
+    assert not model.expand(root, (right,))[0][0].kept
+
+
+def test_the_fallback_values_hold_speed_actions_on_the_lane_keeping_table():
+    world, root, both, general, keeping = _lane_keeping_case()
+    children, _, _ = both.expand(root, both.actions)
+    values = both.fallback_values([root, *children], 0.9)
+    for value, start in zip(values, [root, *children]):
+        expected = max(_held_return(both, start, a, 0.9) for a in both.actions)
+        assert value == pytest.approx(expected, rel=1e-12, abs=1e-12)
+    # a kept state: the speed actions held on the lane-keeping table, lane changes on the general one
+    speeds = [a for a, name in enumerate(both.action_names) if not name.startswith("LANE")]
+    changes = [a for a, name in enumerate(both.action_names) if name.startswith("LANE")]
+    expected = max(
+        max(_held_return(keeping, root, a, 0.9) for a in speeds),
+        max(_held_return(general, root, a, 0.9) for a in changes),
+    )
+    assert values[0] == pytest.approx(expected, rel=1e-12, abs=1e-12)
+    assert values[0] > general.fallback_values([root], 0.9)[0]
+    # after the prefix, a path holding IDLE stays in the family only by holding it
+    idle = both.action_names.index("IDLE")
+    held = root._replace(keep_depth=LANE_KEEPING_PREFIX + 1, keep_hold=1)
+    others = [a for a in both.actions if a != idle]
+    expected = max(_held_return(keeping, held, idle, 0.9), max(_held_return(general, held, a, 0.9) for a in others))
+    assert both.fallback_values([held], 0.9)[0] == pytest.approx(expected, rel=1e-12, abs=1e-12)
+    children, _, _ = both.expand(held, both.actions)
+    assert [child.kept for child in children] == [a == idle for a in both.actions]
+    assert both.expand(held, (idle,))[0][0].keep_hold == 1
+
+
+def test_a_lane_keeping_reward_of_another_kind_is_rejected():
+    world, state, both, general, keeping = _lane_keeping_case()
+    with pytest.raises(InputError, match="lane_keeping_reward must expose kernel_params"):
+        general.with_reward(general.reward, lane_keeping_reward="a table")

@@ -344,3 +344,133 @@ def test_batched_vertex_bound_is_the_interval_predictors(v, e, chi, dt):
     # the predictor adds the disturbance box [-1, 1] of lateral_system and rigorous rounding margins
     np.testing.assert_allclose(got_lo[0] - 1.0, ref_lo, atol=1e-9)
     np.testing.assert_allclose(got_hi[0] + 1.0, ref_hi, atol=1e-9)
+
+
+# ------------------------------------------------- the forecast from the planner's reach
+@settings(max_examples=8, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    warmup=st.integers(0, 6),
+    actions=st.lists(st.integers(0, 9), min_size=16, max_size=16),
+    keep=st.booleans(),
+)
+def test_the_forecast_from_the_planners_reach_contains_the_world(seed, warmup, actions, keep):
+    """The robust method's two highway forecasts contain every vehicle: the one from the reach of every
+    action sequence (`ego_reach`) while the ego follows a random sequence of any actions, and the one from
+    the lane-keeping family's reach (`lane_keeping_reach`) while it follows a random path of the family
+    (`LANE_KEEPING_PREFIX` random lane-keeping actions, then one held); the ego driven by the planner's own
+    controllers, disturbances at their extremes, prior beliefs, a start after random decisions."""
+    from minimaxplan.analysis.road_planning import (
+        FORECAST_STEPS,
+        EgoSetup,
+        ego_reach,
+        lane_keeping_actions,
+        lane_keeping_reach,
+    )
+    from minimaxplan.planners import BicycleModel
+    from minimaxplan.planners.bicycle_model import LANE_KEEPING_PREFIX
+
+    world = make_road_world("highway", seed)
+    world._dynamics_rng = ExtremeDisturbances(world._dynamics_rng.bit_generator)
+    ego = EgoSetup(world)
+    model = BicycleModel(ego.controller, ego.reward, ego.actions, substeps=world.scenario.substeps)
+    allowed = lane_keeping_actions(ego.actions) if keep else model.actions
+    plan = [allowed[a % len(allowed)] for a in actions]
+    if keep:  # the family: after the prefix, the last action of the prefix's successor is held
+        start = warmup + LANE_KEEPING_PREFIX
+        plan = plan[:start] + [plan[start]] * (len(plan) - start)
+    level, lane = ego.level, ego.lane
+
+    def drive(action):
+        nonlocal level, lane
+        node = model.initial_state(world.ego_state, level=level, lane=lane, time=world.step_index)
+        _, controls, after = model.predict(node, action)
+        for u in controls:
+            if world.done:
+                break
+            world.apply(u)
+            yield world.traffic.states.copy()
+        level, lane = after.level, after.lane
+
+    for action in plan[:warmup]:
+        list(drive(action))
+    if world.done:
+        return
+    obs = world.measure()
+    root = model.initial_state(world.ego_state, level=level, lane=lane, time=world.step_index)
+    speeds = np.asarray(ego.speeds)
+    v = float(world.ego_state[2])
+    bounds = (min(v, float(speeds.min())), max(v, float(speeds.max())))
+    if keep:
+        reach, speed, heading = lane_keeping_reach(model, root, allowed, FORECAST_STEPS, world.scenario.vehicle)
+    else:
+        reach, speed, heading = ego_reach(
+            model, root, bounds, FORECAST_STEPS, world.scenario.dt, world.scenario.vehicle
+        )
+    forecast = forecast_traffic(
+        obs,
+        world.road,
+        world.scenario,
+        {},
+        steps=FORECAST_STEPS,
+        ego_reach=reach,
+        ego_speed=speed,
+        ego_heading=heading,
+    )
+    states = [world.traffic.states.copy()]
+    for action in plan[warmup:]:
+        states.extend(drive(action))
+        if world.done or len(states) > FORECAST_STEPS:
+            break
+    checked = 0
+    for n, true_all in enumerate(states[: FORECAST_STEPS + 1]):
+        true = true_all[obs.ids]
+        inside = np.all((true >= forecast.state_lower[n] - TOL) & (true <= forecast.state_upper[n] + TOL), axis=1)
+        corners = vehicle_corners(true, VEHICLE)
+        box = forecast.boxes[n]
+        covered = np.all((corners >= box[:, None, :2] - TOL) & (corners <= box[:, None, 2:] + TOL), axis=(1, 2))
+        assert np.all(inside & covered), (n, np.flatnonzero(~(inside & covered)))
+        checked += len(obs.ids)
+    assert checked > 0
+
+
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 10_000), cut=st.integers(0, 29), grow=st.floats(1.0, 30.0))
+def test_the_forecast_at_a_step_reads_the_ego_reach_only_up_to_it(seed, cut, grow):
+    """Causality, on which the lane-keeping table of the planner rests: boxes up to sub-step n do not
+    depend on the ego's reach, speed or heading after n (a path that keeps its lane up to n may read
+    the lane-keeping forecast up to n, whatever it does later)."""
+    world = make_road_world("highway", seed)
+    obs = world.measure()
+    steps = 30
+    ego = world.ego_state
+    reach = np.array(
+        [
+            footprint_box(ego[:2] + [ego[2] * 0.1 * n, 0.0], ego[:2] + [ego[2] * 0.1 * n, 0.0], 0.0, 0.0, VEHICLE)
+            for n in range(steps + 1)
+        ]
+    )
+    speed = np.tile([ego[2], ego[2]], (steps + 1, 1))
+    heading = np.zeros((steps + 1, 2))
+    wide_reach, wide_speed, wide_heading = reach.copy(), speed.copy(), heading.copy()
+    wide_reach[cut + 1 :, :2] -= grow
+    wide_reach[cut + 1 :, 2:] += grow
+    wide_speed[cut + 1 :] = [0.0, world.scenario.vehicle.max_speed]
+    wide_heading[cut + 1 :] = [-np.pi, np.pi]
+    common = dict(steps=steps)
+    narrow = forecast_traffic(
+        obs, world.road, world.scenario, {}, ego_reach=reach, ego_speed=speed, ego_heading=heading, **common
+    )
+    wide = forecast_traffic(
+        obs,
+        world.road,
+        world.scenario,
+        {},
+        ego_reach=wide_reach,
+        ego_speed=wide_speed,
+        ego_heading=wide_heading,
+        **common,
+    )
+    np.testing.assert_array_equal(narrow.boxes[: cut + 1], wide.boxes[: cut + 1])
+    np.testing.assert_array_equal(narrow.state_lower[: cut + 1], wide.state_lower[: cut + 1])
+    np.testing.assert_array_equal(narrow.state_upper[: cut + 1], wide.state_upper[: cut + 1])
