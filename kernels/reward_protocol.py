@@ -308,7 +308,8 @@ def compile_per_params_type(function, params_type: type, *, what: str = "a compi
     """
     tag = hashlib.sha256(f"{params_type.__module__}.{params_type.__qualname__}".encode()).hexdigest()[:12]
     function.__qualname__ = f"{function.__qualname__}_{tag}"
-    dispatcher = njit(cache=True)(function)
+    # no C wrapper: that is for numba's first-class function values (unused), one more function to emit
+    dispatcher = njit(cache=True, no_cfunc_wrapper=True)(function)
     index, directory = _cache_index(dispatcher)
     if index is not None and index.exists():
         COMPILE_LOGGER.debug("loading %s for %s from numba's cache in %s", what, params_type.__name__, directory)

@@ -260,7 +260,7 @@ def _make_substep(version: int):
         yes = np.bool_(True)  # not a literal: the same typing of `_step` as `propagate`'s
         _step(z, m, slot, a, core, out, scratch[6, : z.shape[0] // 2], scratch, yes, yes)
 
-    return njit(cache=True)(substep)
+    return njit(cache=True, no_cfunc_wrapper=True)(substep)
 
 
 substep = _make_substep(_PRIMITIVES_VERSION)
@@ -350,7 +350,7 @@ def _make_propagate(version: int):
         scratch = np.empty((SCRATCH_ROWS, scratch_width(core, stack.shape[3])))
         propagate_into(z0, actions, core, stack, scratch)
 
-    return njit(cache=True)(propagate)
+    return njit(cache=True, no_cfunc_wrapper=True)(propagate)
 
 
 propagate = _make_propagate(_PRIMITIVES_VERSION)
@@ -361,7 +361,7 @@ def reward_sources(params_type: type) -> list[str]:
     return [__file__, *minimum_sources(params_type)]
 
 
-@njit
+@njit(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def pessimistic_rewards(stack, time, params, rewards, collided):
     """Pessimistic rewards of the boxes of `propagate`: the minimum over the sub-steps.
 
@@ -369,6 +369,8 @@ def pessimistic_rewards(stack, time, params, rewards, collided):
     sub-step whose box may collide), ``collided[m, i]`` whether any sub-step's box may.
     Not cached itself (it calls the reward family's overload): callers cache it
     through a factory keyed by `sources_digest`, as `stack_rewards_kernel` does.
+    Compiled code only (no Python wrapper: the compiled search and
+    `stack_rewards_kernel` call it; reference counting stays on for rewards that allocate).
     """
     n_sub, n_models, n_actions, n = stack.shape
     p = n // 2
