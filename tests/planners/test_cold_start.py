@@ -182,13 +182,25 @@ planner = multi_model_robust_planner(
 start = np.asarray(world.state, dtype=float)
 planner.plan(root_state(planner, start - 0.01, start + 0.01, time=0))
 assert planner.engine_used == "compiled", planner.engine_used
-print(json.dumps(compiled))
+first = dict(compiled)
+compiled.clear()
+from minimaxplan.scenarios import SpeedLaneReward
+
+further = multi_model_robust_planner(
+    pairs, SpeedLaneReward(target_speed=1.0, speed_range=2.0, speed_indices=(2, 3), lateral_index=1,
+                           lane_width=1.0, n_lanes=3, lane_weight=0.5, speed_weight=0.5,
+                           obstacles=world.obstacles, robot_radius=world.params.robot_radius),
+    velocity_controllers(config), gamma=config.gamma, budget=config.budget, substeps=world.params.substeps,
+)
+further.plan(root_state(further, start - 0.01, start + 0.01, time=0))
+assert further.engine_used == "compiled", further.engine_used
+print(json.dumps({"first": first, "further": compiled}))
 """
 
 
 @pytest.fixture(scope="module")
-def first_plan_compiles(tmp_path_factory):
-    """What the robot's first plan compiles in a fresh process with an empty numba cache."""
+def plans_compile(tmp_path_factory):
+    """What the robot's first plan, then a plan with a further reward family, compile in a fresh process."""
     import json
     import os
     import subprocess
@@ -198,6 +210,12 @@ def first_plan_compiles(tmp_path_factory):
     done = subprocess.run([sys.executable, "-c", FIRST_PLAN], env=env, capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def first_plan_compiles(plans_compile):
+    """What the robot's first plan compiles in a fresh process with an empty numba cache."""
+    return plans_compile["first"]
 
 
 def test_the_first_plan_compiles_every_function_once(first_plan_compiles):
@@ -331,3 +349,19 @@ def test_every_lazy_name_resolves_and_is_listed(package):
         assert getattr(value, "__name__", name) == name or not callable(value), (package, name)
         assert name in dir(module)
     assert not hasattr(module, "not_a_name")
+
+
+def test_a_further_family_compiles_only_its_own_kernels_once(plans_compile):
+    """A second reward family compiles its box minimum, the reward loop and the search kernel, each once.
+
+    The box code, the tree operations and the primitives come from the first plan's
+    libraries. (The lane term's ``math.floor`` is an int64 in numba, which compiled a
+    second `maximum`, for (int64, float64).)
+    """
+    further = plans_compile["further"]
+    ours = {name: signatures for name, signatures in further.items() if name.startswith("minimaxplan.")}
+    assert not {name: signatures for name, signatures in ours.items() if len(signatures) != 1}
+    assert "minimaxplan.kernels.box_primitives:maximum" not in ours
+    assert any(name.startswith("minimaxplan.planners.compiled_search:search_kernel.") for name in ours)
+    assert "minimaxplan.planners.box_kernels:pessimistic_rewards" in ours
+    assert not [name for name in ours if name.startswith("minimaxplan.planners.tree_ops:") or name.endswith(":_step")]
