@@ -255,15 +255,18 @@ def test_the_first_plan_compiles_no_single_call_helper_and_not_the_decision_walk
     """Each compiled function is a library that every compiled caller above it optimises and emits again.
 
     The tree operations with one call site are inlined by numba into it (`reset`,
-    `add_children`, `backup`, the heap's push and pop), the path comparison is part of
-    `_before`, and `best_path` (a walk of the tree's depth) is Python: none of them
-    compiles on its own (each did, on the code before this test).
+    `add_children`, `backup`, the heap's push and pop), and so is the reward loop
+    `pessimistic_rewards`; the path comparison is part of `_before`, and `best_path`
+    (a walk of the tree's depth) is Python: none of them compiles on its own (each did,
+    on the code before this test).
     """
     names = set(first_plan_compiles)
     for helper in ("reset", "add_children", "backup", "_heap_push", "_heap_pop", "_path_before", "best_path"):
         assert f"minimaxplan.planners.tree_ops:{helper}" not in names
     for kept in ("select", "expand", "_before"):
         assert f"minimaxplan.planners.tree_ops:{kept}" in names
+    # the reward loop too, into the search kernel (it is compiled per reward family anyway)
+    assert "minimaxplan.planners.box_kernels:pessimistic_rewards" not in names
 
 
 def test_the_kernels_have_no_c_wrapper():
@@ -288,6 +291,7 @@ def test_the_kernels_have_no_c_wrapper():
     for dispatcher in dispatchers:
         assert dispatcher.targetoptions.get("no_cfunc_wrapper") is True, dispatcher.py_func.__qualname__
     assert box_kernels.pessimistic_rewards.targetoptions.get("no_cpython_wrapper") is True
+    assert box_kernels.pessimistic_rewards.targetoptions.get("inline") == "always"
 
 
 def test_best_path_walks_the_children_of_largest_lower_bound():
@@ -363,5 +367,6 @@ def test_a_further_family_compiles_only_its_own_kernels_once(plans_compile):
     assert not {name: signatures for name, signatures in ours.items() if len(signatures) != 1}
     assert "minimaxplan.kernels.box_primitives:maximum" not in ours
     assert any(name.startswith("minimaxplan.planners.compiled_search:search_kernel.") for name in ours)
-    assert "minimaxplan.planners.box_kernels:pessimistic_rewards" in ours
+    assert "minimaxplan.planners.box_kernels:pessimistic_rewards" not in ours  # inlined into the search kernel
+    assert any(name.startswith("minimaxplan.scenarios.compiled_rewards:_speed_lane_box_minimum") for name in ours)
     assert not [name for name in ours if name.startswith("minimaxplan.planners.tree_ops:") or name.endswith(":_step")]
