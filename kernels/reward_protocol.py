@@ -277,6 +277,9 @@ def box_minima_kernel(params_type: type):
     return compile_per_params_type(box_minima_loop, params_type, what="the reward's box-minimum loop")
 
 
+_CACHED: dict[str, Any] = {"cache": True, "no_cfunc_wrapper": True}
+
+
 def compile_per_params_type(function, params_type: type, *, what: str = "a compiled kernel"):
     """``numba.njit(cache=True)`` of a kernel made for one params type, with an on-disk index of its own.
 
@@ -308,7 +311,8 @@ def compile_per_params_type(function, params_type: type, *, what: str = "a compi
     """
     tag = hashlib.sha256(f"{params_type.__module__}.{params_type.__qualname__}".encode()).hexdigest()[:12]
     function.__qualname__ = f"{function.__qualname__}_{tag}"
-    dispatcher = njit(cache=True)(function)
+    # no C wrapper: that is for numba's first-class function values (unused), one more function to emit
+    dispatcher = njit(**_CACHED)(function)
     index, directory = _cache_index(dispatcher)
     if index is not None and index.exists():
         COMPILE_LOGGER.debug("loading %s for %s from numba's cache in %s", what, params_type.__name__, directory)

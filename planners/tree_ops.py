@@ -62,13 +62,23 @@ REWARD_ERROR = -2
 # The operations are compiled without numba's reference counting (they allocate nothing): each read of
 # an array field of `TreeArrays` would otherwise cost an atomic increment and decrement, which the
 # compiled search pays on every expansion (measured: +15% on a whole search with M = |A| = 4, one
-# sub-step). The entry points called from Python (`start`, `expand_and_select`, `best_path`) keep it, and
-# only they have a Python wrapper: the others are called from compiled code only (a wrapper unboxing the
-# 18 fields of `TreeArrays` is compiled for nothing; see benchmarks/bench_cold_start.py). The heap helpers
-# are not cached either: they are compiled only with a caller, into its cached code. None is inlined by
-# numba (its inliner copies the callee's IR with its whole scope, block by block: seconds of a cold start).
+# sub-step). The entry points called from Python (`start`, `expand_and_select`) keep it, and only they
+# have a Python wrapper: the others are called from compiled code only (a wrapper unboxing the 18 fields
+# of `TreeArrays` is compiled for nothing; see benchmarks/bench_cold_start.py). No function has a C
+# wrapper (``no_cfunc_wrapper``: that is for numba's first-class function values, which nothing here
+# uses; each is one more function for LLVM to optimise and emit).
+#
+# Each compiled function is a library of its own, which numba optimises and turns into machine code,
+# then again inside every compiled caller above it (the caller links it in and optimises the whole). The
+# functions with a single call site are therefore inlined by numba into it (``inline="always"``):
+# `reset` (into the search kernel and `start`), `add_children` and `backup` (into `expand`), `_heap_pop`
+# (into `select`), `_heap_push` (into `add_children`); measured, 0.4-0.5 s less CPU for the compiled
+# engine's first plan. numba's inliner copies the callee's IR with its whole scope at each call site, so
+# the functions called from several places (`_before`, `select`, `expand`) stay functions of their own.
 _NO_REFCOUNTS: dict[str, Any] = {"cache": True, "_nrt": False, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
 _INTERNAL: dict[str, Any] = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True, "_nrt": False}
+_ENTRY: dict[str, Any] = {"cache": True, "no_cfunc_wrapper": True}
+_INLINED: dict[str, Any] = {**_INTERNAL, "inline": "always"}
 
 
 class TreeArrays(NamedTuple):
@@ -202,10 +212,17 @@ def grow(tree: TreeArrays, capacity: int, discounts: np.ndarray) -> TreeArrays:
 
 # ------------------------------------------------------------------ frontier
 @njit(**_INTERNAL)
-def _path_before(first, second, parent, action, depth):
-    """Whether leaf ``first``'s action path is lexicographically before leaf ``second``'s."""
-    d1, d2 = depth[first], depth[second]
-    a, b = first, second
+def _before(i, j, key, parent, action, depth):
+    """Heap order: larger b-value (``key``) first, then the lexicographically smaller action path.
+
+    The path comparison is written here, not in a function of its own: each compiled
+    function is a library of its own, optimised and turned into machine code again by
+    each compiled caller above it (benchmarks/bench_cold_start.py).
+    """
+    if key[i] != key[j]:
+        return key[i] > key[j]
+    d1, d2 = depth[i], depth[j]
+    a, b = i, j
     while d1 > d2:  # lift the deeper one to the common depth
         a = parent[a]
         d1 -= 1
@@ -214,22 +231,14 @@ def _path_before(first, second, parent, action, depth):
         d2 -= 1
     if a == b:
         # one path is a prefix of the other: impossible between two leaves
-        return depth[first] < depth[second]
+        return depth[i] < depth[j]
     while parent[a] != parent[b]:  # up to the children of the deepest common ancestor
         a = parent[a]
         b = parent[b]
     return action[a] < action[b]
 
 
-@njit(**_INTERNAL)
-def _before(i, j, key, parent, action, depth):
-    """Heap order: larger b-value (``key``) first, then the smaller action path."""
-    if key[i] != key[j]:
-        return key[i] > key[j]
-    return _path_before(i, j, parent, action, depth)
-
-
-@njit(**_INTERNAL)
+@njit(**_INLINED)
 def _heap_push(heap, size, node, key, parent, action, depth):
     """Push ``node`` on ``heap[:size]``; returns the new size."""
     position = size
@@ -243,7 +252,7 @@ def _heap_push(heap, size, node, key, parent, action, depth):
     return size + 1
 
 
-@njit(**_INTERNAL)
+@njit(**_INLINED)
 def _heap_pop(heap, size, key, parent, action, depth):
     """Pop the first node of ``heap[:size]``; returns it (the new size is ``size - 1``)."""
     top = heap[0]
@@ -266,7 +275,7 @@ def _heap_pop(heap, size, key, parent, action, depth):
 
 
 # ------------------------------------------------------------ the operations
-@njit(**_NO_REFCOUNTS)
+@njit(**_INLINED)
 def reset(tree):
     """Make ``tree`` the root alone: depth 0, zero returns, nothing terminated, on the frontier."""
     n_models = tree.returns.shape[1]
@@ -342,7 +351,7 @@ def expand(tree, leaf):
     return -1
 
 
-@njit(**_NO_REFCOUNTS)
+@njit(**_INLINED)
 def add_children(tree, leaf):
     """Create the ``n_actions`` children of ``leaf`` from ``tree.rewards``, put them on the frontier.
 
@@ -431,7 +440,7 @@ def add_children(tree, leaf):
     return first
 
 
-@njit(**_NO_REFCOUNTS)
+@njit(**_INLINED)
 def backup(tree, node):
     """Recompute ``lower``/``upper`` from ``node`` up to the root (max over the children; ``lower`` at least the leaf bound).
 
@@ -459,33 +468,46 @@ def backup(tree, node):
         node = parent[node]
 
 
-@njit(cache=True)
-def best_path(tree):
-    """The decision's action indices: from the root, the child of largest ``lower`` (first on ties), to a leaf."""
+def best_path(tree: TreeArrays) -> np.ndarray:
+    """The decision's action indices: from the root, the child of largest ``lower`` (first on ties), to a leaf.
+
+    Python, not compiled: a walk of at most the tree's depth, whose compile cost more
+    than every call of it (0.3 s of a cold start); the comparisons are the same float64
+    ``>`` in either form, so the path is the same.
+
+    Parameters
+    ----------
+    tree : TreeArrays
+        A searched tree.
+
+    Returns
+    -------
+    ndarray of int64
+        One action index per level, from the root down to a leaf.
+    """
     lower, first_child = tree.lower, tree.first_child
     n_actions = tree.rewards.shape[1]
-    path = np.empty(tree.counts[MAX_DEPTH], dtype=np.int64)
-    node, length = 0, 0
+    path = []
+    node = 0
     while first_child[node] >= 0:
-        start = first_child[node]
+        start = int(first_child[node])
         best = 0
         for a in range(1, n_actions):
             if lower[start + a] > lower[start + best]:
                 best = a
-        path[length] = best
-        length += 1
+        path.append(best)
         node = start + best
-    return path[:length]
+    return np.array(path, dtype=np.int64)
 
 
-@njit(cache=True)
+@njit(**_ENTRY)
 def start(tree):
     """`reset` then `select`: the root, the first leaf to expand (called from Python)."""
     reset(tree)
     return select(tree)
 
 
-@njit(cache=True)
+@njit(**_ENTRY)
 def expand_and_select(tree, leaf, select_next):
     """`expand` then, if ``select_next``, `select`: the Python engine's one compiled call per expansion.
 

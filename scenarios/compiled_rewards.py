@@ -158,7 +158,9 @@ def _speed_lane_box_minimum(params, z, p, t):
         reward = params.speed_weight * (1.0 - minimum(worst / params.speed_range, 1.0))
         if params.lane_weight != 0.0:
             y = -z[params.lateral]
-            lane = minimum(maximum(math.floor(y / params.lane_width + 0.5), 0.0), params.n_lanes - 1.0)
+            # float(): numba's math.floor gives an int64, which compiled a second `maximum` (int64, float64);
+            # the float of that int64 is the same value, so the reward is the same bit for bit
+            lane = minimum(maximum(float(math.floor(y / params.lane_width + 0.5)), 0.0), params.n_lanes - 1.0)
             reward = reward + params.lane_weight * (lane / (params.n_lanes - 1.0))
         return reward, False
 

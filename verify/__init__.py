@@ -22,17 +22,61 @@ only `linprog` call and its status map) and `_generation` (constraint generation
 the weak-duality bound).
 """
 
-from .certificates import EliminationCertificate, SelectionResult
-from .interval_regression import (
-    IntervalCertificate,
-    IntervalRows,
-    IntervalVerdict,
-    interval_consistency,
-    interval_parameter_box,
-)
-from .lmi import DualCertificate, LMIResult, LMIStatus, check_assumption4, lmi_matrix
-from .regions import ConflictSet, RegionMap, RegionPiece, certified_region, conflicting_vertices
-from .selection import ModelSelector, eliminate_models, feasible_parameter_box
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .certificates import EliminationCertificate, SelectionResult
+    from .interval_regression import (
+        IntervalCertificate,
+        IntervalRows,
+        IntervalVerdict,
+        interval_consistency,
+        interval_parameter_box,
+    )
+    from .lmi import DualCertificate, LMIResult, LMIStatus, check_assumption4, lmi_matrix
+    from .regions import ConflictSet, RegionMap, RegionPiece, certified_region, conflicting_vertices
+    from .selection import ModelSelector, eliminate_models, feasible_parameter_box
+
+# Each name is imported from its module when first asked for: importing `minimaxplan.verify.selection` (the
+# LP model elimination, as the robot's methods do) does not import cvxpy and scipy.stats with `lmi`
+# (0.9 s of a fresh process, see benchmarks/bench_cold_start.py).
+_MODULES = {
+    "EliminationCertificate": "certificates",
+    "SelectionResult": "certificates",
+    "IntervalCertificate": "interval_regression",
+    "IntervalRows": "interval_regression",
+    "IntervalVerdict": "interval_regression",
+    "interval_consistency": "interval_regression",
+    "interval_parameter_box": "interval_regression",
+    "DualCertificate": "lmi",
+    "LMIResult": "lmi",
+    "LMIStatus": "lmi",
+    "check_assumption4": "lmi",
+    "lmi_matrix": "lmi",
+    "ConflictSet": "regions",
+    "RegionMap": "regions",
+    "RegionPiece": "regions",
+    "certified_region": "regions",
+    "conflicting_vertices": "regions",
+    "ModelSelector": "selection",
+    "eliminate_models": "selection",
+    "feasible_parameter_box": "selection",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _MODULES.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "check_assumption4",

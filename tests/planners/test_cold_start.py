@@ -182,13 +182,25 @@ planner = multi_model_robust_planner(
 start = np.asarray(world.state, dtype=float)
 planner.plan(root_state(planner, start - 0.01, start + 0.01, time=0))
 assert planner.engine_used == "compiled", planner.engine_used
-print(json.dumps(compiled))
+first = dict(compiled)
+compiled.clear()
+from minimaxplan.scenarios import SpeedLaneReward
+
+further = multi_model_robust_planner(
+    pairs, SpeedLaneReward(target_speed=1.0, speed_range=2.0, speed_indices=(2, 3), lateral_index=1,
+                           lane_width=1.0, n_lanes=3, lane_weight=0.5, speed_weight=0.5,
+                           obstacles=world.obstacles, robot_radius=world.params.robot_radius),
+    velocity_controllers(config), gamma=config.gamma, budget=config.budget, substeps=world.params.substeps,
+)
+further.plan(root_state(further, start - 0.01, start + 0.01, time=0))
+assert further.engine_used == "compiled", further.engine_used
+print(json.dumps({"first": first, "further": compiled}))
 """
 
 
 @pytest.fixture(scope="module")
-def first_plan_compiles(tmp_path_factory):
-    """What the robot's first plan compiles in a fresh process with an empty numba cache."""
+def plans_compile(tmp_path_factory):
+    """What the robot's first plan, then a plan with a further reward family, compile in a fresh process."""
     import json
     import os
     import subprocess
@@ -198,6 +210,12 @@ def first_plan_compiles(tmp_path_factory):
     done = subprocess.run([sys.executable, "-c", FIRST_PLAN], env=env, capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def first_plan_compiles(plans_compile):
+    """What the robot's first plan compiles in a fresh process with an empty numba cache."""
+    return plans_compile["first"]
 
 
 def test_the_first_plan_compiles_every_function_once(first_plan_compiles):
@@ -231,3 +249,124 @@ def test_the_first_plan_compiles_the_box_code_once_and_no_python_entry_point(fir
     ):
         assert entry not in names
     assert [name for name in names if name.endswith(":_step")] == ["minimaxplan.planners.box_kernels:_step"]
+
+
+def test_the_first_plan_compiles_no_single_call_helper_and_not_the_decision_walk(first_plan_compiles):
+    """Each compiled function is a library that every compiled caller above it optimises and emits again.
+
+    The tree operations with one call site are inlined by numba into it (`reset`,
+    `add_children`, `backup`, the heap's push and pop), and so is the reward loop
+    `pessimistic_rewards`; the path comparison is part of `_before`, and `best_path`
+    (a walk of the tree's depth) is Python: none of them compiles on its own (each did,
+    on the code before this test).
+    """
+    names = set(first_plan_compiles)
+    for helper in ("reset", "add_children", "backup", "_heap_push", "_heap_pop", "_path_before", "best_path"):
+        assert f"minimaxplan.planners.tree_ops:{helper}" not in names
+    for kept in ("select", "expand", "_before"):
+        assert f"minimaxplan.planners.tree_ops:{kept}" in names
+    # the reward loop too, into the search kernel (it is compiled per reward family anyway)
+    assert "minimaxplan.planners.box_kernels:pessimistic_rewards" not in names
+
+
+def test_the_kernels_have_no_c_wrapper():
+    """No compiled function builds numba's C wrapper (for first-class function values, unused here)."""
+    from minimaxplan.kernels import box_minima_kernel
+    from minimaxplan.planners import box_kernels, tree_ops
+
+    dispatchers = [
+        compiled_search.search_kernel(GoalParams),
+        stack_rewards_kernel(GoalParams),
+        box_minima_kernel(GoalParams),
+        box_kernels.substep,
+        box_kernels.propagate,
+        box_kernels.pessimistic_rewards,
+        box_kernels._step,
+        tree_ops.start,
+        tree_ops.expand_and_select,
+        tree_ops.select,
+        tree_ops.expand,
+        tree_ops._before,
+    ]
+    for dispatcher in dispatchers:
+        assert dispatcher.targetoptions.get("no_cfunc_wrapper") is True, dispatcher.py_func.__qualname__
+    assert box_kernels.pessimistic_rewards.targetoptions.get("no_cpython_wrapper") is True
+    assert box_kernels.pessimistic_rewards.targetoptions.get("inline") == "always"
+
+
+def test_best_path_walks_the_children_of_largest_lower_bound():
+    from minimaxplan.planners import tree_ops
+
+    tree = tree_ops.allocate(7, 1, 3, 0.9, tree_ops.discount_table(0.9, 4))
+    tree.first_child[:7] = [1, -1, 4, -1, -1, -1, -1]
+    tree.lower[:7] = [0.0, 0.5, 0.7, 0.7, 0.2, 0.3, 0.3]  # ties: the first child
+    tree.counts[tree_ops.MAX_DEPTH] = 2
+    path = tree_ops.best_path(tree)
+    assert path.dtype == np.int64 and path.tolist() == [1, 1]
+    tree.first_child[0] = -1
+    assert tree_ops.best_path(tree).tolist() == []
+
+
+# Run in a fresh process: what importing the robot's side of the library loads.
+LAZY_IMPORTS = r"""
+import json, sys
+import minimaxplan.verify.selection
+from minimaxplan.scenarios import GoalReward, make_world, robot_hypotheses
+loaded = {"cvxpy": "cvxpy" in sys.modules,
+          "road": sorted(name for name in sys.modules if name.split(".")[-1] in
+                         ("road", "road_world", "traffic_models", "vehicles", "driving_reward")
+                         and name.startswith("minimaxplan.scenarios"))}
+from minimaxplan.verify import check_assumption4
+from minimaxplan.scenarios import DrivingReward
+loaded["cvxpy_when_asked"] = "cvxpy" in sys.modules
+loaded["driving_when_asked"] = "minimaxplan.scenarios.driving_reward" in sys.modules
+print(json.dumps(loaded))
+"""
+
+
+def test_the_robot_side_imports_neither_cvxpy_nor_the_road_worlds():
+    """`minimaxplan.verify` and `minimaxplan.scenarios` import each name's module when it is first asked for.
+
+    The LP model elimination (`verify.selection`) imported `lmi`, hence cvxpy and
+    scipy.stats (0.9 s of a fresh process); the robot's rewards and worlds imported the
+    road worlds, the traffic and the driving reward.
+    """
+    import json
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", LAZY_IMPORTS], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    loaded = json.loads(done.stdout.strip().splitlines()[-1])
+    assert loaded == {"cvxpy": False, "road": [], "cvxpy_when_asked": True, "driving_when_asked": True}
+
+
+@pytest.mark.parametrize("package", ["minimaxplan.verify", "minimaxplan.scenarios"])
+def test_every_lazy_name_resolves_and_is_listed(package):
+    import importlib
+
+    module = importlib.import_module(package)
+    for name in module.__all__:
+        if name in ("RobotNavigationEnv", "RoadDrivingEnv"):
+            continue  # the optional `gym` extra (tests/scenarios/test_gym_env.py)
+        value = getattr(module, name)
+        assert getattr(value, "__name__", name) == name or not callable(value), (package, name)
+        assert name in dir(module)
+    assert not hasattr(module, "not_a_name")
+
+
+def test_a_further_family_compiles_only_its_own_kernels_once(plans_compile):
+    """A second reward family compiles its box minimum, the reward loop and the search kernel, each once.
+
+    The box code, the tree operations and the primitives come from the first plan's
+    libraries. (The lane term's ``math.floor`` is an int64 in numba, which compiled a
+    second `maximum`, for (int64, float64).)
+    """
+    further = plans_compile["further"]
+    ours = {name: signatures for name, signatures in further.items() if name.startswith("minimaxplan.")}
+    assert not {name: signatures for name, signatures in ours.items() if len(signatures) != 1}
+    assert "minimaxplan.kernels.box_primitives:maximum" not in ours
+    assert any(name.startswith("minimaxplan.planners.compiled_search:search_kernel.") for name in ours)
+    assert "minimaxplan.planners.box_kernels:pessimistic_rewards" not in ours  # inlined into the search kernel
+    assert any(name.startswith("minimaxplan.scenarios.compiled_rewards:_speed_lane_box_minimum") for name in ours)
+    assert not [name for name in ours if name.startswith("minimaxplan.planners.tree_ops:") or name.endswith(":_step")]
