@@ -21,7 +21,6 @@ from minimaxplan.planners.dwa import NavigationScene
 from minimaxplan.planners.navigation import NavigationFunction
 from minimaxplan.scenarios import GoalReward, Hypothesis, MovingObstacles, RobotWorld, make_world, robot_hypotheses
 from minimaxplan.scenarios.worlds import WORLD_KINDS
-from minimaxplan.verify.lmi import check_assumption4
 
 from .episode import LoopConfig
 from .registry import Scenario, register_scenario
@@ -104,6 +103,8 @@ def assumption4_report(system: UncertainLinearSystem, parameters: Box) -> dict:
     velocity block ``I - dt diag(theta)`` is Schur for every friction in the box, and
     a common certificate over the box's vertices is sought.
     """
+    from minimaxplan.verify.lmi import check_assumption4  # cvxpy: imported when an episode checks Assumption 4
+
     vertices = parameters.vertices()
     full = check_assumption4([system.A(v) for v in vertices], form="discrete", D=system.D)
     velocity = check_assumption4([system.A(v)[2:, 2:] for v in vertices], form="discrete", D=system.D[2:])
