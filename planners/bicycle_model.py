@@ -586,8 +586,10 @@ class BicycleModel:
         groups = [(self._params, np.ones(n, dtype=bool), every)]
         if self._keep_params is not None and any(state.kept for state in states):
             # a path of the family that holds an action of the family stays in it: the lane-keeping
-            # table; any other continuation (a lane change, even one without effect, or another
-            # action than the one already held) is bounded on the table for any ego
+            # table; any other continuation (a lane change, or another action than the one already
+            # held) is bounded on the table for any ego. A lane change without effect is bounded
+            # there too; the maximum is the same as `step`'s, since such an action moves the ego
+            # exactly as the speed action of its family, which is held on the lane-keeping table
             hold = np.array([state.keep_hold if state.kept else -2 for state in states])
             groups = [(self._params, hold == -2, every)]
             for code in (-1, 0, 1, 2):

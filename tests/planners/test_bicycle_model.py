@@ -320,6 +320,12 @@ def test_a_lane_change_that_has_no_effect_keeps_the_lane():
     assert apply_action(controller, 1, edge, 0, 1)[1] == edge and child.kept
     right = model.action_names.index("LANE_RIGHT")
     assert not model.expand(root, (right,))[0][0].kept
+    # the continuation bounds agree with `step` there: the best held action's return
+    world, _, both, _, _ = _lane_keeping_case()
+    edge_root = both.initial_state(state.x, level=1, lane=edge)
+    for start in (edge_root, both.expand(edge_root, (left,))[0][0]):
+        expected = max(_held_return(both, start, a, 0.9) for a in both.actions)
+        assert both.fallback_values([start], 0.9)[0] == pytest.approx(expected, rel=1e-12, abs=1e-12)
 
 
 def test_the_fallback_values_hold_speed_actions_on_the_lane_keeping_table():
