@@ -396,6 +396,16 @@ class BicycleModel:
         self._lane_changes = np.array([dl for _, _, dl in table], dtype=np.int64)
         self._params = params
         self._keep_params = keep_params
+        # whether each action's lane change takes effect from each target lane (`apply_action`),
+        # derived once: the lane-keeping family's bookkeeping reads it at every expansion
+        n_lanes = controller.lanes.kinds.shape[0]
+        self._moves_lane = np.array(
+            [
+                [apply_action(controller, 0, lane, 0, int(dl))[1] != lane for dl in self._lane_changes]
+                for lane in range(n_lanes)
+            ],
+            dtype=bool,
+        )
         params_type: type = type(params)  # mypy infers type[Any], which it does not treat as Hashable
         self._kernel = _expand_kernel(params_type)
         self._index_cache: tuple[Any, np.ndarray] | None = None
@@ -436,13 +446,11 @@ class BicycleModel:
         if state.keep_depth < 0:
             return [lost] * index.shape[0]
         out = []
+        moves = self._moves_lane[state.lane]
         for a in index.tolist():
-            change = int(self._lane_changes[a])
-            if change != 0:
-                _, lane = apply_action(self.controller, state.level, state.lane, 0, change)
-                if int(lane) != state.lane:  # the lane change takes effect
-                    out.append(lost)
-                    continue
+            if moves[a]:  # the lane change takes effect
+                out.append(lost)
+                continue
             # an action whose lane change has no effect moves the ego as its speed change alone
             code = int(self._speed_changes[a]) + 1
             if state.keep_depth < LANE_KEEPING_PREFIX:
@@ -577,6 +585,8 @@ class BicycleModel:
         for i, state in enumerate(states):
             if type(state) is not BicycleState:
                 check_instance(f"states[{i}]", state, BicycleState, "a BicycleState (see BicycleModel.initial_state)")
+            if state.keep_hold not in (-1, 0, 1, 2):
+                raise InputError(f"states[{i}].keep_hold must be -1, 0, 1 or 2, got {state.keep_hold!r}")
             xs[i] = state.x
             meta[i] = state.level, state.lane, state.time
         out = np.empty(n)

@@ -15,8 +15,9 @@
   imported on demand.
 """
 
-import importlib
 from typing import TYPE_CHECKING, Any
+
+from .._lazy import lazy_attributes
 
 if TYPE_CHECKING:
     from .driving_reward import DrivingReward, road_pieces, true_reward, world_reward
@@ -130,18 +131,16 @@ __all__ = [
 ]
 
 
+_lazy_getattr = lazy_attributes(__name__, globals(), _MODULES)
+
+
 def __getattr__(name: str) -> Any:
-    # The Gymnasium env needs the optional `gym` extra: import it only when asked for.
+    # The Gymnasium env needs the optional `gym` extra: import it only when asked for (not cached).
     if name in ("RobotNavigationEnv", "RoadDrivingEnv"):
         from . import gym_env
 
         return getattr(gym_env, name)
-    module = _MODULES.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
+    return _lazy_getattr(name)
 
 
 def __dir__() -> list[str]:

@@ -359,3 +359,5 @@ def test_a_lane_keeping_reward_of_another_kind_is_rejected():
     world, state, both, general, keeping = _lane_keeping_case()
     with pytest.raises(InputError, match="lane_keeping_reward must expose kernel_params"):
         general.with_reward(general.reward, lane_keeping_reward="a table")
+    with pytest.raises(InputError, match="states\\[0\\].keep_hold must be -1, 0, 1 or 2, got 7"):
+        both.fallback_values([state._replace(keep_depth=5, keep_hold=7)], 0.9)
