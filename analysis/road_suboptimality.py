@@ -5,10 +5,12 @@ a *warm-up* of N sub-steps in which the ego holds one fixed controller, its IDLE
 action's controllers (`EgoSetup`: the speed level nearest to its initial speed, its
 initial lane; `warm_up`). The warm-up's N + 1 measurements, i.e. N transitions of every
 vehicle in view throughout, are fed to the robust method's `TrafficLearner`, whose
-beliefs are then *frozen* (`FrozenRobustMethod`: no more data, no elimination, no new
-parameter box; only what stays valid without data is kept: the theta boxes, and the
-surviving routes at the T-junction; a vehicle first seen later gets the forecast's
-prior belief). The robust
+beliefs are then *frozen* (`FrozenRobustMethod`: no new parameter box and no route
+elimination; what stays valid without data is kept: the theta boxes, and the surviving
+routes at the T-junction; a vehicle first seen later gets the prior theta boxes). On the
+highway the lane a vehicle steers to is a switching intention, a state rather than a
+model: it is tracked from the measurements as the live learner tracks it (see
+`FrozenLearner`). The robust
 method then drives H decisions; the oracle (`RoadOracleMethod`: the true parameters and
 intentions) drives the same world from the same warm-up state. Both episodes are run by
 `minimaxplan.analysis.episode.run_job`, so that the world's dynamics and noise streams,
@@ -186,7 +188,7 @@ class WarmedRoadScenario(RoadScenario):
 
 
 class FrozenLearner:
-    """A `TrafficLearner` after the warm-up: no more observations, its parameter boxes and routes fixed.
+    """A `TrafficLearner` after the warm-up: its parameter boxes and routes fixed, the highway's lanes in force tracked.
 
     Parameters
     ----------
@@ -196,7 +198,7 @@ class FrozenLearner:
     Attributes
     ----------
     learner : TrafficLearner
-        The wrapped learner (never fed again).
+        The wrapped learner (fed again on the highway only, for the lanes in force).
     frozen : dict of int to VehicleBelief
         Its beliefs at the last warm-up sub-step (`TrafficLearner.beliefs`).
     frozen_step : int
@@ -207,18 +209,28 @@ class FrozenLearner:
     What stays valid without more data: the boxes ``theta_a`` and ``theta_b`` (theta is
     constant and each box contains it), and at the T-junction the surviving routes
     (routes never switch, and elimination never removes the true one). What does not:
-    on the highway the eliminated lanes (a lane change may start at any sub-step after
-    the freeze, which only new data would show), and everywhere the lanes a vehicle
-    may be steering to *now* (they move along its route). So `beliefs` places each
-    frozen belief on the current measurement with `prior_belief`'s geometry: its lanes
-    and, on the highway, its routes are the prior's (the lanes whose strip holds the
-    measured centre and their side neighbours); at the T-junction its routes are the
-    frozen survivors through one of those lanes and its lanes those of the prior on
-    them (the prior's, if none is: never the case for a sound belief). Freezing the
-    highway's survivors as they were made the run-time check miss lane-changing
-    vehicles (65 of 1600 boxes, seeds 0-1, N = 10), as it should.
-    A vehicle first seen after the freeze gets the prior belief (`forecast_traffic`'s
-    default for a vehicle without one).
+    the lanes a vehicle may be steering to *now*. They move along its route, and on the
+    highway a lane change may start at any sub-step after the freeze.
+
+    * At the T-junction `beliefs` places each frozen belief on the current measurement
+      with `prior_belief`'s geometry: its routes are the frozen survivors through one of
+      the prior's lanes (those whose strip holds the measured centre), its lanes those of
+      the prior on them (the prior's, if none is: never the case for a sound belief).
+    * On the highway the wrapped learner keeps being fed every measurement (`see`) and
+      `beliefs` takes each vehicle's lanes and routes from it (`TrafficLearner.beliefs`)
+      with the frozen theta boxes (the prior's for a vehicle first seen after the
+      freeze). This learns nothing about the model: the learner's lane verdicts test
+      the data since each lane's last possible switch against the *prior* theta_b box
+      (an intention in force is refuted by its own transitions, whatever the learned
+      boxes), so they are what a tracker of the switching intention would say. Without
+      it, every neighbour beside the ego could always be already changing into its lane
+      (an intention in force, which no gap rule constrains): Figure 6's seed 9 collided
+      at N = 1 and N = 5 on those boxes, every plan possibly colliding within three
+      decisions. Freezing the highway's survivors as they were made the run-time check
+      miss lane-changing vehicles (65 of 1600 boxes, seeds 0-1, N = 10), as it should.
+
+    A vehicle first seen after the freeze at the T-junction gets the prior belief
+    (`forecast_traffic`'s default for a vehicle without one).
     """
 
     def __init__(self, learner: TrafficLearner) -> None:
@@ -227,16 +239,22 @@ class FrozenLearner:
         self.frozen: dict[int, VehicleBelief] = dict(learner.beliefs())
         self.frozen_step = int(learner.step)
         self.current: Observation | None = None
+        self.tracks_lanes = learner.kind == "highway"
 
     def see(self, observation: Observation) -> None:
-        """Record the current measurement, on which `beliefs` places the frozen beliefs (nothing is learned).
+        """Record the current measurement, on which `beliefs` places the frozen beliefs (no model is learned).
+
+        On the highway the wrapped learner is fed it too, for the lanes in force only
+        (see the Notes); a measurement already seen is not fed twice.
 
         Parameters
         ----------
         observation : Observation
-            The measurement of the decision.
+            The measurement of a sub-step after the freeze.
         """
         check_instance("observation", observation, Observation)
+        if self.tracks_lanes and (self.current is None or observation.time != self.current.time):
+            self.learner.observe(observation)
         self.current = observation
 
     def beliefs(self) -> dict[int, VehicleBelief]:
@@ -247,6 +265,15 @@ class FrozenLearner:
         if self.current is None:
             return dict(self.frozen)
         road, scenario = self.learner.road, self.learner.scenario
+        if self.tracks_lanes:
+            live = self.learner.beliefs()
+            prior_a, prior_b = self.learner.prior_a, self.learner.prior_b
+            out = {}
+            for agent, belief in live.items():
+                made = self.frozen.get(agent)
+                theta_a, theta_b = (made.theta_a, made.theta_b) if made is not None else (prior_a, prior_b)
+                out[agent] = replace(belief, theta_a=theta_a, theta_b=theta_b)
+            return out
         out = {}
         for row, agent in enumerate(np.asarray(self.current.ids, dtype=int)):
             belief = self.frozen.get(int(agent))
@@ -263,7 +290,7 @@ class FrozenLearner:
         return out
 
     def observe(self, observation: Observation) -> None:
-        """Refuse: a frozen learner takes no more data.
+        """Refuse: a frozen learner takes no more data to learn from (`see` is for the lanes in force).
 
         Raises
         ------
@@ -274,17 +301,17 @@ class FrozenLearner:
 
     @property
     def eliminations(self) -> list:
-        """The wrapped learner's eliminations (all made during the warm-up)."""
+        """The wrapped learner's eliminations (after the warm-up, only the highway's lane verdicts)."""
         return self.learner.eliminations
 
     @property
     def lp_solves(self) -> int:
-        """The wrapped learner's LP solves (all during the warm-up)."""
+        """The wrapped learner's LP solves (after the warm-up, only on the highway)."""
         return self.learner.lp_solves
 
     @property
     def solver_failures(self) -> int:
-        """The wrapped learner's HiGHS failures (all during the warm-up)."""
+        """The wrapped learner's HiGHS failures (after the warm-up, only on the highway)."""
         return self.learner.solver_failures
 
 
@@ -301,9 +328,10 @@ class FrozenRobustMethod(RoadRobustMethod):
     Notes
     -----
     `start` feeds the learner the world's warm-up measurements and replaces it by a
-    `FrozenLearner`; the measurements of the episode then teach it nothing, so every
+    `FrozenLearner`; the measurements of the episode then teach it no model, so every
     decision forecasts the traffic under the warm-up's theta boxes (and T-junction
-    routes), placed on the current measured states (`FrozenLearner.beliefs`).
+    routes), placed on the current measured states, with the highway's lanes in force
+    tracked from the measurements (`FrozenLearner.beliefs`).
     """
 
     def start(self, world: DrivingWorld) -> None:
