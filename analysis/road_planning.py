@@ -595,6 +595,9 @@ class RoadRobustMethod(_LearningMethod):
         road_world = self.world.world
         scenario = road_world.scenario
         reach, speed, heading = ego
+        # the ego's route lanes from the one it is on (its own route position: a route index never
+        # decreases, so the lanes it may occupy by the route rule over the horizon are among these)
+        route = self.ego.route[int(road_world.traffic.route_index[0]) :] if self.ego.route else ()
         forecast: TrafficForecast = forecast_traffic(
             observation,
             road_world.road,
@@ -604,7 +607,7 @@ class RoadRobustMethod(_LearningMethod):
             ego_reach=reach,
             ego_speed=speed,
             ego_heading=heading,
-            ego_route=self.ego.route or None,
+            ego_route=route or None,
         )
         if count:
             self.guaranteed_lost += int(

@@ -268,12 +268,12 @@ class FrozenLearner:
         if self.tracks_lanes:
             live = self.learner.beliefs()
             prior_a, prior_b = self.learner.prior_a, self.learner.prior_b
-            out = {}
-            for agent, belief in live.items():
+            tracked = {}
+            for agent, live_belief in live.items():
                 made = self.frozen.get(agent)
                 theta_a, theta_b = (made.theta_a, made.theta_b) if made is not None else (prior_a, prior_b)
-                out[agent] = replace(belief, theta_a=theta_a, theta_b=theta_b)
-            return out
+                tracked[agent] = replace(live_belief, theta_a=theta_a, theta_b=theta_b)
+            return tracked
         out = {}
         for row, agent in enumerate(np.asarray(self.current.ids, dtype=int)):
             belief = self.frozen.get(int(agent))

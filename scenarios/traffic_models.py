@@ -45,7 +45,7 @@ import.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -580,6 +580,56 @@ def _lin(c0, cx, cy, x_lo, x_hi, y_lo, y_hi):
     return _out(lo, hi)
 
 
+def _centre_arc_length_lower(road: Road, lanes, centre_lo, centre_hi, present) -> np.ndarray:
+    """Lower bounds of `Road.frenet`'s arc length ``s`` on some lanes over boxes of points.
+
+    Parameters
+    ----------
+    road : Road
+        The lanes.
+    lanes : array_like of int
+        The lanes to bound (every other column is ``-inf``).
+    centre_lo, centre_hi : ndarray, shape (k, 2)
+        Boxes of points (an agent's centre).
+    present : ndarray of bool, shape (k,)
+        Rows to bound (every other row is ``-inf``).
+
+    Returns
+    -------
+    ndarray, shape (k, n_lanes)
+        ``min s`` over each box: exact on a straight lane (s is linear); on an arc, from
+        the angles of the box's corners seen from the arc's centre (the extreme rays of a
+        box that does not hold that centre touch corners), ``-inf`` where the box holds
+        the centre or its angles reach `Road.frenet`'s wrap (``mid_angle + pi``). Rounded
+        outward by `ROUND_MARGIN`.
+    """
+    out = np.full((len(centre_lo), len(road)), -np.inf)
+    lanes = np.asarray(lanes, dtype=int)
+    rows = np.flatnonzero(np.asarray(present, dtype=bool) & np.all(centre_lo <= centre_hi, axis=1))
+    if lanes.size == 0 or rows.size == 0:
+        return out
+    lo, hi = centre_lo[rows], centre_hi[rows]
+    for lane in lanes:
+        if road.kinds[lane] != ARC:
+            start, d = road.starts[lane], road.directions[lane]
+            s_lo, _ = _lin(-float(start @ d), d[0], d[1], lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1])
+        else:
+            cx, cy = road.centers[lane]
+            holds = (lo[:, 0] <= cx) & (cx <= hi[:, 0]) & (lo[:, 1] <= cy) & (cy <= hi[:, 1])
+            corners_x = np.stack([lo[:, 0], lo[:, 0], hi[:, 0], hi[:, 0]], 1) - cx
+            corners_y = np.stack([lo[:, 1], hi[:, 1], lo[:, 1], hi[:, 1]], 1) - cy
+            towards = np.arctan2((lo[:, 1] + hi[:, 1]) / 2 - cy, (lo[:, 0] + hi[:, 0]) / 2 - cx)
+            rel = wrap_to_pi(np.arctan2(corners_y, corners_x) - towards[:, None])  # each |rel| < pi
+            base = wrap_to_pi(towards - road.mid_angles[lane])
+            d_lo, d_hi = base + rel.min(axis=1), base + rel.max(axis=1)
+            usable = ~holds & (d_lo > -np.pi) & (d_hi < np.pi)
+            radius, half = float(road.radii[lane]), float(road.lengths[lane]) / 2
+            s_lo = np.where(road.signs[lane] > 0, half + radius * d_lo, half - radius * d_hi)
+            s_lo = np.where(usable, s_lo, -np.inf)
+        out[rows, lane] = s_lo - ROUND_MARGIN * (1 + np.abs(s_lo))
+    return out
+
+
 def _matvec(m, lo, hi):
     """Interval product of batched matrices (..., 2, 2) with boxes (..., 2), rounded outward."""
     new_lo, new_hi = _matvec2(m, lo, hi)
@@ -652,6 +702,7 @@ class _Row:
     cap_speed: float
     prefix: dict  # lane -> (s_start, s_end)
     beyond: tuple
+    beyond_start: dict = field(default_factory=dict)  # beyond lane -> its route distance from s = 0
 
 
 def _route_rows(road: Road, veh: int, belief: VehicleBelief, state: np.ndarray, vehicle, rules) -> list:
@@ -712,6 +763,13 @@ def _route_rows(road: Road, veh: int, belief: VehicleBelief, state: np.ndarray, 
         beyond = tuple(rest[k:])
         fine = bool(prefix) and road.kinds[cur] == STRAIGHT
         last_end = max((e for _, e in prefix.values()), default=0.0)
+        # the world measures a leader's distance along the route (`find_leaders`: the sum of the
+        # route lanes' lengths before its lane, plus its centre's arc length on that lane); the row's
+        # s is that distance from cur's start where the prefix lanes abut, as they do on every road here
+        beyond_start = {}
+        sums = np.cumsum([0.0] + [float(road.lengths[lane]) for lane in rest])
+        if all(abs(prefix[lane][0] - sums[i]) <= COLLINEAR_TOL for i, lane in enumerate(rest[:k])):
+            beyond_start = {lane: float(sums[k + i]) for i, lane in enumerate(beyond)}
         prefix_end = np.inf if not beyond else last_end
         stop_s = np.nan
         for i in range(min(k, len(rest) - 1)):
@@ -723,7 +781,23 @@ def _route_rows(road: Road, veh: int, belief: VehicleBelief, state: np.ndarray, 
             cap_from = last_end - vehicle.length / 2 - rules.curve_approach
             cap_speed = float(np.sqrt(rules.curve_lateral_acceleration * road.radii[beyond[0]]))
         rows.append(
-            _Row(veh, cur, 0.0, o, u, fine, True, prefix_end, last_end, stop_s, cap_from, cap_speed, prefix, beyond)
+            _Row(
+                veh,
+                cur,
+                0.0,
+                o,
+                u,
+                fine,
+                True,
+                prefix_end,
+                last_end,
+                stop_s,
+                cap_from,
+                cap_speed,
+                prefix,
+                beyond,
+                beyond_start,
+            )
         )
     if not rows:
         raise InputError(f"belief of agent {belief.agent}: no route holds one of its lanes {belief.lanes}")
@@ -902,6 +976,7 @@ def forecast_traffic(
     pre_lo = np.full((R, n_lanes), np.nan)
     pre_hi = np.full((R, n_lanes), np.nan)
     beyond = np.zeros((R, n_lanes), dtype=bool)
+    beyond_start = np.full((R, n_lanes), np.nan)  # NaN: no bound (the gap to its occupants is only >= 0)
     route_mask = np.zeros((R, n_lanes), dtype=bool)
     side = np.zeros((R, n_lanes), dtype=bool)
     nbr = np.full((R, 2), -1, dtype=int)
@@ -919,6 +994,8 @@ def forecast_traffic(
             for lane, (s0, s1) in row.prefix.items():
                 pre_lo[r, lane], pre_hi[r, lane] = s0, s1
             beyond[r, list(row.beyond)] = True
+            for lane, start in row.beyond_start.items():
+                beyond_start[r, lane] = start
             route_mask[r] = ~np.isnan(pre_lo[r]) | beyond[r]
             if road.side_of[row.lane] >= 0:
                 side[r, list(road.side_lanes(row.lane))] = True
@@ -1002,6 +1079,7 @@ def forecast_traffic(
         ego_lanes = np.zeros((steps + 1, n_lanes), dtype=bool)
         ego_lanes[:, list(ego_route)] = True
     same = veh_of[:, None] == np.arange(m + 1)[None, :]
+    beyond_used = np.flatnonzero(beyond.any(axis=0))  # the lanes whose occupants' arc length is bounded
     pair_ok = np.zeros((R, m + 1), dtype=bool)
     lane_offset = np.full(n_lanes, np.nan)
     lane_offset[row_lane[fine | alive]] = c[fine | alive]
@@ -1338,11 +1416,19 @@ def forecast_traffic(
             pre = (interest_pre[:, None, :] & occ[None, :, :]).any(axis=-1)
             pre |= (interest_pre[:, None, :] & occ_sw[None, :, :]).any(axis=-1) & pair_ok
             pre &= ~same
-            bey = (beyond[:, None, :] & occ[None, :, :]).any(axis=-1) & ~same
+            bey_lanes = beyond[:, None, :] & occ[None, :, :]  # (R, m + 1, n_lanes)
+            bey = bey_lanes.any(axis=-1) & ~same
             dist_lo, dist_hi = pk_lo - s_hi[:, None], pk_hi - s_lo[:, None]
             poss_pre = pre & (dist_hi > 0)
             gap_cand = np.where(poss_pre, np.maximum(dist_lo, 0.0) - length, np.inf)
-            gap_cand = np.where(bey, -length, gap_cand)
+            # an occupant of a lane beyond the prefix is at least the route distance to that lane's
+            # start plus its centre's arc length on it away (a candidate leader is ahead: >= 0)
+            arc_lo = _centre_arc_length_lower(road, beyond_used, k_lo, k_hi, present)  # (m + 1, n_lanes)
+            bey_dist = np.where(
+                bey_lanes, beyond_start[:, None, :] + arc_lo[None, :, :] - s_hi[:, None, None], np.inf
+            ).min(axis=-1)
+            bey_dist = np.where(np.isnan(bey_dist), 0.0, bey_dist)
+            gap_cand = np.where(bey, np.minimum(gap_cand, np.maximum(bey_dist, 0.0) - length), gap_cand)
             kp_lo = np.append(lower[n, :, 3], e_head[n, 0])[None, :] - heading[:, None]
             kp_hi = np.append(upper[n, :, 3], e_head[n, 1])[None, :] - heading[:, None]
             with np.errstate(invalid="ignore"):

@@ -13,6 +13,7 @@ from minimaxplan.scenarios.road_world import HighwayScenario, TJunctionScenario,
 from minimaxplan.scenarios.traffic_models import (
     TrafficForecast,
     VehicleBelief,
+    _centre_arc_length_lower,
     acceleration_feature_bounds,
     cos_interval,
     footprint_box,
@@ -173,6 +174,64 @@ def test_forecast_contains_turning_vehicles():
                 total += checked
     assert turned, "no vehicle drove on an arc"
     assert total > 0 and total_misses == 0
+
+
+# ------------------------------------------------------- leaders beyond the prefix
+@settings(max_examples=60)
+@given(
+    lane=st.integers(0, 11),
+    s=st.floats(-10.0, 110.0),
+    off=st.floats(-8.0, 8.0),
+    wx=st.floats(0.0, 6.0),
+    wy=st.floats(0.0, 6.0),
+    seed=st.integers(0, 2**31),
+)
+def test_the_arc_length_bound_holds_for_every_point_of_the_box(lane, s, off, wx, wy, seed):
+    """`_centre_arc_length_lower` is below `Road.frenet`'s s of every point of the box (straight lanes and arcs)."""
+    road = make_road_world("tjunction", 0).road
+    s = min(s, float(road.lengths[lane]) + 10.0)
+    centre = road.position_at(np.array([lane]), np.array([s]), np.array([off]))[0]
+    lo, hi = centre - [wx / 2, wy / 2], centre + [wx / 2, wy / 2]
+    bound = _centre_arc_length_lower(road, [lane], lo[None], hi[None], np.array([True]))[0]
+    assert np.all(np.isneginf(np.delete(bound, lane)))  # only the lanes asked for
+    rng = np.random.default_rng(seed)
+    points = np.vstack(
+        [rng.uniform(lo, hi, (200, 2)), [[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]]]
+    )
+    arc_length, _ = road.frenet(np.full(len(points), lane), points[:, 0], points[:, 1])
+    assert np.all(arc_length >= bound[lane])
+    if road.kinds[lane] != 1:  # straight: exact (attained at a corner)
+        assert bound[lane] == pytest.approx(arc_length[-4:].min(), abs=1e-6)
+    elif np.hypot(*(centre - road.centers[lane])) > 4.0 + np.hypot(wx, wy):  # an arc, the box away from its centre
+        assert np.isfinite(bound[lane]) and bound[lane] >= arc_length.min() - 2.0 * np.hypot(wx, wy) - 1e-6
+
+
+def test_leaders_beyond_the_prefix_are_bounded_by_their_route_distance(monkeypatch):
+    """A vehicle whose route may lead through an arc follows its occupants at their route distance, not at 0.
+
+    The forecast still contains every T-junction vehicle, its speed lower bounds are at
+    least those of the old rule (a gap of 0 to any occupant of a lane beyond the straight
+    prefix) everywhere and higher somewhere.
+    """
+    import minimaxplan.scenarios.traffic_models as module
+
+    def no_bound(road, lanes, lo, hi, present):
+        return np.full((len(lo), len(road)), -np.inf)
+
+    tighter = 0.0
+    for seed in (0, 1):
+        world, run, observations, _ = _episode("tjunction", seed, 0.1, 130)
+        for t0 in (40, 70):
+            misses, checked, forecast = _check(world, run, observations, t0, 50)
+            assert checked > 0 and misses == 0
+            with monkeypatch.context() as patch:
+                patch.setattr(module, "_centre_arc_length_lower", no_bound)
+                old_misses, _, old = _check(world, run, observations, t0, 50)
+            assert old_misses == 0
+            gain = forecast.state_lower[..., 2] - old.state_lower[..., 2]
+            assert np.all(gain >= -1e-9)
+            tighter = max(tighter, float(gain.max()))
+    assert tighter > 0.5  # m/s: the old rule made followers of turning vehicles brake at a_max
 
 
 # --------------------------------------------------------------- exact features
