@@ -52,6 +52,20 @@ def test_both_subcommands_are_registered():
     assert "lmi" in help_text and "select" in help_text
 
 
+def test_each_subcommand_module_adds_its_command_with_its_job():
+    import importlib
+
+    subparsers = cli.build_parser()._subparsers._group_actions[0]
+    for module_name in cli.SUBCOMMAND_MODULES:
+        command = importlib.import_module(f"minimaxplan.analysis.{module_name}").COMMAND
+        parser = subparsers.choices[command.name]
+        assert parser.description == command.description and parser.epilog == command.epilog
+        assert parser.get_default("func") is command.run
+    assert list(subparsers.choices) == [
+        importlib.import_module(f"minimaxplan.analysis.{name}").COMMAND.name for name in cli.SUBCOMMAND_MODULES
+    ]
+
+
 # ------------------------------------------------------------------------ lmi
 def test_lmi_vertices_json_matches_the_library(capsys):
     code, out, err = run(capsys, "lmi", ROBOT_MODEL, "--vertices", "--json")
