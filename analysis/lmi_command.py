@@ -373,7 +373,7 @@ def run(args: argparse.Namespace) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        The options of `register`'s parser: ``model``, ``form``, ``vertices``,
+        The options of `COMMAND`'s parser: ``model``, ``form``, ``vertices``,
         ``regions``, ``depth``, ``solver``, ``model_name``, ``json``, ``out``.
 
     Returns

@@ -312,7 +312,7 @@ def run(args: argparse.Namespace) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        The options of `register`'s parser: ``models``, ``data``, ``lmi``, ``lmi_form``,
+        The options of `COMMAND`'s parser: ``models``, ``data``, ``lmi``, ``lmi_form``,
         ``lmi_states``, ``json``, ``out``.
 
     Returns
