@@ -62,10 +62,6 @@ def animate_episode(
     and the pedestrians' growing boxes of `MovingObstacles` (velocity uncertainty
     integrated over the horizon, grown by their radii).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import PatchCollection
@@ -76,7 +72,10 @@ def animate_episode(
     from minimaxplan.models.validation import as_count
     from minimaxplan.scenarios.worlds import PEDESTRIAN_RADIUS
 
+    from .figures import pyplot
     from .plots import PEDESTRIAN_BOX_COLOR, method_style
+
+    plt = pyplot()
 
     fps = as_count("fps", fps)
     max_frames = as_count("max_frames", max_frames, minimum=2)

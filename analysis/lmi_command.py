@@ -352,19 +352,11 @@ def save_region_map(regions: RegionMap, path: pathlib.Path) -> pathlib.Path:
     pathlib.Path
         ``path``.
     """
-    import matplotlib
+    from .figures import draw_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 2.2 if regions.box.dim == 1 else 5))
-    try:
-        draw_region_map(regions, ax)
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-    finally:
-        plt.close(fig)
-    return path
+    return draw_png(
+        lambda ax: draw_region_map(regions, ax), path, figsize=(6, 2.2 if regions.box.dim == 1 else 5), dpi=120
+    )
 
 
 def run(args: argparse.Namespace) -> int:

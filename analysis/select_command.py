@@ -291,19 +291,9 @@ def save_margin_plot(report: SelectionReport, path: pathlib.Path) -> pathlib.Pat
     pathlib.Path
         ``path``.
     """
-    import matplotlib
+    from .figures import draw_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    try:
-        draw_margins(report, ax)
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-    finally:
-        plt.close(fig)
-    return path
+    return draw_png(lambda ax: draw_margins(report, ax), path, figsize=(7, 4.2), dpi=120)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -239,19 +239,13 @@ def plot_study(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     pathlib.Path
         ``path``.
     """
-    import matplotlib
+    from .figures import draw_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    def draw(ax: Any) -> None:
+        draw_suboptimality(ax, study)
+        ax.set_title(f"Suboptimality over {study['horizon_decisions']} decisions, {study['episodes']} episodes")
 
-    fig, ax = plt.subplots(figsize=(6, 4))
-    draw_suboptimality(ax, study)
-    ax.set_title(f"Suboptimality over {study['horizon_decisions']} decisions, {study['episodes']} episodes")
-    fig.tight_layout()
-    out = pathlib.Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return draw_png(draw, path, figsize=(6, 4))
 
 
 def draw_suboptimality(ax: Any, study: dict) -> None:

@@ -874,10 +874,9 @@ def plot_sweep(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     values) so that their intervals do not hide one another; the travel-time axis does
     not reach below 0 s.
     """
-    import matplotlib
+    from .figures import pyplot, save_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     import numpy as np
 
     from .plots import method_style
@@ -928,10 +927,7 @@ def plot_sweep(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     axes[0, 0].legend()
     fig.suptitle(f"Where each method breaks: {grid['scenario']} world, {grid['episodes']} episodes per point")
     fig.tight_layout()
-    out = pathlib.Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_png(fig, path)
 
 
 def _write_outputs(study: dict, out: pathlib.Path) -> None:
