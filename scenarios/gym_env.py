@@ -71,6 +71,14 @@ OBSERVED_PEDESTRIANS = PEDESTRIAN_COUNT[1]
 OBSERVATION_BOUND = 1000.0
 
 
+def _action_array(action: np.ndarray) -> np.ndarray:
+    """The action as a float array; raises `InputError` unless it has shape (2,)."""
+    u = np.asarray(action, dtype=float)
+    if u.shape != (2,):
+        raise InputError(f"action must have shape (2,), got shape {u.shape}")
+    return u
+
+
 class _WorldEnv(gym.Env):
     """What both environments share: a world per episode, built by ``_start(world_seed)``
     (and observed by ``_observation`` and ``_info``), a control held through sub-steps."""
@@ -209,9 +217,7 @@ class RobotNavigationEnv(_WorldEnv):
             If `reset` was not called, or ``action`` is malformed or out of bounds.
         """
         world = self._current_world()
-        u = np.asarray(action, dtype=float)
-        if u.shape != (2,):
-            raise InputError(f"action must have shape (2,), got shape {u.shape}")
+        u = _action_array(action)
         # float32 actions at the bound may exceed it by rounding: clip only that.
         bound = self.params.control_bound
         if np.any(np.abs(u) > bound * (1 + 1e-6)) or not np.all(np.isfinite(u)):
@@ -310,9 +316,7 @@ class RoadDrivingEnv(_WorldEnv):
             If `reset` was not called, or ``action`` is malformed or out of bounds.
         """
         world = self._current_world()
-        u = np.asarray(action, dtype=float)
-        if u.shape != (2,):
-            raise InputError(f"action must have shape (2,), got shape {u.shape}")
+        u = _action_array(action)
         if np.any(np.abs(u) > 1.0) or not np.all(np.isfinite(u)):
             raise InputError(f"action must lie in [-1, 1]^2, got {u.tolist()}")
         # the scaled control may exceed its bound by one rounding: clip only that.
