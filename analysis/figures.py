@@ -57,7 +57,7 @@ def save_png(fig: Any, path: str | pathlib.Path, *, dpi: int = 110) -> pathlib.P
 def draw_png(
     draw: Callable[[Any], object], path: str | pathlib.Path, *, figsize: tuple[float, float], dpi: int = 110
 ) -> pathlib.Path:
-    """Draw on the one axes of a new figure, lay it out and write it to ``path`` as a PNG.
+    """Draw on the one axes of a new figure, lay it out and write it with `save_png`.
 
     The figure is closed when done, also when drawing or writing fails.
 
@@ -65,12 +65,10 @@ def draw_png(
     ----------
     draw : callable
         ``draw(ax)`` draws on the figure's `matplotlib.axes.Axes`.
-    path : str or pathlib.Path
-        The image file.
+    path, dpi
+        As for `save_png`.
     figsize : tuple of float
         The figure's (width, height), inches.
-    dpi : int
-        Resolution, dots per inch.
 
     Returns
     -------
@@ -82,8 +80,7 @@ def draw_png(
     try:
         draw(ax)
         fig.tight_layout()
-        out = pathlib.Path(path)
-        fig.savefig(out, dpi=dpi)
-    finally:
+    except BaseException:
         plt.close(fig)
-    return out
+        raise
+    return save_png(fig, path, dpi=dpi)
