@@ -13,12 +13,16 @@ import argparse
 import pathlib
 from typing import TYPE_CHECKING
 
-from .arguments import count, output_directory, report_error
+from .arguments import Subcommand, count, output_directory, report_error
 
 if TYPE_CHECKING:
     from .episode import EpisodeRecord
 
-__all__ = ["MAX_FRAMES", "animate_episode", "register"]
+__all__ = [
+    "MAX_FRAMES",
+    "animate_episode",
+    "COMMAND",
+]
 
 #: Frames of an animation at most: long episodes show every k-th sub-step.
 MAX_FRAMES = 80
@@ -58,10 +62,6 @@ def animate_episode(
     and the pedestrians' growing boxes of `MovingObstacles` (velocity uncertainty
     integrated over the horizon, grown by their radii).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import PatchCollection
@@ -72,7 +72,10 @@ def animate_episode(
     from minimaxplan.models.validation import as_count
     from minimaxplan.scenarios.worlds import PEDESTRIAN_RADIUS
 
+    from .figures import pyplot
     from .plots import PEDESTRIAN_BOX_COLOR, method_style
+
+    plt = pyplot()
 
     fps = as_count("fps", fps)
     max_frames = as_count("max_frames", max_frames, minimum=2)
@@ -193,22 +196,7 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the ``animate`` subcommand to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
-    """
-    parser = subparsers.add_parser(
-        "animate",
-        help="an animated GIF of one episode",
-        description="Run one seeded episode of METHOD in SCENARIO and write an animated GIF of it to OUT: "
-        "the robot, the obstacles, the pedestrians and (robust method) the predicted boxes of the "
-        "executed plan and the surviving hypotheses over time.",
-        epilog="Exit codes: 0 done; 2 a bad option or an unknown name (one line on stderr, before any work).",
-    )
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", required=True, help="a registered scenario (e.g. static, pedestrian)")
     parser.add_argument("--method", required=True, help="a registered method (e.g. robust, nominal, oracle, dwa, teb)")
     parser.add_argument("--seed", type=count(0), default=0, help="world seed (>= 0)")
@@ -219,4 +207,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="stop after this many decisions (default: the whole episode)",
     )
     parser.add_argument("--out", type=output_directory, default=pathlib.Path("out/animate"), help="output directory")
-    parser.set_defaults(func=_run)
+
+
+COMMAND = Subcommand(
+    "animate",
+    help="an animated GIF of one episode",
+    description="Run one seeded episode of METHOD in SCENARIO and write an animated GIF of it to OUT: "
+    "the robot, the obstacles, the pedestrians and (robust method) the predicted boxes of the "
+    "executed plan and the surviving hypotheses over time.",
+    epilog="Exit codes: 0 done; 2 a bad option or an unknown name (one line on stderr, before any work).",
+    add_options=_add_options,
+    run=_run,
+)

@@ -16,11 +16,13 @@ import os
 import pathlib
 import sys
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import NoReturn
 
 __all__ = [
     "CommandParser",
     "DefaultsHelpFormatter",
+    "Subcommand",
     "EXIT_USAGE",
     "count",
     "count_list",
@@ -86,6 +88,55 @@ class CommandParser(argparse.ArgumentParser):
             escaped, so that the message stays on one line.
         """
         self.exit(EXIT_USAGE, f"{self.prog}: error: {one_line(message)} (see '{self.prog} --help')\n")
+
+
+@dataclass(frozen=True)
+class Subcommand:
+    """One subcommand of the ``minimaxplan`` console script: its parser's texts, options and job.
+
+    Each subcommand module of `minimaxplan.analysis` defines one, ``COMMAND``, which
+    `minimaxplan.analysis.cli.build_parser` adds to the command line.
+
+    Attributes
+    ----------
+    name : str
+        The subcommand's name (``minimaxplan NAME``).
+    help : str
+        Its one-line summary in ``minimaxplan --help``.
+    description : str
+        The paragraph of its own ``--help``.
+    epilog : str
+        The last paragraph of its ``--help`` (its exit codes).
+    add_options : callable
+        ``add_options(parser)`` adds the subcommand's arguments to its parser.
+    run : callable
+        ``run(args)``: the job, given the parsed namespace; returns the exit status.
+    """
+
+    name: str
+    help: str
+    description: str
+    epilog: str
+    add_options: Callable[[argparse.ArgumentParser], None]
+    run: Callable[[argparse.Namespace], int]
+
+    def add_to(self, subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+        """Add this subcommand's parser to ``subparsers``, with ``func`` set to `run`.
+
+        Parameters
+        ----------
+        subparsers : argparse._SubParsersAction
+            The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
+
+        Returns
+        -------
+        argparse.ArgumentParser
+            The subcommand's parser.
+        """
+        parser = subparsers.add_parser(self.name, help=self.help, description=self.description, epilog=self.epilog)
+        self.add_options(parser)
+        parser.set_defaults(func=self.run)
+        return parser
 
 
 def one_line(text: str) -> str:

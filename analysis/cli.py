@@ -1,7 +1,8 @@
 """The ``minimaxplan`` console script: one subcommand per job.
 
 Each subcommand lives in its own module of `minimaxplan.analysis` exposing
-``register(subparsers)``, which adds its parser and sets ``func`` (args -> exit code).
+``COMMAND``, a `minimaxplan.analysis.arguments.Subcommand` (its texts, its options and
+its job, args -> exit code).
 Those modules import only the standard library at their top, and the library (numpy,
 scipy, cvxpy, numba) inside ``func``, so that ``minimaxplan --help`` and a usage error
 cost no heavy import. Every option is checked while parsing (`minimaxplan.analysis.arguments`):
@@ -54,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in SUBCOMMAND_MODULES:
-        importlib.import_module(f"minimaxplan.analysis.{name}").register(subparsers)
+        importlib.import_module(f"minimaxplan.analysis.{name}").COMMAND.add_to(subparsers)
     for subparser in subparsers.choices.values():
         subparser.set_defaults(parser=subparser)
     return parser

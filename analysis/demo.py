@@ -19,12 +19,17 @@ import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from .arguments import count, output_directory, report_error
+from .arguments import Subcommand, count, output_directory, report_error
 
 if TYPE_CHECKING:
     from .episode import EpisodeRecord
 
-__all__ = ["DT", "run", "report", "register"]
+__all__ = [
+    "DT",
+    "run",
+    "report",
+    "COMMAND",
+]
 
 #: Time step of the demo's robot, in seconds.
 DT = 0.1
@@ -191,26 +196,22 @@ def _animated_record(records: Sequence[EpisodeRecord], seed: int) -> EpisodeReco
     return chosen[0] if chosen else None
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the ``demo`` subcommand to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
-    """
-    parser = subparsers.add_parser(
-        "demo",
-        help="a short end-to-end run on the embedded default",
-        description="Part 1: learn, select, certify and predict on a simulated robot. Part 2: a short "
-        "experiment, EPISODES per method in every registered world (e.g. 5 x 2 worlds x 5 methods = 50 "
-        "episodes with the defaults), plots written to OUT.",
-        epilog="Exit codes: 0 done; 2 a bad option (one line on stderr, before any work).",
-    )
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=count(0), default=0, help="seed of part 1 and world seed of part 2 (>= 0)")
     parser.add_argument(
         "--episodes", type=count(0), default=5, help="episodes per method and world (>= 0; 0: part 1 only)"
     )
     parser.add_argument("--workers", type=count(1), default=None, help="local processes (>= 1; default: all cores)")
     parser.add_argument("--out", type=output_directory, default=pathlib.Path("out/demo"), help="output directory")
-    parser.set_defaults(func=_run)
+
+
+COMMAND = Subcommand(
+    "demo",
+    help="a short end-to-end run on the embedded default",
+    description="Part 1: learn, select, certify and predict on a simulated robot. Part 2: a short "
+    "experiment, EPISODES per method in every registered world (e.g. 5 x 2 worlds x 5 methods = 50 "
+    "episodes with the defaults), plots written to OUT.",
+    epilog="Exit codes: 0 done; 2 a bad option (one line on stderr, before any work).",
+    add_options=_add_options,
+    run=_run,
+)

@@ -14,9 +14,9 @@ import argparse
 import pathlib
 from collections.abc import Sequence
 
-from .arguments import count, name_list, output_directory, report_error
+from .arguments import Subcommand, count, name_list, output_directory, report_error
 
-__all__ = ["register", "run_and_report"]
+__all__ = ["COMMAND", "run_and_report"]
 
 
 def run_and_report(
@@ -105,24 +105,7 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the ``experiment`` subcommand to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
-    """
-    parser = subparsers.add_parser(
-        "experiment",
-        help="Monte-Carlo episodes per method and world (Table 3)",
-        description="Run seeded episodes of every method in every scenario and write the Table 3 "
-        "summary, the per-episode records and trajectory plots. A run has EPISODES x scenarios x "
-        "methods episodes, by default of every registered scenario and method (e.g. 100 x 2 robot "
-        "worlds x 5 methods = 1,000 episodes); the progress bar shows the total.",
-        epilog="Exit codes: 0 done; 2 a bad option, an unknown name or an unreachable Dask scheduler "
-        "(one line on stderr, before any episode runs).",
-    )
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--scenario",
         type=name_list,
@@ -148,4 +131,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--out", type=output_directory, default=pathlib.Path("out/experiment"), help="output directory")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.set_defaults(func=_run)
+
+
+COMMAND = Subcommand(
+    "experiment",
+    help="Monte-Carlo episodes per method and world (Table 3)",
+    description="Run seeded episodes of every method in every scenario and write the Table 3 "
+    "summary, the per-episode records and trajectory plots. A run has EPISODES x scenarios x "
+    "methods episodes, by default of every registered scenario and method (e.g. 100 x 2 robot "
+    "worlds x 5 methods = 1,000 episodes); the progress bar shows the total.",
+    epilog="Exit codes: 0 done; 2 a bad option, an unknown name or an unreachable Dask scheduler "
+    "(one line on stderr, before any episode runs).",
+    add_options=_add_options,
+    run=_run,
+)

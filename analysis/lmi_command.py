@@ -25,7 +25,7 @@ import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from .arguments import output_file, report_error
+from .arguments import Subcommand, output_file, report_error
 
 if TYPE_CHECKING:
     from minimaxplan.models import Box
@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from .reports import LMIReport
 
 __all__ = [
-    "register",
+    "COMMAND",
     "run",
     "check_model",
     "check_parameter_box",
@@ -60,23 +60,7 @@ FORMS = ("discrete", "continuous")
 DEFAULT_DEPTH = 4
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the ``lmi`` subcommand to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
-    """
-    parser = subparsers.add_parser(
-        "lmi",
-        help="check Assumption 4 (an LMI) for a model file and write a report",
-        description="Check Assumption 4 (the LMI of the paper, continuous or discrete form) for every "
-        "model of a TOML model file, on the nominal matrix or on every vertex of the parameter box, "
-        "and write a Markdown (or JSON) report with the certificate and its exact re-check.",
-        epilog="Exit codes: 0 Assumption 4 holds (certified) for every model; 1 it does not for some "
-        "model (infeasible, inconclusive or not certified); 2 error. Format: docs/model-format.md.",
-    )
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("model", type=pathlib.Path, help="TOML model file")
     parser.add_argument(
         "--form",
@@ -109,7 +93,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--out", type=output_file, metavar="FILE", help="write the report to this file (default: stdout)"
     )
-    parser.set_defaults(func=run)
 
 
 def _depth(text: str) -> int:
@@ -369,19 +352,11 @@ def save_region_map(regions: RegionMap, path: pathlib.Path) -> pathlib.Path:
     pathlib.Path
         ``path``.
     """
-    import matplotlib
+    from .figures import draw_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 2.2 if regions.box.dim == 1 else 5))
-    try:
-        draw_region_map(regions, ax)
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-    finally:
-        plt.close(fig)
-    return path
+    return draw_png(
+        lambda ax: draw_region_map(regions, ax), path, figsize=(6, 2.2 if regions.box.dim == 1 else 5), dpi=120
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -390,7 +365,7 @@ def run(args: argparse.Namespace) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        The options of `register`'s parser: ``model``, ``form``, ``vertices``,
+        The options of `COMMAND`'s parser: ``model``, ``form``, ``vertices``,
         ``regions``, ``depth``, ``solver``, ``model_name``, ``json``, ``out``.
 
     Returns
@@ -449,3 +424,16 @@ def _emit(text: str, out: pathlib.Path | None) -> None:
         sys.stdout.write(text)
     else:
         out.write_text(text, encoding="utf-8")
+
+
+COMMAND = Subcommand(
+    "lmi",
+    help="check Assumption 4 (an LMI) for a model file and write a report",
+    description="Check Assumption 4 (the LMI of the paper, continuous or discrete form) for every "
+    "model of a TOML model file, on the nominal matrix or on every vertex of the parameter box, "
+    "and write a Markdown (or JSON) report with the certificate and its exact re-check.",
+    epilog="Exit codes: 0 Assumption 4 holds (certified) for every model; 1 it does not for some "
+    "model (infeasible, inconclusive or not certified); 2 error. Format: docs/model-format.md.",
+    add_options=_add_options,
+    run=run,
+)

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from .episode import EpisodeRecord
+from .figures import pyplot, save_png
 
 __all__ = [
     "METHOD_STYLES",
@@ -38,15 +39,6 @@ METHOD_STYLES: dict[str, dict[str, Any]] = {
 #: Speeds below this (m/s) have no meaningful heading: the heading is not drawn there.
 HEADING_MIN_SPEED = 0.05
 PEDESTRIAN_BOX_COLOR = "tab:pink"
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def method_style(method: str) -> dict[str, Any]:
@@ -179,7 +171,7 @@ def trajectory_figure(records: Sequence[EpisodeRecord], *, title: str = "") -> A
         boxes it planned against (every eighth decision, eqs. (16)-(18)). One legend
         below the panels names every kind of mark.
     """
-    plt = _pyplot()
+    plt = pyplot()
     seeds = sorted({r.seed for r in records})
     fig, axes = plt.subplots(1, max(1, len(seeds)), figsize=(max(7.5, 5 * len(seeds)), 5.6), squeeze=False)
     handles: dict = {}
@@ -255,15 +247,7 @@ def plot_trajectories(records: Sequence[EpisodeRecord], path: str | pathlib.Path
     pathlib.Path
         ``path``.
     """
-    return _save(trajectory_figure(records, title=title), path)
-
-
-def _save(fig: Any, path: str | pathlib.Path) -> pathlib.Path:
-    plt = _pyplot()
-    out = pathlib.Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_png(trajectory_figure(records, title=title), path)
 
 
 def speed_and_heading(states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -311,7 +295,7 @@ def motion_figure(records: Sequence[EpisodeRecord], *, title: str = "") -> Any:
     from matplotlib.lines import Line2D
     from matplotlib.ticker import MultipleLocator
 
-    plt = _pyplot()
+    plt = pyplot()
     seeds = sorted({r.seed for r in records})
     rows = max(1, len(seeds))
     fig, axes = plt.subplots(
@@ -381,7 +365,7 @@ def plot_motion(records: Sequence[EpisodeRecord], path: str | pathlib.Path, *, t
     pathlib.Path
         ``path``.
     """
-    return _save(motion_figure(records, title=title), path)
+    return save_png(motion_figure(records, title=title), path)
 
 
 def plot_experiment(

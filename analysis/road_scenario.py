@@ -380,9 +380,10 @@ def road_trajectory_figure(records: Sequence[EpisodeRecord], *, title: str = "")
     """
     from matplotlib.lines import Line2D
 
-    from .plots import _pyplot, method_style
+    from .figures import pyplot
+    from .plots import method_style
 
-    plt = _pyplot()
+    plt = pyplot()
     seeds = sorted({r.seed for r in records})
     fig, axes = plt.subplots(max(1, len(seeds)), 1, figsize=(11, 3.6 * max(1, len(seeds))), squeeze=False)
     handles: dict = {}
@@ -454,9 +455,9 @@ def plot_road_trajectories(
     pathlib.Path
         ``path``.
     """
-    from .plots import _save
+    from .figures import save_png
 
-    return _save(road_trajectory_figure(records, title=title), path)
+    return save_png(road_trajectory_figure(records, title=title), path)
 
 
 for _kind in ROAD_WORLD_KINDS:

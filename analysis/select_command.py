@@ -26,7 +26,7 @@ import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from .arguments import count_list, output_file, report_error
+from .arguments import Subcommand, count_list, output_file, report_error
 
 if TYPE_CHECKING:
     from .data_file import TransitionData
@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from .reports import SelectionReport
 
 __all__ = [
-    "register",
+    "COMMAND",
     "run",
     "select_models",
     "draw_margins",
@@ -52,24 +52,7 @@ EXIT_ERROR = 2
 LMI_FORMS = ("discrete", "continuous")
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the ``select`` subcommand to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
-    """
-    parser = subparsers.add_parser(
-        "select",
-        help="eliminate the model hypotheses that observed data contradicts",
-        description="Run LP model elimination of the hypotheses of a TOML model file against one "
-        "observed trajectory (CSV or NPZ); report the survivors, each eliminated hypothesis's "
-        "first inconsistent transition, violated state and margin per state, and the survivors' feasible "
-        "parameter boxes; with --out, a PNG of the margins against N beside the report; with --lmi, "
-        "Assumption 4 on each survivor's feasible parameter box.",
-        epilog="Exit codes: 0 some hypothesis survives; 1 none does; 2 error. Formats: docs/model-format.md.",
-    )
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("models", type=pathlib.Path, help="TOML model file with one or more [[hypothesis]] tables")
     parser.add_argument("data", type=pathlib.Path, help="observed trajectory: .csv or .npz")
     parser.add_argument(
@@ -98,7 +81,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="write the report to this file, and FILE-margins.png beside it (default: stdout, no PNG)",
     )
-    parser.set_defaults(func=run)
 
 
 def select_models(
@@ -309,19 +291,9 @@ def save_margin_plot(report: SelectionReport, path: pathlib.Path) -> pathlib.Pat
     pathlib.Path
         ``path``.
     """
-    import matplotlib
+    from .figures import draw_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    try:
-        draw_margins(report, ax)
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-    finally:
-        plt.close(fig)
-    return path
+    return draw_png(lambda ax: draw_margins(report, ax), path, figsize=(7, 4.2), dpi=120)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -330,7 +302,7 @@ def run(args: argparse.Namespace) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        The options of `register`'s parser: ``models``, ``data``, ``lmi``, ``lmi_form``,
+        The options of `COMMAND`'s parser: ``models``, ``data``, ``lmi``, ``lmi_form``,
         ``lmi_states``, ``json``, ``out``.
 
     Returns
@@ -373,3 +345,17 @@ def run(args: argparse.Namespace) -> int:
         print(f"minimaxplan select: error: {exc}", file=sys.stderr)
         return EXIT_ERROR
     return code
+
+
+COMMAND = Subcommand(
+    "select",
+    help="eliminate the model hypotheses that observed data contradicts",
+    description="Run LP model elimination of the hypotheses of a TOML model file against one "
+    "observed trajectory (CSV or NPZ); report the survivors, each eliminated hypothesis's "
+    "first inconsistent transition, violated state and margin per state, and the survivors' feasible "
+    "parameter boxes; with --out, a PNG of the margins against N beside the report; with --lmi, "
+    "Assumption 4 on each survivor's feasible parameter box.",
+    epilog="Exit codes: 0 some hypothesis survives; 1 none does; 2 error. Formats: docs/model-format.md.",
+    add_options=_add_options,
+    run=run,
+)

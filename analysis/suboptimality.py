@@ -20,7 +20,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
-from .arguments import count, count_list, output_directory, report_error
+from .arguments import Subcommand, count, count_list, output_directory, report_error
 
 if TYPE_CHECKING:
     from .episode import LoopConfig
@@ -32,7 +32,7 @@ __all__ = [
     "plot_study",
     "draw_suboptimality",
     "markdown",
-    "register",
+    "COMMAND",
     "DEFAULT_SAMPLES",
     "DEFAULT_EPISODES",
     "DEFAULT_HORIZON",
@@ -239,19 +239,13 @@ def plot_study(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     pathlib.Path
         ``path``.
     """
-    import matplotlib
+    from .figures import draw_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    def draw(ax: Any) -> None:
+        draw_suboptimality(ax, study)
+        ax.set_title(f"Suboptimality over {study['horizon_decisions']} decisions, {study['episodes']} episodes")
 
-    fig, ax = plt.subplots(figsize=(6, 4))
-    draw_suboptimality(ax, study)
-    ax.set_title(f"Suboptimality over {study['horizon_decisions']} decisions, {study['episodes']} episodes")
-    fig.tight_layout()
-    out = pathlib.Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return draw_png(draw, path, figsize=(6, 4))
 
 
 def draw_suboptimality(ax: Any, study: dict) -> None:
@@ -375,27 +369,7 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the ``suboptimality`` subcommand to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
-    """
-    parser = subparsers.add_parser(
-        "suboptimality",
-        help="Figure 6: suboptimality against the number of samples N",
-        description="For each N, run EPISODES robust episodes that learn from N prior transitions, "
-        "and EPISODES oracle episodes on the same worlds; report the oracle's return minus the robust "
-        "planner's. A run has EPISODES x (1 + number of values of N) episodes (180 with the defaults). "
-        "With --scenario highway or tjunction (the road worlds), each world first runs N sub-steps with "
-        "the ego holding IDLE; the robust method learns from those N transitions per vehicle, then its "
-        "beliefs are frozen, and it and the oracle each drive HORIZON decisions from that same state "
-        "(EPISODES x 2 x number of values of N episodes; 120 with the road defaults); the outputs add "
-        "the failures of both, their mean speeds and the run-time check of the robust boxes.",
-        epilog="Exit codes: 0 done; 2 a bad option (one line on stderr, before any episode runs).",
-    )
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--scenario",
         default=ROBOT_SCENARIO,
@@ -429,4 +403,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="output directory (default: out/suboptimality); the road worlds: out/suboptimality-SCENARIO",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.set_defaults(func=_run)
+
+
+COMMAND = Subcommand(
+    "suboptimality",
+    help="Figure 6: suboptimality against the number of samples N",
+    description="For each N, run EPISODES robust episodes that learn from N prior transitions, "
+    "and EPISODES oracle episodes on the same worlds; report the oracle's return minus the robust "
+    "planner's. A run has EPISODES x (1 + number of values of N) episodes (180 with the defaults). "
+    "With --scenario highway or tjunction (the road worlds), each world first runs N sub-steps with "
+    "the ego holding IDLE; the robust method learns from those N transitions per vehicle, then its "
+    "beliefs are frozen, and it and the oracle each drive HORIZON decisions from that same state "
+    "(EPISODES x 2 x number of values of N episodes; 120 with the road defaults); the outputs add "
+    "the failures of both, their mean speeds and the run-time check of the robust boxes.",
+    epilog="Exit codes: 0 done; 2 a bad option (one line on stderr, before any episode runs).",
+    add_options=_add_options,
+    run=_run,
+)

@@ -46,7 +46,16 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from .arguments import add_run_options, count_list, distinct, name_list, number_list, output_directory, report_error
+from .arguments import (
+    Subcommand,
+    add_run_options,
+    count_list,
+    distinct,
+    name_list,
+    number_list,
+    output_directory,
+    report_error,
+)
 
 if TYPE_CHECKING:
     from minimaxplan.scenarios import RobotWorld
@@ -81,7 +90,7 @@ __all__ = [
     "summarise_sweep",
     "sweep_markdown",
     "plot_sweep",
-    "register",
+    "COMMAND",
 ]
 
 DEFAULT_PEDESTRIANS = (1, 3, 5, 8)
@@ -865,10 +874,9 @@ def plot_sweep(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     values) so that their intervals do not hide one another; the travel-time axis does
     not reach below 0 s.
     """
-    import matplotlib
+    from .figures import pyplot, save_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     import numpy as np
 
     from .plots import method_style
@@ -919,10 +927,7 @@ def plot_sweep(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     axes[0, 0].legend()
     fig.suptitle(f"Where each method breaks: {grid['scenario']} world, {grid['episodes']} episodes per point")
     fig.tight_layout()
-    out = pathlib.Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_png(fig, path)
 
 
 def _write_outputs(study: dict, out: pathlib.Path) -> None:
@@ -979,25 +984,7 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the ``sweep`` subcommand to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of the ``minimaxplan`` parser (`minimaxplan.analysis.cli`).
-    """
-    parser = subparsers.add_parser(
-        "sweep",
-        help="failure rate and travel time per method over crowd size and uncertainty, or traffic density",
-        description="Run every method over a grid of variants of one world: pedestrian counts and velocity "
-        "uncertainties of the pedestrian world, the number of vehicles on the highway, or the main-road "
-        "arrival rate at the T-junction; write the failure rate (exact 95% interval) and the travel time "
-        "(95% interval) per cell and method as a table, a plot, JSON and CSV. A run has EPISODES x cells x "
-        "methods episodes (20 x 4 x 3 x 3 = 720 for the pedestrian defaults with --episodes 20).",
-        epilog="Exit codes: 0 done; 2 a bad option, an unknown method, an axis of another world (one line on "
-        "stderr, before any episode runs).",
-    )
+def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--scenario", type=_scenario, default="pedestrian", help=f"the world to vary: {', '.join(SWEEP_SCENARIOS)}"
     )
@@ -1021,4 +1008,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_run_options(parser, episodes=20, episodes_help="episodes per cell and method (>= 1)")
     parser.add_argument("--out", type=output_directory, default=pathlib.Path("out/sweep"), help="output directory")
-    parser.set_defaults(func=_run)
+
+
+COMMAND = Subcommand(
+    "sweep",
+    help="failure rate and travel time per method over crowd size and uncertainty, or traffic density",
+    description="Run every method over a grid of variants of one world: pedestrian counts and velocity "
+    "uncertainties of the pedestrian world, the number of vehicles on the highway, or the main-road "
+    "arrival rate at the T-junction; write the failure rate (exact 95% interval) and the travel time "
+    "(95% interval) per cell and method as a table, a plot, JSON and CSV. A run has EPISODES x cells x "
+    "methods episodes (20 x 4 x 3 x 3 = 720 for the pedestrian defaults with --episodes 20).",
+    epilog="Exit codes: 0 done; 2 a bad option, an unknown method, an axis of another world (one line on "
+    "stderr, before any episode runs).",
+    add_options=_add_options,
+    run=_run,
+)

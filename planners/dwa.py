@@ -32,7 +32,7 @@ from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.models.system import UncertainLinearSystem
 from minimaxplan.models.validation import as_count, as_finite_array, as_positive_scalar, check_instance, check_shape
 
-from .navigation import NavigationFunction
+from .navigation import NavigationCache, NavigationFunction
 
 __all__ = [
     "NavigationScene",
@@ -154,6 +154,11 @@ def _discs(center_name, centers, radius_name, radii) -> tuple[np.ndarray, np.nda
     if np.any(r <= 0):
         raise InputError(f"{radius_name} must be > 0, got min {r.min():.6g}")
     return c, r
+
+
+def _control_grid(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """Every pair ``(first[i], second[j])``, shape (len(first) * len(second), 2), ``first`` the slow axis."""
+    return np.stack(np.meshgrid(first, second, indexing="ij"), axis=-1).reshape(-1, 2)
 
 
 def _validated_state(state, nstates: int) -> np.ndarray:
@@ -289,10 +294,6 @@ class DynamicWindowPlanner:
     of that cost-to-go at the end (or the direction to the goal).
     """
 
-    # The navigation function of the last scene, and the key it was built for.
-    _nav: NavigationFunction | None = None
-    _nav_key: tuple[bytes, bytes, bytes] | None = None
-
     def __init__(
         self,
         system: UncertainLinearSystem,
@@ -312,9 +313,12 @@ class DynamicWindowPlanner:
         self.robot_radius = as_positive_scalar("robot_radius", robot_radius, allow_zero=True)
         self.control_bound = as_positive_scalar("control_bound", control_bound)
         grid = np.linspace(-1.0, 1.0, params.samples_per_axis) * self.control_bound
-        self.controls = np.stack(np.meshgrid(grid, grid, indexing="ij"), axis=-1).reshape(-1, 2)
+        self.controls = _control_grid(grid, grid)
         self._horizon_steps = max(self.substeps, int(round(params.horizon / self._dt)))
         self._brake_steps = int(round(params.brake_time / self._dt))
+        self._navigation_cache = NavigationCache(
+            clearance=self.robot_radius + params.safety_margin, resolution=params.grid_resolution
+        )
 
     # ------------------------------------------------------------- rollouts
     def _roll(self, x0: np.ndarray, controls: np.ndarray, steps: int) -> np.ndarray:
@@ -422,19 +426,7 @@ class DynamicWindowPlanner:
     def _navigation(self, scene: NavigationScene, points: np.ndarray) -> NavigationFunction:
         """The navigation function of this scene's goal and static discs (cached; rebuilt
         when they change or the points leave its grid)."""
-        key = (scene.goal.tobytes(), scene.obstacle_centers.tobytes(), scene.obstacle_radii.tobytes())
-        nav = self._nav
-        if nav is None or self._nav_key != key or not nav.covers(points):
-            nav = NavigationFunction(
-                scene.goal,
-                scene.obstacle_centers,
-                scene.obstacle_radii,
-                clearance=self.robot_radius + self.params.safety_margin,
-                region=points,
-                resolution=self.params.grid_resolution,
-            )
-            self._nav, self._nav_key = nav, key
-        return nav
+        return self._navigation_cache.get(scene.goal, scene.obstacle_centers, scene.obstacle_radii, points)
 
     @staticmethod
     def _gaps(positions: np.ndarray, times: np.ndarray, scene: NavigationScene) -> np.ndarray:
@@ -714,6 +706,29 @@ class BicycleBaseline:
         self.length = as_positive_scalar("length", length)
         self.width = as_positive_scalar("width", width)
 
+    def control_window(
+        self, speed: float, *, acceleration_samples: int, steering_samples: int, lateral_acceleration: float
+    ) -> np.ndarray:
+        """A grid of controls ``(a, delta)`` at this speed, shape (k, 2), all admissible for the ego.
+
+        The accelerations span ``[-acceleration_bound, acceleration_bound]``, the
+        steerings the `steering_window` of ``lateral_acceleration`` at ``speed``.
+
+        Parameters
+        ----------
+        speed : float
+            The ego's speed, m/s.
+        acceleration_samples, steering_samples : int
+            Grid points per axis (odd counts hold 0).
+        lateral_acceleration : float
+            The steering window's lateral acceleration, m/s^2.
+        """
+        a = np.linspace(-1.0, 1.0, acceleration_samples) * self.acceleration_bound
+        d = np.linspace(-1.0, 1.0, steering_samples) * steering_window(
+            speed, lateral_acceleration, self.max_steering, self.length
+        )
+        return _control_grid(a, d)
+
 
 class VehicleDynamicWindow(BicycleBaseline):
     """DWA for a car-like ego: a sampled (acceleration, steering) window on a given dynamics.
@@ -778,10 +793,12 @@ class VehicleDynamicWindow(BicycleBaseline):
             The ego's speed, m/s.
         """
         p = self.params
-        a = np.linspace(-1.0, 1.0, p.acceleration_samples) * self.acceleration_bound
-        width = steering_window(speed, p.lateral_acceleration, self.max_steering, self.length)
-        d = np.linspace(-1.0, 1.0, p.steering_samples) * width
-        return np.stack(np.meshgrid(a, d, indexing="ij"), axis=-1).reshape(-1, 2)
+        return self.control_window(
+            speed,
+            acceleration_samples=p.acceleration_samples,
+            steering_samples=p.steering_samples,
+            lateral_acceleration=p.lateral_acceleration,
+        )
 
     def rollout(self, state: np.ndarray, controls: np.ndarray, steps: int) -> np.ndarray:
         """States (k, steps, 4) after holding each control (k, 2) from ``state`` (4,) through ``dynamics``.

@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import dijkstra
 from minimaxplan.models.errors import InputError
 from minimaxplan.models.validation import as_finite_array, as_positive_scalar, check_shape
 
-__all__ = ["NavigationFunction"]
+__all__ = ["NavigationFunction", "NavigationCache"]
 
 _MOVES = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)])
 
@@ -257,3 +257,51 @@ class NavigationFunction:
         travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
         k = int(np.searchsorted(travelled, lookahead))
         return self.goal.copy() if k >= len(points) else points[k].copy()
+
+
+class NavigationCache:
+    """The navigation function of the last goal and static discs a local planner saw.
+
+    `get` rebuilds it when the goal or the discs change, or when the points the planner
+    asks about leave its grid; otherwise it returns the one it holds.
+
+    Parameters
+    ----------
+    clearance : float
+        The `NavigationFunction` clearance, m (the planner's footprint and margin).
+    resolution : float
+        Its cell size, m.
+    """
+
+    def __init__(self, *, clearance: float, resolution: float):
+        self.clearance = clearance
+        self.resolution = resolution
+        self._nav: NavigationFunction | None = None
+        self._key: tuple[bytes, bytes, bytes] | None = None
+
+    def get(self, goal: np.ndarray, centers: np.ndarray, radii: np.ndarray, points: np.ndarray) -> NavigationFunction:
+        """The navigation function to ``goal`` around the discs, on a grid covering ``points``.
+
+        Parameters
+        ----------
+        goal : numpy.ndarray, shape (2,)
+            The goal.
+        centers, radii : numpy.ndarray, shapes (n, 2) and (n,)
+            The static discs.
+        points : numpy.ndarray, shape (k, 2)
+            Points the grid must cover (the first one, the robot, must reach the goal);
+            a new grid is built over them when one leaves the current grid.
+
+        Returns
+        -------
+        NavigationFunction
+            The cached function, or a new one (then cached).
+        """
+        key = (goal.tobytes(), centers.tobytes(), radii.tobytes())
+        nav = self._nav
+        if nav is None or self._key != key or not nav.covers(points):
+            nav = NavigationFunction(
+                goal, centers, radii, clearance=self.clearance, region=points, resolution=self.resolution
+            )
+            self._nav, self._key = nav, key
+        return nav

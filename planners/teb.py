@@ -52,9 +52,8 @@ from .dwa import (
     VehicleDynamics,
     _off_road,
     planar_robot_model,
-    steering_window,
 )
-from .navigation import NavigationFunction
+from .navigation import NavigationCache
 
 __all__ = [
     "TEBParameters",
@@ -69,6 +68,14 @@ __all__ = [
 
 #: scipy's L-BFGS-B statuses and what they mean for a band; any other status raises.
 LBFGSB_STATUS = {0: "converged", 1: "iteration_limit", 2: "line_search_stopped"}
+
+
+def _check_band_limits(params: TEBParameters | VehicleTEBParameters) -> None:
+    """Raise `InputError` unless ``min_poses <= max_poses`` and ``dt_min < dt_ref < dt_max``."""
+    if params.min_poses > params.max_poses:
+        raise InputError(f"min_poses must be <= max_poses, got {params.min_poses} > {params.max_poses}")
+    if not params.dt_min < params.dt_ref < params.dt_max:
+        raise InputError(f"need dt_min < dt_ref < dt_max, got {params.dt_min}, {params.dt_ref}, {params.dt_max}")
 
 
 @dataclass(frozen=True)
@@ -153,10 +160,7 @@ class TEBParameters:
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
         for name in ("min_poses", "max_poses", "max_iterations"):
             as_count(name, getattr(self, name))
-        if self.min_poses > self.max_poses:
-            raise InputError(f"min_poses must be <= max_poses, got {self.min_poses} > {self.max_poses}")
-        if not self.dt_min < self.dt_ref < self.dt_max:
-            raise InputError(f"need dt_min < dt_ref < dt_max, got {self.dt_min}, {self.dt_ref}, {self.dt_max}")
+        _check_band_limits(self)
 
     def to_dict(self) -> dict:
         """The parameters as a plain dict (JSON-ready)."""
@@ -309,6 +313,68 @@ def _resize_band(X, dT, p: TEBParameters) -> tuple[np.ndarray, np.ndarray]:
     return np.array(X), np.clip(np.array(dT), p.dt_min, p.dt_max)
 
 
+def _optimised_band(
+    X: np.ndarray,
+    dT: np.ndarray,
+    velocity: np.ndarray,
+    discs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    params: TEBParameters,
+    *,
+    friction: np.ndarray,
+    control_bound: float,
+    extra: Callable[[np.ndarray], tuple[float, np.ndarray]] | None = None,
+) -> tuple[np.ndarray, np.ndarray, float, int, str]:
+    """The band ``(X, dT)`` optimised by L-BFGS-B on `band_cost`, its ends held.
+
+    Returns ``(X, dT, cost, iterations, status)`` (``status`` a value of
+    `LBFGSB_STATUS`); raises `SolverFailure` on any other status or a non-finite result.
+    """
+    n = len(dT)
+    start, goal = X[0], X[-1]
+    z0 = np.concatenate([X[1:-1].ravel(), dT])
+    bounds = [(None, None)] * (2 * (n - 1)) + [(params.dt_min, params.dt_max)] * n
+    result = minimize(
+        band_cost,
+        z0,
+        args=(start, velocity, goal, n, friction, discs, params, control_bound, extra),
+        jac=True,
+        method="L-BFGS-B",
+        bounds=bounds,
+        options={"maxiter": params.max_iterations},
+    )
+    status = LBFGSB_STATUS.get(int(result.status))
+    if status is None or not np.all(np.isfinite(result.x)) or not np.isfinite(result.fun):
+        raise SolverFailure(f"L-BFGS-B failed on the band (status {result.status}: {result.message})")
+    # Every named status gives a usable band: the penalties are soft and the band is
+    # re-optimised at the next call, and L-BFGS-B returns its best iterate.
+    X = np.concatenate([start[None], result.x[: 2 * (n - 1)].reshape(n - 1, 2), goal[None]])
+    return X, result.x[2 * (n - 1) :], float(result.fun), int(result.nit), status
+
+
+def _band_violation(X: np.ndarray, dT: np.ndarray, discs) -> float:
+    """The band's worst clearance shortfall over its poses and segment midpoints, m (0 if none)."""
+    centers, velocities, radii, required = discs
+    if centers.shape[0] == 0:
+        return 0.0
+    T = np.concatenate([[0.0], np.cumsum(dT)])
+    points = np.concatenate([X, (X[:-1] + X[1:]) / 2])
+    times = np.concatenate([T, T[:-1] + dT / 2])
+    where = centers + times[:, None, None] * velocities
+    gap = np.linalg.norm(points[:, None, :] - where, axis=-1) - radii
+    return float(np.max(np.maximum(required - gap, 0.0)))
+
+
+def _trimmed_band(band: tuple[np.ndarray, np.ndarray], start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A copy of the warm band without the poses already passed (it starts at the pose
+    nearest to ``start`` among its first few), its first pose moved to ``start``."""
+    X, dT = band
+    look = min(len(dT), 4)
+    nearest = min(int(np.argmin(np.linalg.norm(X[: look + 1] - start, axis=1))), len(dT) - 1)
+    X, dT = X[nearest:].copy(), dT[nearest:].copy()
+    X[0] = start
+    return X, dT
+
+
 # ------------------------------------------------------------------ the planner
 class TimedElasticBand:
     """TEB local planner with warm starts; `plan` returns the control for the next period.
@@ -330,10 +396,6 @@ class TimedElasticBand:
         Controls lie in ``[-control_bound, control_bound]^2``.
     """
 
-    # The navigation function of the last scene, and the key it was built for.
-    _nav: NavigationFunction | None = None
-    _nav_key: tuple[bytes, bytes, bytes] | None = None
-
     def __init__(
         self,
         system: UncertainLinearSystem,
@@ -354,6 +416,9 @@ class TimedElasticBand:
         self.substeps = int(substeps)
         self.robot_radius = as_positive_scalar("robot_radius", robot_radius, allow_zero=True)
         self.control_bound = as_positive_scalar("control_bound", control_bound)
+        self._navigation_cache = NavigationCache(
+            clearance=self.robot_radius + params.obstacle_margin, resolution=params.grid_resolution
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -387,33 +452,14 @@ class TimedElasticBand:
         """The navigation function's grid path from ``start`` to the goal (cached per scene), or None."""
         if not self.params.navigation_function:
             return None
-        key = (scene.goal.tobytes(), scene.obstacle_centers.tobytes(), scene.obstacle_radii.tobytes())
-        nav = self._nav
-        if nav is None or self._nav_key != key or not nav.covers(start):
-            nav = NavigationFunction(
-                scene.goal,
-                scene.obstacle_centers,
-                scene.obstacle_radii,
-                clearance=self.robot_radius + self.params.obstacle_margin,
-                region=start[None],
-                resolution=self.params.grid_resolution,
-            )
-            self._nav, self._nav_key = nav, key
+        nav = self._navigation_cache.get(scene.goal, scene.obstacle_centers, scene.obstacle_radii, start[None])
         try:
             return nav.path(start)
         except InputError:
             return None  # boxed in on the grid: fall back to the straight line
 
     def _warm_band(self, band: tuple[np.ndarray, np.ndarray], start) -> tuple[np.ndarray, np.ndarray]:
-        X, dT = band
-        # Drop the poses already passed: keep from the pose nearest to the robot (among the first few).
-        look = min(len(dT), 4)
-        nearest = int(np.argmin(np.linalg.norm(X[: look + 1] - start, axis=1)))
-        nearest = min(nearest, len(dT) - 1)
-        X = X[nearest:].copy()
-        dT = dT[nearest:].copy()
-        X[0] = start
-        return self._resize(X, dT)
+        return self._resize(*_trimmed_band(band, start))
 
     def _resize(self, X, dT) -> tuple[np.ndarray, np.ndarray]:
         """One pass of TEB's automatic resizing (`_resize_band`)."""
@@ -433,39 +479,9 @@ class TimedElasticBand:
         return scene.centers, scene.velocities, scene.radii, required
 
     def _optimise(self, X, dT, velocity, discs):
-        p = self.params
-        n = len(dT)
-        start, goal = X[0], X[-1]
-        z0 = np.concatenate([X[1:-1].ravel(), dT])
-        bounds = [(None, None)] * (2 * (n - 1)) + [(p.dt_min, p.dt_max)] * n
-        result = minimize(
-            band_cost,
-            z0,
-            args=(start, velocity, goal, n, self.friction, discs, p, self.control_bound),
-            jac=True,
-            method="L-BFGS-B",
-            bounds=bounds,
-            options={"maxiter": p.max_iterations},
+        return _optimised_band(
+            X, dT, velocity, discs, self.params, friction=self.friction, control_bound=self.control_bound
         )
-        status = LBFGSB_STATUS.get(int(result.status))
-        if status is None or not np.all(np.isfinite(result.x)) or not np.isfinite(result.fun):
-            raise SolverFailure(f"L-BFGS-B failed on the band (status {result.status}: {result.message})")
-        # Every named status gives a usable band: the penalties are soft and the band is
-        # re-optimised at the next call, and L-BFGS-B returns its best iterate.
-        X = np.concatenate([start[None], result.x[: 2 * (n - 1)].reshape(n - 1, 2), goal[None]])
-        dT = result.x[2 * (n - 1) :]
-        return X, dT, float(result.fun), int(result.nit), status
-
-    def _violation(self, X, dT, discs) -> float:
-        centers, velocities, radii, required = discs
-        if centers.shape[0] == 0:
-            return 0.0
-        T = np.concatenate([[0.0], np.cumsum(dT)])
-        points = np.concatenate([X, (X[:-1] + X[1:]) / 2])
-        times = np.concatenate([T, T[:-1] + dT / 2])
-        where = centers + times[:, None, None] * velocities
-        gap = np.linalg.norm(points[:, None, :] - where, axis=-1) - radii
-        return float(np.max(np.maximum(required - gap, 0.0)))
 
     # ------------------------------------------------------------- control
     def _control(self, X, dT, velocity) -> np.ndarray:
@@ -517,7 +533,7 @@ class TimedElasticBand:
         best = None
         for X, dT in candidates:
             best = self._optimise(X, dT, velocity, discs)
-        if best is None or self._violation(best[0], best[1], discs) > self.params.reinit_violation:
+        if best is None or _band_violation(best[0], best[1], discs) > self.params.reinit_violation:
             guide = self._guide(start, scene)
             amplitude = self.params.detour_amplitude
             for bump in (0.0, amplitude, -amplitude):
@@ -527,17 +543,17 @@ class TimedElasticBand:
                 if (
                     bump == 0.0
                     and guide is not None
-                    and self._violation(trial[0], trial[1], discs) <= self.params.reinit_violation
+                    and _band_violation(trial[0], trial[1], discs) <= self.params.reinit_violation
                 ):
                     break  # the band along the global path is clear: no need for side bumps
         assert best is not None  # the fresh bands above run whenever no warm band did
         X, dT, cost, iterations, status = best
         self._band = (X, dT)
-        return TEBPlan(X, dT, cost, self._violation(X, dT, discs), iterations, status, self._control(X, dT, velocity))
+        return TEBPlan(X, dT, cost, _band_violation(X, dT, discs), iterations, status, self._control(X, dT, velocity))
 
     def _score(self, band, discs) -> tuple[bool, float]:
         """Bands without clearance violation (beyond the tolerance) first, then by cost."""
-        return (self._violation(band[0], band[1], discs) > self.params.reinit_violation, band[2])
+        return (_band_violation(band[0], band[1], discs) > self.params.reinit_violation, band[2])
 
     def plan(self, state, scene: NavigationScene) -> np.ndarray:
         """The control ``u`` (2,) to hold for the next decision period.
@@ -691,10 +707,7 @@ class VehicleTEBParameters:
             as_positive_scalar(name, getattr(self, name), allow_zero=True)
         for name in ("min_poses", "max_poses", "max_iterations", "acceleration_samples", "steering_samples"):
             as_count(name, getattr(self, name))
-        if self.min_poses > self.max_poses:
-            raise InputError(f"min_poses must be <= max_poses, got {self.min_poses} > {self.max_poses}")
-        if not self.dt_min < self.dt_ref < self.dt_max:
-            raise InputError(f"need dt_min < dt_ref < dt_max, got {self.dt_min}, {self.dt_ref}, {self.dt_max}")
+        _check_band_limits(self)
 
     def band_parameters(self, max_speed: float) -> TEBParameters:
         """The `TEBParameters` that `band_cost` reads, with the scene's speed limit.
@@ -831,38 +844,6 @@ class VehicleElasticBand(BicycleBaseline):
         dT = np.full(n, max(distance / n / cruise, 2 * p.dt_min))
         return X, dT
 
-    def _optimise(self, X, dT, velocity, discs, band, extra):
-        n = len(dT)
-        start, goal = X[0], X[-1]
-        z0 = np.concatenate([X[1:-1].ravel(), dT])
-        bounds = [(None, None)] * (2 * (n - 1)) + [(band.dt_min, band.dt_max)] * n
-        result = minimize(
-            band_cost,
-            z0,
-            args=(start, velocity, goal, n, np.zeros(2), discs, band, self.acceleration_bound, extra),
-            jac=True,
-            method="L-BFGS-B",
-            bounds=bounds,
-            options={"maxiter": band.max_iterations},
-        )
-        status = LBFGSB_STATUS.get(int(result.status))
-        if status is None or not np.all(np.isfinite(result.x)) or not np.isfinite(result.fun):
-            raise SolverFailure(f"L-BFGS-B failed on the band (status {result.status}: {result.message})")
-        X = np.concatenate([start[None], result.x[: 2 * (n - 1)].reshape(n - 1, 2), goal[None]])
-        return X, result.x[2 * (n - 1) :], float(result.fun), int(result.nit), status
-
-    @staticmethod
-    def _violation(X, dT, discs) -> float:
-        centers, velocities, radii, required = discs
-        if centers.shape[0] == 0:
-            return 0.0
-        T = np.concatenate([[0.0], np.cumsum(dT)])
-        points = np.concatenate([X, (X[:-1] + X[1:]) / 2])
-        times = np.concatenate([T, T[:-1] + dT / 2])
-        where = centers + times[:, None, None] * velocities
-        gap = np.linalg.norm(points[:, None, :] - where, axis=-1) - radii
-        return float(np.max(np.maximum(required - gap, 0.0)))
-
     def _control(self, state: np.ndarray, X: np.ndarray, dT: np.ndarray, scene: RoadScene) -> np.ndarray:
         """The admissible ``(a, delta)`` that tracks the band.
 
@@ -879,10 +860,12 @@ class VehicleElasticBand(BicycleBaseline):
         segment = min(int(np.searchsorted(T, horizon, side="right")) - 1, len(dT) - 1)
         fraction = float(np.clip((horizon - T[segment]) / dT[segment], 0.0, 1.0))
         target = X[segment] + fraction * (X[segment + 1] - X[segment])
-        window = steering_window(state[2], p.lateral_acceleration, self.max_steering, self.length)
-        grid_a = np.linspace(-1.0, 1.0, p.acceleration_samples) * self.acceleration_bound
-        grid_d = np.linspace(-1.0, 1.0, p.steering_samples) * window
-        controls = np.stack(np.meshgrid(grid_a, grid_d, indexing="ij"), axis=-1).reshape(-1, 2)
+        controls = self.control_window(
+            state[2],
+            acceleration_samples=p.acceleration_samples,
+            steering_samples=p.steering_samples,
+            lateral_acceleration=p.lateral_acceleration,
+        )
         k = controls.shape[0]
         steps = max(self.substeps, int(round(p.tracking_time / self.dt)))
         x = np.broadcast_to(state, (k, 4)).copy()
@@ -925,25 +908,23 @@ class VehicleElasticBand(BicycleBaseline):
         warm = self._band is not None and len(self._band[1]) >= 1
         if warm:
             assert self._band is not None  # warm implies a band
-            X, dT = self._band
-            look = min(len(dT), 4)
-            nearest = min(int(np.argmin(np.linalg.norm(X[: look + 1] - start, axis=1))), len(dT) - 1)
-            X, dT = X[nearest:].copy(), dT[nearest:].copy()
-            X[0] = start
+            X, dT = _trimmed_band(self._band, start)
             X[-1] = goals[int(np.argmin(np.linalg.norm(goals - X[-1], axis=1)))]
             candidates.insert(0, _resize_band(X, dT, band))
         best, best_key = None, None
         for index, (X, dT) in enumerate(candidates):
-            trial = self._optimise(X, dT, velocity, discs, band, extra)
+            trial = _optimised_band(
+                X, dT, velocity, discs, band, friction=np.zeros(2), control_bound=self.acceleration_bound, extra=extra
+            )
             # The warm band (first, if any) keeps its class unless a fresh one is clearly cheaper.
             scale = 1.0 if warm and index == 0 else 1.0 / p.switching_hysteresis
-            key = (self._violation(trial[0], trial[1], discs) > p.reinit_violation, trial[2] * scale)
+            key = (_band_violation(trial[0], trial[1], discs) > p.reinit_violation, trial[2] * scale)
             if best_key is None or key < best_key:
                 best, best_key = trial, key
         assert best is not None  # at least one local goal
         X, dT, cost, iterations, status = best
         self._band = (X, dT)
-        return TEBPlan(X, dT, cost, self._violation(X, dT, discs), iterations, status, self._control(x, X, dT, scene))
+        return TEBPlan(X, dT, cost, _band_violation(X, dT, discs), iterations, status, self._control(x, X, dT, scene))
 
     def plan(self, state, scene: RoadScene) -> np.ndarray:
         """The control ``(acceleration, steering)`` to hold for the next decision period.

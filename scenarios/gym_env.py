@@ -71,7 +71,77 @@ OBSERVED_PEDESTRIANS = PEDESTRIAN_COUNT[1]
 OBSERVATION_BOUND = 1000.0
 
 
-class RobotNavigationEnv(gym.Env):
+def _action_array(action: np.ndarray) -> np.ndarray:
+    """The action as a float array; raises `InputError` unless it has shape (2,)."""
+    u = np.asarray(action, dtype=float)
+    if u.shape != (2,):
+        raise InputError(f"action must have shape (2,), got shape {u.shape}")
+    return u
+
+
+class _WorldEnv(gym.Env):
+    """What both environments share: a world per episode, built by ``_start(world_seed)``
+    (and observed by ``_observation`` and ``_info``), a control held through sub-steps."""
+
+    metadata = {"render_modes": []}
+    #: The outcomes that end an episode as ``terminated`` (a timeout truncates it).
+    _terminal_outcomes: tuple[str, ...] = ()
+    world: RobotWorld | RoadWorld | None
+
+    def _start(self, world_seed: int) -> None:
+        raise NotImplementedError
+
+    def _observation(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _info(self) -> dict:
+        raise NotImplementedError
+
+    def _current_world(self):
+        if self.world is None:
+            raise InputError("call reset() before step()")
+        return self.world
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """Start a new episode (gymnasium API).
+
+        Parameters
+        ----------
+        seed : int, optional
+            World seed of the new episode (>= 0); without it, the next seed of the
+            env's own generator (seeded by the first seeded reset).
+        options : dict, optional
+            Unused (gymnasium API).
+
+        Returns
+        -------
+        observation : numpy.ndarray
+            float32, shape ``observation_space.shape``.
+        info : dict
+            ``outcome``, ``time`` (s), and ``true_theta`` (`RobotNavigationEnv`) or the
+            observed vehicles' agent ``ids`` (`RoadDrivingEnv`).
+        """
+        super().reset(seed=seed)
+        world_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
+        self._start(world_seed)
+        return self._observation(), self._info()
+
+    def _hold(self, world, u: np.ndarray, substeps: int, reward) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """Apply ``u`` for ``substeps`` sub-steps (fewer if the episode ends); the step's
+        result with the mean of ``reward(world)`` after each."""
+        rewards = []
+        for _ in range(substeps):
+            world.apply(u)
+            rewards.append(reward(world))
+            if world.done:
+                break
+        outcome = world.outcome
+        terminated = outcome in self._terminal_outcomes
+        truncated = outcome == "timeout"
+        return self._observation(), float(np.mean(rewards)), terminated, truncated, self._info()
+
+
+class RobotNavigationEnv(_WorldEnv):
     """Robot navigation among static obstacles or pedestrians (see the module docstring).
 
     Parameters
@@ -84,7 +154,7 @@ class RobotNavigationEnv(gym.Env):
         `RobotParameters`.
     """
 
-    metadata = {"render_modes": []}
+    _terminal_outcomes = ("goal", "collision")
 
     def __init__(self, kind: str = "static", *, measurement: str = "uniform", params: RobotParameters = DEFAULT_ROBOT):
         as_choice("kind", kind, WORLD_KINDS)
@@ -98,11 +168,6 @@ class RobotNavigationEnv(gym.Env):
         size = 4 + 2 + 4 * OBSERVED_OBSTACLES + 5 * OBSERVED_PEDESTRIANS
         self.observation_space = spaces.Box(-OBSERVATION_BOUND, OBSERVATION_BOUND, shape=(size,), dtype=np.float32)
         self.world: RobotWorld | None = None
-
-    def _current_world(self) -> RobotWorld:
-        if self.world is None:
-            raise InputError("call reset() before step()")
-        return self.world
 
     def _observation(self) -> np.ndarray:
         world = self._current_world()
@@ -122,28 +187,8 @@ class RobotNavigationEnv(gym.Env):
         world = self._current_world()
         return {"outcome": world.outcome, "time": world.time, "true_theta": world.true_theta.copy()}
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
-        """Start a new episode (gymnasium API).
-
-        Parameters
-        ----------
-        seed : int, optional
-            World seed of the new episode (>= 0); without it, the next seed of the
-            env's own generator (seeded by the first seeded reset).
-        options : dict, optional
-            Unused (gymnasium API).
-
-        Returns
-        -------
-        observation : numpy.ndarray
-            float32, shape ``observation_space.shape``.
-        info : dict
-            ``outcome``, ``time`` (s) and ``true_theta``.
-        """
-        super().reset(seed=seed)
-        world_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
+    def _start(self, world_seed: int) -> None:
         self.world = RobotWorld(self.kind, world_seed, measurement=self.measurement, params=self.params)
-        return self._observation(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         """Hold ``action`` for one decision period (gymnasium API).
@@ -172,24 +217,13 @@ class RobotNavigationEnv(gym.Env):
             If `reset` was not called, or ``action`` is malformed or out of bounds.
         """
         world = self._current_world()
-        u = np.asarray(action, dtype=float)
-        if u.shape != (2,):
-            raise InputError(f"action must have shape (2,), got shape {u.shape}")
+        u = _action_array(action)
         # float32 actions at the bound may exceed it by rounding: clip only that.
         bound = self.params.control_bound
         if np.any(np.abs(u) > bound * (1 + 1e-6)) or not np.all(np.isfinite(u)):
             raise InputError(f"action must lie in [-{bound}, {bound}]^2, got {u.tolist()}")
         u = np.clip(u, -bound, bound)
-        rewards = []
-        for _ in range(self.params.substeps):
-            world.apply(u)
-            rewards.append(world.reward())
-            if world.done:
-                break
-        outcome = world.outcome
-        terminated = outcome in ("goal", "collision")
-        truncated = outcome == "timeout"
-        return self._observation(), float(np.mean(rewards)), terminated, truncated, self._info()
+        return self._hold(world, u, self.params.substeps, lambda w: w.reward())
 
 
 #: Other vehicles reported in the observation (the nearest ones).
@@ -203,7 +237,7 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
 
 
-class RoadDrivingEnv(gym.Env):
+class RoadDrivingEnv(_WorldEnv):
     """The ego among uncertain traffic on the highway or at the T-junction (see the module docstring).
 
     Parameters
@@ -214,7 +248,7 @@ class RoadDrivingEnv(gym.Env):
         A `HighwayScenario` or `TJunctionScenario` overriding the kind's constants.
     """
 
-    metadata = {"render_modes": []}
+    _terminal_outcomes = ("goal", "collision", "off_road")
 
     def __init__(self, kind: str = "highway", *, scenario: HighwayScenario | TJunctionScenario | None = None):
         as_choice("kind", kind, ROAD_WORLD_KINDS)
@@ -231,11 +265,6 @@ class RoadDrivingEnv(gym.Env):
         )
         self.world: RoadWorld | None = None
         self._ids = np.zeros(0, dtype=int)
-
-    def _current_world(self) -> RoadWorld:
-        if self.world is None:
-            raise InputError("call reset() before step()")
-        return self.world
 
     def _observation(self) -> np.ndarray:
         seen = self._current_world().measure()
@@ -255,29 +284,9 @@ class RoadDrivingEnv(gym.Env):
         world = self._current_world()
         return {"outcome": world.outcome, "time": world.time, "ids": self._ids.copy()}
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
-        """Start a new episode (gymnasium API).
-
-        Parameters
-        ----------
-        seed : int, optional
-            World seed of the new episode (>= 0); without it, the next seed of the
-            env's own generator (seeded by the first seeded reset).
-        options : dict, optional
-            Unused (gymnasium API).
-
-        Returns
-        -------
-        observation : numpy.ndarray
-            float32, shape ``observation_space.shape``.
-        info : dict
-            ``outcome``, ``time`` (s) and the observed vehicles' agent ``ids``.
-        """
-        super().reset(seed=seed)
-        world_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
+    def _start(self, world_seed: int) -> None:
         self.world = RoadWorld(self.kind, world_seed, scenario=self.scenario)
         self._reward = world_reward(self.world)  # built once per episode, evaluated every sub-step
-        return self._observation(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         """Hold ``action`` for one decision period (gymnasium API).
@@ -307,23 +316,12 @@ class RoadDrivingEnv(gym.Env):
             If `reset` was not called, or ``action`` is malformed or out of bounds.
         """
         world = self._current_world()
-        u = np.asarray(action, dtype=float)
-        if u.shape != (2,):
-            raise InputError(f"action must have shape (2,), got shape {u.shape}")
+        u = _action_array(action)
         if np.any(np.abs(u) > 1.0) or not np.all(np.isfinite(u)):
             raise InputError(f"action must lie in [-1, 1]^2, got {u.tolist()}")
         # the scaled control may exceed its bound by one rounding: clip only that.
         u = np.clip(u * self._bounds, -self._bounds, self._bounds)
-        rewards = []
-        for _ in range(int(self.scenario.substeps)):
-            world.apply(u)
-            rewards.append(true_reward(world, self._reward))
-            if world.done:
-                break
-        outcome = world.outcome
-        terminated = outcome in ("goal", "collision", "off_road")
-        truncated = outcome == "timeout"
-        return self._observation(), float(np.mean(rewards)), terminated, truncated, self._info()
+        return self._hold(world, u, int(self.scenario.substeps), lambda w: true_reward(w, self._reward))
 
 
 def _register() -> None:

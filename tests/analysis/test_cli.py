@@ -32,15 +32,6 @@ theta = { low = [-0.2], high = [0.2] }
 """
 
 
-def run(capsys, *argv) -> tuple[int, str, str]:
-    try:
-        code = cli.main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse usage errors
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
 def write(tmp_path, name, text) -> pathlib.Path:
     path = tmp_path / name
     path.write_text(text)
@@ -52,9 +43,23 @@ def test_both_subcommands_are_registered():
     assert "lmi" in help_text and "select" in help_text
 
 
+def test_each_subcommand_module_adds_its_command_with_its_job():
+    import importlib
+
+    subparsers = cli.build_parser()._subparsers._group_actions[0]
+    for module_name in cli.SUBCOMMAND_MODULES:
+        command = importlib.import_module(f"minimaxplan.analysis.{module_name}").COMMAND
+        parser = subparsers.choices[command.name]
+        assert parser.description == command.description and parser.epilog == command.epilog
+        assert parser.get_default("func") is command.run
+    assert list(subparsers.choices) == [
+        importlib.import_module(f"minimaxplan.analysis.{name}").COMMAND.name for name in cli.SUBCOMMAND_MODULES
+    ]
+
+
 # ------------------------------------------------------------------------ lmi
-def test_lmi_vertices_json_matches_the_library(capsys):
-    code, out, err = run(capsys, "lmi", ROBOT_MODEL, "--vertices", "--json")
+def test_lmi_vertices_json_matches_the_library(run_cli):
+    code, out, err = run_cli("lmi", ROBOT_MODEL, "--vertices", "--json")
     assert (code, err) == (0, "")
     document = json.loads(out)
     assert document["command"] == "lmi" and document["exit_code"] == 0 and document["all_hold"] is True
@@ -77,9 +82,9 @@ def test_lmi_vertices_json_matches_the_library(capsys):
     np.testing.assert_allclose(report["P_eigenvalues"], np.linalg.eigvalsh(direct.P), rtol=1e-5, atol=1e-8)
 
 
-def test_lmi_markdown_report_to_file(tmp_path, capsys):
+def test_lmi_markdown_report_to_file(tmp_path, run_cli):
     out_file = tmp_path / "report.md"
-    code, out, err = run(capsys, "lmi", ROBOT_MODEL, "--form", "discrete", "--out", out_file)
+    code, out, err = run_cli("lmi", ROBOT_MODEL, "--form", "discrete", "--out", out_file)
     assert (code, out, err) == (0, "", "")
     text = out_file.read_text()
     assert text.startswith("# Assumption 4 (LMI) report")
@@ -88,8 +93,8 @@ def test_lmi_markdown_report_to_file(tmp_path, capsys):
     assert "discrete: `[[A^T P A - P + Q0" in text
 
 
-def test_lmi_open_loop_robot_fails_with_exit_1(capsys):
-    code, out, err = run(capsys, "lmi", HYPOTHESES, "--model", "anisotropic friction", "--json")
+def test_lmi_open_loop_robot_fails_with_exit_1(run_cli):
+    code, out, err = run_cli("lmi", HYPOTHESES, "--model", "anisotropic friction", "--json")
     assert (code, err) == (1, "")
     document = json.loads(out)
     assert document["exit_code"] == 1 and document["all_hold"] is False
@@ -99,8 +104,8 @@ def test_lmi_open_loop_robot_fails_with_exit_1(capsys):
     assert max(m["stability_margin"] for m in report["matrices"]) == 0.0
 
 
-def test_lmi_checks_every_hypothesis_of_a_file(capsys):
-    code, out, _ = run(capsys, "lmi", HYPOTHESES, "--json")
+def test_lmi_checks_every_hypothesis_of_a_file(run_cli):
+    code, out, _ = run_cli("lmi", HYPOTHESES, "--json")
     document = json.loads(out)
     assert [m["model"] for m in document["models"]] == load_model_file(HYPOTHESES).names
     assert code == 1
@@ -128,8 +133,8 @@ def test_certified_results_have_negative_lmi_margins_in_the_report(p, size, form
 
 
 # --------------------------------------------------------------------- select
-def test_select_json_matches_the_library(capsys):
-    code, out, err = run(capsys, "select", HYPOTHESES, ROBOT_DATA, "--json")
+def test_select_json_matches_the_library(run_cli):
+    code, out, err = run_cli("select", HYPOTHESES, ROBOT_DATA, "--json")
     assert (code, err) == (0, "")
     document = json.loads(out)
     model_file = load_model_file(HYPOTHESES)
@@ -155,16 +160,16 @@ def test_select_json_matches_the_library(capsys):
     assert document["timing"]["elimination"] > 0
 
 
-def test_select_markdown_and_npz_agree_with_csv(tmp_path, capsys):
+def test_select_markdown_and_npz_agree_with_csv(tmp_path, run_cli):
     data = load_data_file(ROBOT_DATA)
     np.savez(tmp_path / "robot.npz", states=data.states, controls=data.controls)
-    code_csv, out_csv, _ = run(capsys, "select", HYPOTHESES, ROBOT_DATA, "--json")
-    code_npz, out_npz, _ = run(capsys, "select", HYPOTHESES, tmp_path / "robot.npz", "--json")
+    code_csv, out_csv, _ = run_cli("select", HYPOTHESES, ROBOT_DATA, "--json")
+    code_npz, out_npz, _ = run_cli("select", HYPOTHESES, tmp_path / "robot.npz", "--json")
     assert code_csv == code_npz == 0
     csv_doc, npz_doc = json.loads(out_csv), json.loads(out_npz)
     assert csv_doc["survivors"] == npz_doc["survivors"]
     assert [h["feasible_box"] for h in csv_doc["hypotheses"]] == [h["feasible_box"] for h in npz_doc["hypotheses"]]
-    code, _, err = run(capsys, "select", HYPOTHESES, ROBOT_DATA, "--out", tmp_path / "select.md")
+    code, _, err = run_cli("select", HYPOTHESES, ROBOT_DATA, "--out", tmp_path / "select.md")
     text = (tmp_path / "select.md").read_text()
     assert code == 0 and err == ""
     assert "| 0 | isotropic friction | **eliminated** |" in text
@@ -172,15 +177,15 @@ def test_select_markdown_and_npz_agree_with_csv(tmp_path, capsys):
     assert "## Feasible parameter boxes of the survivors" in text
 
 
-def test_select_exits_1_when_no_hypothesis_survives(tmp_path, capsys):
+def test_select_exits_1_when_no_hypothesis_survives(tmp_path, run_cli):
     model_file = load_model_file(HYPOTHESES)
     wrong = [model_file.select(n).hypotheses[0] for n in ("isotropic friction", "wrong input gain")]
     path = write(tmp_path, "wrong.toml", format_model_file(wrong))
-    code, out, err = run(capsys, "select", path, ROBOT_DATA, "--json")
+    code, out, err = run_cli("select", path, ROBOT_DATA, "--json")
     assert (code, err) == (1, "")
     document = json.loads(out)
     assert document["survivors"] == [] and document["exit_code"] == 1
-    code, out, _ = run(capsys, "select", path, ROBOT_DATA)
+    code, out, _ = run_cli("select", path, ROBOT_DATA)
     assert code == 1 and "**No hypothesis is consistent with the data.**" in out
 
 
@@ -196,12 +201,12 @@ def test_select_exits_1_when_no_hypothesis_survives(tmp_path, capsys):
     ],
 )
 @pytest.mark.parametrize("command", ["lmi", "select"])
-def test_malformed_model_file_exits_2_naming_the_key(tmp_path, capsys, command, old, new, message):
+def test_malformed_model_file_exits_2_naming_the_key(tmp_path, run_cli, command, old, new, message):
     assert old in SCALAR
     model = write(tmp_path, "bad.toml", SCALAR.replace(old, new))
     data = write(tmp_path, "d.csv", "x0,u0\n0,1\n1,\n")
     argv = ("lmi", model) if command == "lmi" else ("select", model, data)
-    code, out, err = run(capsys, *argv)
+    code, out, err = run_cli(*argv)
     assert code == 2 and out == ""
     assert err.startswith(f"minimaxplan {command}: error: ")
     assert "bad.toml" in err
@@ -209,9 +214,9 @@ def test_malformed_model_file_exits_2_naming_the_key(tmp_path, capsys, command, 
 
 
 @pytest.mark.parametrize("command", ["lmi", "select"])
-def test_missing_model_file_exits_2(tmp_path, capsys, command):
+def test_missing_model_file_exits_2(tmp_path, run_cli, command):
     argv = ("lmi", tmp_path / "nope.toml") if command == "lmi" else ("select", tmp_path / "nope.toml", ROBOT_DATA)
-    code, out, err = run(capsys, *argv)
+    code, out, err = run_cli(*argv)
     assert (code, out) == (2, "")
     assert err.startswith(f"minimaxplan {command}: error: model file '") and "nope.toml' does not exist" in err
 
@@ -234,43 +239,43 @@ def test_missing_model_file_exits_2(tmp_path, capsys, command):
         ),
     ],
 )
-def test_bad_data_file_exits_2(tmp_path, capsys, name, content, message):
+def test_bad_data_file_exits_2(tmp_path, run_cli, name, content, message):
     if content is not None:
         write(tmp_path, name, content)
-    code, out, err = run(capsys, "select", HYPOTHESES, tmp_path / name)
+    code, out, err = run_cli("select", HYPOTHESES, tmp_path / name)
     assert (code, out) == (2, "")
     assert err.startswith("minimaxplan select: error: ")
     assert __import__("re").search(message, err), err
 
 
-def test_lmi_continuous_form_of_a_discrete_model_exits_2(tmp_path, capsys):
-    code, out, err = run(capsys, "lmi", write(tmp_path, "m.toml", SCALAR), "--form", "continuous")
+def test_lmi_continuous_form_of_a_discrete_model_exits_2(tmp_path, run_cli):
+    code, out, err = run_cli("lmi", write(tmp_path, "m.toml", SCALAR), "--form", "continuous")
     assert (code, out) == (2, "")
     assert "model 'scalar' is discrete-time" in err
 
 
-def test_lmi_unknown_model_name_exits_2(capsys):
-    code, out, err = run(capsys, "lmi", HYPOTHESES, "--model", "frictionless")
+def test_lmi_unknown_model_name_exits_2(run_cli):
+    code, out, err = run_cli("lmi", HYPOTHESES, "--model", "frictionless")
     assert (code, out) == (2, "")
     assert "no model named 'frictionless'" in err
 
 
-def test_usage_errors_exit_2(capsys):
-    code, _, err = run(capsys, "lmi", ROBOT_MODEL, "--form", "hybrid")
+def test_usage_errors_exit_2(run_cli):
+    code, _, err = run_cli("lmi", ROBOT_MODEL, "--form", "hybrid")
     assert code == 2 and "invalid choice: 'hybrid'" in err
-    code, _, err = run(capsys, "select", HYPOTHESES)
+    code, _, err = run_cli("select", HYPOTHESES)
     assert code == 2 and "the following arguments are required: data" in err
 
 
-def test_lmi_json_to_file_and_markdown_of_an_uncertified_result(tmp_path, capsys):
+def test_lmi_json_to_file_and_markdown_of_an_uncertified_result(tmp_path, run_cli):
     out_file = tmp_path / "report.json"
-    code, out, err = run(capsys, "lmi", HYPOTHESES, "--model", "isotropic friction", "--json", "--out", out_file)
+    code, out, err = run_cli("lmi", HYPOTHESES, "--model", "isotropic friction", "--json", "--out", out_file)
     assert (code, out) == (1, "")
     document = json.loads(out_file.read_text())
     (report,) = document["models"]
     assert report["result"]["status"] == "infeasible" and report["holds"] is False
     assert report["P_eigenvalues"] is None and report["matrices"][0]["lmi_max_eigenvalue"] is None
-    code, out, _ = run(capsys, "lmi", HYPOTHESES, "--model", "isotropic friction", "--form", "discrete")
+    code, out, _ = run_cli("lmi", HYPOTHESES, "--model", "isotropic friction", "--form", "discrete")
     assert code == 1
     assert "**Assumption 4 fails: no certificate with normalised margin above" in out
     assert "(dual certificate re-checked exactly)**" in out and "| 0 | [0.85] | 1 | - |" in out
@@ -294,10 +299,10 @@ def test_check_model_reports_the_library_result_for_each_form():
         np.testing.assert_allclose(report.lmi_max_eigenvalues().max(), direct.max_eigenvalue, rtol=1e-6)
 
 
-def test_select_passes_the_measurement_noise_bound(tmp_path, capsys):
+def test_select_passes_the_measurement_noise_bound(tmp_path, run_cli):
     model_file = load_model_file(HYPOTHESES)
     noisy = write(tmp_path, "noisy.toml", format_model_file(model_file.hypotheses, measurement_noise=[0.001] * 4))
-    code, out, err = run(capsys, "select", noisy, ROBOT_DATA, "--json")
+    code, out, err = run_cli("select", noisy, ROBOT_DATA, "--json")
     assert (code, err) == (0, "")
     document = json.loads(out)
     assert document["measurement_noise"] == [0.001] * 4
@@ -331,10 +336,10 @@ def shorten_narendra(k1: float, k2: float, c: float = 0.2) -> bool:
     return (k2 - k1) ** 2 < 2 * c**2 * (k1 + k2) - c**4
 
 
-def test_lmi_regions_json_and_png_map_where_assumption4_holds(tmp_path, capsys):
+def test_lmi_regions_json_and_png_map_where_assumption4_holds(tmp_path, run_cli):
     model = write(tmp_path, "oscillator.toml", OSCILLATOR)
     out_file = tmp_path / "report.json"
-    code, out, err = run(capsys, "lmi", model, "--vertices", "--regions", "--depth", "2", "--json", "--out", out_file)
+    code, out, err = run_cli("lmi", model, "--vertices", "--regions", "--depth", "2", "--json", "--out", out_file)
     assert (code, out, err) == (1, "", "")  # one P over the whole box does not exist
     (report,) = json.loads(out_file.read_text())["models"]
     assert report["result"]["status"] == "infeasible"
@@ -355,10 +360,10 @@ def test_lmi_regions_json_and_png_map_where_assumption4_holds(tmp_path, capsys):
     assert image.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_lmi_regions_markdown_names_the_conflict_and_the_pieces(tmp_path, capsys):
+def test_lmi_regions_markdown_names_the_conflict_and_the_pieces(tmp_path, run_cli):
     model = write(tmp_path, "oscillator.toml", OSCILLATOR)
     out_file = tmp_path / "report.md"
-    code, _, _ = run(capsys, "lmi", model, "--regions", "--depth", "2", "--out", out_file)
+    code, _, _ = run_cli("lmi", model, "--regions", "--depth", "2", "--out", out_file)
     text = out_file.read_text()
     assert code == 0  # the exit code is the main check's: here the nominal matrix, which is stable
     assert "### Where Assumption 4 holds" in text
@@ -369,19 +374,19 @@ def test_lmi_regions_markdown_names_the_conflict_and_the_pieces(tmp_path, capsys
     assert (tmp_path / "report-damped-oscillator-regions.png").is_file()
 
 
-def test_lmi_depth_must_be_a_count(tmp_path, capsys):
+def test_lmi_depth_must_be_a_count(tmp_path, run_cli):
     model = write(tmp_path, "oscillator.toml", OSCILLATOR)
-    code, _, err = run(capsys, "lmi", model, "--regions", "--depth", "-1")
+    code, _, err = run_cli("lmi", model, "--regions", "--depth", "-1")
     assert code == 2 and "--depth: expected an integer >= 0, got -1" in err
-    code, out, err = run(capsys, "lmi", model, "--depth", "2")
+    code, out, err = run_cli("lmi", model, "--depth", "2")
     assert (code, out) == (2, "") and err == "minimaxplan lmi: error: --depth needs --regions\n"
 
 
-def test_lmi_markdown_prints_the_digits_that_matter(tmp_path, capsys):
+def test_lmi_markdown_prints_the_digits_that_matter(tmp_path, run_cli):
     model = write(
         tmp_path, "slow.toml", SCALAR.replace("A0 = [[0.5]]", "A0 = [[0.9999975]]").replace("[[[1.0]]]", "[[[0.0]]]")
     )
-    code, out, _ = run(capsys, "lmi", model)
+    code, out, _ = run_cli("lmi", model)
     assert code == 0
     assert "| 0 | [0] | 0.9999975 |" in out
     assert "| normalised slack t* of the primal SDP |" in out and "| cond(P) |" in out

@@ -11,7 +11,6 @@ import time
 
 import pytest
 
-from minimaxplan.analysis import cli
 from minimaxplan.analysis import demo as demo_module
 from minimaxplan.analysis import experiment as experiment_module
 
@@ -28,15 +27,6 @@ w = { low = [-0.1], high = [0.1] }
 theta = { low = [-0.2], high = [0.2] }
 """
 HUGE = str(10**400)
-
-
-def run(capsys, *argv) -> tuple[int, str, str]:
-    try:
-        code = cli.main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse: --help and usage errors
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
 @pytest.fixture
@@ -81,27 +71,27 @@ def assert_one_line_error(code: int, out: str, err: str, command: str, option: s
         (["demo", "--workers", "0"], "--workers"),
     ],
 )
-def test_a_bad_value_exits_2_on_one_line_before_any_work(capsys, no_work, tmp_path, argv, option):
+def test_a_bad_value_exits_2_on_one_line_before_any_work(run_cli, no_work, tmp_path, argv, option):
     command = argv[0]
-    code, out, err = run(capsys, *argv, "--out", tmp_path / "out")
+    code, out, err = run_cli(*argv, "--out", tmp_path / "out")
     assert_one_line_error(code, out, err, command, f"argument {option}: ")
     assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("command", ["experiment", "suboptimality", "demo"])
-def test_an_unwritable_out_is_rejected_before_any_episode(capsys, no_work, tmp_path, command):
+def test_an_unwritable_out_is_rejected_before_any_episode(run_cli, no_work, tmp_path, command):
     a_file = tmp_path / "results.txt"
     a_file.write_text("not a directory")
-    code, out, err = run(capsys, command, "--out", a_file)
+    code, out, err = run_cli(command, "--out", a_file)
     assert_one_line_error(code, out, err, command, "argument --out: ")
     assert "exists and is not a directory" in err
-    code, out, err = run(capsys, command, "--out", a_file / "below")
+    code, out, err = run_cli(command, "--out", a_file / "below")
     assert_one_line_error(code, out, err, command, "argument --out: ")
     assert "is not a directory" in err
 
 
-def test_an_unknown_name_is_one_line_before_any_episode(capsys, no_work, tmp_path):
-    code, out, err = run(capsys, "experiment", "--methods", "magic", "--out", tmp_path, "--no-progress")
+def test_an_unknown_name_is_one_line_before_any_episode(run_cli, no_work, tmp_path):
+    code, out, err = run_cli("experiment", "--methods", "magic", "--out", tmp_path, "--no-progress")
     assert_one_line_error(code, out, err, "experiment", "'magic'")
 
 
@@ -119,12 +109,11 @@ def require_cluster_extra() -> None:
         pytest.importorskip("distributed")
 
 
-def test_an_unreachable_dask_scheduler_fails_fast_on_one_line(capsys, no_work, tmp_path):
+def test_an_unreachable_dask_scheduler_fails_fast_on_one_line(run_cli, no_work, tmp_path):
     require_cluster_extra()
     assert experiment_module.DASK_CONNECT_TIMEOUT_S <= 5
     started = time.perf_counter()
-    code, out, err = run(
-        capsys,
+    code, out, err = run_cli(
         "experiment",
         "--scenario",
         "static",
@@ -144,10 +133,9 @@ def test_an_unreachable_dask_scheduler_fails_fast_on_one_line(capsys, no_work, t
     assert not (tmp_path / "out").exists()
 
 
-def test_a_malformed_dask_address_is_one_line(capsys, no_work, tmp_path):
+def test_a_malformed_dask_address_is_one_line(run_cli, no_work, tmp_path):
     require_cluster_extra()
-    code, out, err = run(
-        capsys,
+    code, out, err = run_cli(
         "experiment",
         "--scenario",
         "static",
@@ -183,26 +171,26 @@ def test_a_malformed_dask_address_is_one_line(capsys, no_work, tmp_path):
     ],
 )
 @pytest.mark.parametrize("command", ["lmi", "select"])
-def test_an_integer_too_large_for_a_float_is_one_line(tmp_path, capsys, command, old, new, message):
+def test_an_integer_too_large_for_a_float_is_one_line(tmp_path, run_cli, command, old, new, message):
     import re
 
     assert old in SCALAR
     model = tmp_path / "huge.toml"
     model.write_text(SCALAR.replace(old, new))
     argv = ("lmi", model) if command == "lmi" else ("select", model, ROBOT_DATA)
-    code, out, err = run(capsys, *argv)
+    code, out, err = run_cli(*argv)
     assert_one_line_error(code, out, err, command, "huge.toml")
     assert re.search(message, err), err
 
 
-def test_a_directory_named_like_a_file_is_reported_as_a_directory(tmp_path, capsys):
+def test_a_directory_named_like_a_file_is_reported_as_a_directory(tmp_path, run_cli):
     (tmp_path / "data.csv").mkdir()
     (tmp_path / "models.toml").mkdir()
-    code, out, err = run(capsys, "select", HYPOTHESES, tmp_path / "data.csv")
+    code, out, err = run_cli("select", HYPOTHESES, tmp_path / "data.csv")
     assert_one_line_error(code, out, err, "select", "data.csv' is a directory, not a file")
-    code, out, err = run(capsys, "lmi", tmp_path / "models.toml")
+    code, out, err = run_cli("lmi", tmp_path / "models.toml")
     assert_one_line_error(code, out, err, "lmi", "models.toml' is a directory, not a file")
-    code, out, err = run(capsys, "select", tmp_path / "models.toml", ROBOT_DATA)
+    code, out, err = run_cli("select", tmp_path / "models.toml", ROBOT_DATA)
     assert_one_line_error(code, out, err, "select", "models.toml' is a directory, not a file")
 
 
@@ -215,8 +203,8 @@ def test_a_directory_named_like_a_file_is_reported_as_a_directory(tmp_path, caps
         ["demo", "--bogus"],
     ],
 )
-def test_an_unknown_option_is_reported_by_its_subcommand(capsys, no_work, argv):
-    code, out, err = run(capsys, *argv)
+def test_an_unknown_option_is_reported_by_its_subcommand(run_cli, no_work, argv):
+    code, out, err = run_cli(*argv)
     assert_one_line_error(code, out, err, argv[0], "unrecognized arguments: --bogus")
     assert f"see 'minimaxplan {argv[0]} --help'" in err
 
@@ -244,8 +232,8 @@ def test_an_unknown_option_is_reported_by_its_subcommand(capsys, no_work, argv):
         ("lmi", ["(default: CLARABEL)", "(default: stdout)"]),
     ],
 )
-def test_help_shows_the_defaults(capsys, command, shown):
-    code, out, _ = run(capsys, command, "--help")
+def test_help_shows_the_defaults(run_cli, command, shown):
+    code, out, _ = run_cli(command, "--help")
     assert code == 0
     flat = " ".join(out.split())
     for text in shown:
@@ -277,7 +265,7 @@ def test_the_constants_spelled_out_for_a_light_parser_match_the_library():
 
 
 @pytest.mark.parametrize("command", ["lmi", "select"])
-def test_an_unwritable_report_file_is_rejected_before_the_solve(tmp_path, capsys, monkeypatch, command):
+def test_an_unwritable_report_file_is_rejected_before_the_solve(tmp_path, run_cli, monkeypatch, command):
     from minimaxplan.analysis import model_file
 
     def forbidden(*args, **kwargs):
@@ -286,7 +274,7 @@ def test_an_unwritable_report_file_is_rejected_before_the_solve(tmp_path, capsys
     monkeypatch.setattr(model_file, "load_model_file", forbidden)
     inputs = [HYPOTHESES] if command == "lmi" else [HYPOTHESES, ROBOT_DATA]
     for out, message in [(tmp_path, "is a directory, not a file"), (tmp_path / "absent" / "r.md", "does not exist")]:
-        code, stdout, err = run(capsys, command, *inputs, "--out", out)
+        code, stdout, err = run_cli(command, *inputs, "--out", out)
         assert_one_line_error(code, stdout, err, command, "argument --out: ")
         assert message in err, err
 

@@ -254,3 +254,21 @@ def test_animate_command_rejects_bad_options(capsys, no_episode, argv, option):
     assert code == 2 and captured.out == ""
     assert captured.err.count("\n") == 1 and captured.err.startswith("minimaxplan animate: error: ")
     assert option in captured.err, captured.err
+
+
+def test_draw_png_writes_the_drawing_and_closes_the_figure_even_when_drawing_fails(tmp_path):
+    from minimaxplan.analysis.figures import draw_png
+
+    before = set(plt.get_fignums())
+    out = draw_png(lambda ax: ax.plot([0, 1], [0, 1]), tmp_path / "line.png", figsize=(2, 1), dpi=50)
+    assert out == tmp_path / "line.png"
+    with Image.open(out) as image:
+        assert image.size == (100, 50)
+
+    def broken(ax):
+        raise RuntimeError("no data")
+
+    with pytest.raises(RuntimeError, match="no data"):
+        draw_png(broken, tmp_path / "broken.png", figsize=(2, 1))
+    assert not (tmp_path / "broken.png").exists()
+    assert set(plt.get_fignums()) == before

@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from minimaxplan.analysis import cli, suboptimality
+from minimaxplan.analysis import suboptimality
 from minimaxplan.analysis.data_file import load_data_file
 from minimaxplan.analysis.elimination_history import first_inconsistency, margin_sample_sizes
 from minimaxplan.analysis.model_file import ModelHypothesis, format_model_file, load_model_file
@@ -27,15 +27,6 @@ HYPOTHESES = ROOT / "examples" / "robot_hypotheses.toml"
 ROBOT_DATA = ROOT / "examples" / "robot_data.csv"
 MODELS = load_model_file(HYPOTHESES)
 DATA = load_data_file(ROBOT_DATA)
-
-
-def run(capsys, *argv) -> tuple[int, str, str]:
-    try:
-        code = cli.main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse usage errors
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
 def brute_force_first(hypothesis, states, controls, measurement_noise=None) -> int | None:
@@ -149,9 +140,9 @@ def test_an_unreachable_state_is_contradicted_exactly():
         explanation.margin_in_state_units("half")
 
 
-def test_exact_contradiction_wording_in_the_markdown_and_json(tmp_path, capsys):
+def test_exact_contradiction_wording_in_the_markdown_and_json(tmp_path, run_cli):
     model, data = write_exact_case(tmp_path)
-    code, out, err = run(capsys, "select", model, data)
+    code, out, err = run_cli("select", model, data)
     assert (code, err) == (0, "")
     row = next(line for line in out.splitlines() if line.startswith("| 1 | integrator off by 0.4% |"))
     assert "| **eliminated** | contradicted exactly | contradicted exactly |" in row
@@ -162,7 +153,7 @@ def test_exact_contradiction_wording_in_the_markdown_and_json(tmp_path, capsys):
     prefix = first_inconsistency(load_model_file(model).systems[1], states, controls)
     for small in (direct.margins[1], direct.eliminated[1].lower_bound, prefix.recheck_bound, prefix.prefix_margin):
         assert small < 0.01 and f"{small:.6g}" not in out and f"{small:.4g}" not in out
-    code, out, _ = run(capsys, "select", model, data, "--json")
+    code, out, _ = run_cli("select", model, data, "--json")
     entry = json.loads(out)["hypotheses"][1]
     assert entry["explanation"]["contradicted_exactly"] is True and entry["explanation"]["violated_state"] == 0
 
@@ -194,13 +185,13 @@ def test_margin_sample_sizes_hold_each_jump_and_the_whole_trajectory():
 
 
 # ------------------------------------------------------------- the PNG and the JSON
-def test_margin_png_is_written_beside_the_report_and_named_in_it(tmp_path, capsys):
-    code, _, err = run(capsys, "select", HYPOTHESES, ROBOT_DATA, "--out", tmp_path / "select.md")
+def test_margin_png_is_written_beside_the_report_and_named_in_it(tmp_path, run_cli):
+    code, _, err = run_cli("select", HYPOTHESES, ROBOT_DATA, "--out", tmp_path / "select.md")
     assert (code, err) == (0, "")
     png = tmp_path / "select-margins.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
     assert "![inconsistency margins against N](select-margins.png)" in (tmp_path / "select.md").read_text()
-    code, _, _ = run(capsys, "select", HYPOTHESES, ROBOT_DATA, "--json", "--out", tmp_path / "select.json")
+    code, _, _ = run_cli("select", HYPOTHESES, ROBOT_DATA, "--json", "--out", tmp_path / "select.json")
     document = json.loads((tmp_path / "select.json").read_text())
     assert document["margin_image"] == "select-margins.png"
     history = document["margin_history"]
@@ -218,15 +209,15 @@ def test_margin_png_is_written_beside_the_report_and_named_in_it(tmp_path, capsy
             assert not survives[k] and (n == 0 or (history["sample_sizes"][k - 1] == n and survives[k - 1]))
 
 
-def test_without_out_no_png_is_written(tmp_path, capsys, monkeypatch):
+def test_without_out_no_png_is_written(tmp_path, run_cli, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    code, out, _ = run(capsys, "select", HYPOTHESES, ROBOT_DATA)
+    code, out, _ = run_cli("select", HYPOTHESES, ROBOT_DATA)
     assert code == 0 and "margins against N" not in out and list(tmp_path.iterdir()) == []
 
 
 # ---------------------------------------------------------------------- --lmi
-def test_select_lmi_checks_each_survivors_feasible_box(capsys):
-    code, out, err = run(capsys, "select", HYPOTHESES, ROBOT_DATA, "--lmi", "--lmi-states", "2,3", "--json")
+def test_select_lmi_checks_each_survivors_feasible_box(run_cli):
+    code, out, err = run_cli("select", HYPOTHESES, ROBOT_DATA, "--lmi", "--lmi-states", "2,3", "--json")
     assert (code, err) == (0, "")
     document = json.loads(out)
     assert document["lmi_states"] == [2, 3]
@@ -243,15 +234,15 @@ def test_select_lmi_checks_each_survivors_feasible_box(capsys):
         assert lmi["status"] == direct.status.value == "feasible"
         assert lmi["certified"] and lmi["holds"] and lmi["proof"] == "primal certificate re-checked exactly"
         assert len(lmi["report"]["matrices"]) == 2**box.dim
-    code, out, _ = run(capsys, "select", HYPOTHESES, ROBOT_DATA, "--lmi", "--lmi-states", "2,3")
+    code, out, _ = run_cli("select", HYPOTHESES, ROBOT_DATA, "--lmi", "--lmi-states", "2,3")
     assert "## Assumption 4 on each survivor's feasible parameter box" in out
     assert "| anisotropic friction | continuous | 4 | feasible | True | primal certificate re-checked exactly |" in out
     assert "| coupled friction | continuous | 8 | feasible | True |" in out
 
 
-def test_select_lmi_on_the_full_robot_is_proven_infeasible(capsys):
+def test_select_lmi_on_the_full_robot_is_proven_infeasible(run_cli):
     """The positions integrate the velocities: no common P exists, and the report says it is proven."""
-    code, out, _ = run(capsys, "select", HYPOTHESES, ROBOT_DATA, "--lmi", "--json")
+    code, out, _ = run_cli("select", HYPOTHESES, ROBOT_DATA, "--lmi", "--json")
     assert code == 0
     verdicts = [h["assumption4"] for h in json.loads(out)["hypotheses"] if h["survives"]]
     assert len(verdicts) == 2
@@ -272,16 +263,16 @@ def test_select_lmi_on_the_full_robot_is_proven_infeasible(capsys):
         (["--lmi", "--lmi-form", "sideways"], r"argument --lmi-form: invalid choice"),
     ],
 )
-def test_bad_lmi_options_exit_2_with_one_line(capsys, argv, message):
-    code, out, err = run(capsys, "select", HYPOTHESES, ROBOT_DATA, *argv)
+def test_bad_lmi_options_exit_2_with_one_line(run_cli, argv, message):
+    code, out, err = run_cli("select", HYPOTHESES, ROBOT_DATA, *argv)
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and err.startswith("minimaxplan select: error: ")
     assert re.search(message, err)
 
 
-def test_lmi_form_continuous_of_a_discrete_model_exits_2(tmp_path, capsys):
+def test_lmi_form_continuous_of_a_discrete_model_exits_2(tmp_path, run_cli):
     model, data = write_exact_case(tmp_path)
-    code, _, err = run(capsys, "select", model, data, "--lmi", "--lmi-form", "continuous", "--lmi-states", "1")
+    code, _, err = run_cli("select", model, data, "--lmi", "--lmi-form", "continuous", "--lmi-states", "1")
     assert code == 2 and "continuous form of Assumption 4 needs a continuous-time model" in err
 
 
@@ -308,7 +299,7 @@ def test_a_proper_fit_has_no_warning():
     assert fit["warning"] is None and fit["a"] == pytest.approx(2.0) and fit["b"] == pytest.approx(3.0)
 
 
-def test_the_cli_warns_on_stderr_and_in_the_report(tmp_path, capsys, monkeypatch):
+def test_the_cli_warns_on_stderr_and_in_the_report(tmp_path, run_cli, monkeypatch):
     def study(samples, **kwargs):
         rows = [{"n": n, "mean": 0.0, "max": 0.0, "min": 0.0, "per_episode": [0.0], "failures": 0} for n in samples]
         return {
@@ -321,7 +312,7 @@ def test_the_cli_warns_on_stderr_and_in_the_report(tmp_path, capsys, monkeypatch
         }
 
     monkeypatch.setattr(suboptimality, "suboptimality_study", study)
-    code, out, err = run(capsys, "suboptimality", "--samples", "5", "--out", tmp_path)
+    code, out, err = run_cli("suboptimality", "--samples", "5", "--out", tmp_path)
     assert code == 0
     assert err.strip() == (
         "minimaxplan suboptimality: warning: no trend fitted: 1 distinct value(s) of N, "
@@ -333,5 +324,5 @@ def test_the_cli_warns_on_stderr_and_in_the_report(tmp_path, capsys, monkeypatch
     )
     assert json.loads((tmp_path / "suboptimality.json").read_text())["fit"]["a"] is None
     assert (tmp_path / "suboptimality.png").read_bytes()[:4] == b"\x89PNG"
-    code, _, err = run(capsys, "suboptimality", "--samples", "2,5", "--out", tmp_path)
+    code, _, err = run_cli("suboptimality", "--samples", "2,5", "--out", tmp_path)
     assert code == 0 and "exactly 0 at all 2 values of N" in err

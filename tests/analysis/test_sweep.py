@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from minimaxplan.analysis import cli
 from minimaxplan.analysis.episode import DEFAULT_CONFIG, EpisodeRecord
 from minimaxplan.analysis.sweep import (
     HEADING_MARGIN,
@@ -33,18 +32,9 @@ from minimaxplan.scenarios.worlds import PedestrianCrowd, crossing_crowd
 COMMITTED = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "experiments" / "sweep"
 
 
-def run(capsys, *argv) -> tuple[int, str, str]:
-    try:
-        code = cli.main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse usage errors
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
-def small_sweep(capsys, out, *argv) -> tuple[int, str, str]:
+def small_sweep(run_cli, out, *argv) -> tuple[int, str, str]:
     """``minimaxplan sweep ARGV`` in this process, without a progress bar, writing to ``out``."""
-    return run(capsys, "sweep", *argv, "--workers", "1", "--no-progress", "--out", out)
+    return run_cli("sweep", *argv, "--workers", "1", "--no-progress", "--out", out)
 
 
 # ------------------------------------------------------------------ the worlds
@@ -115,11 +105,11 @@ def test_summary_intervals_are_clopper_pearson_and_student_t():
 
 
 # ------------------------------------------------------------------ a real run
-def test_a_small_pedestrian_sweep_writes_what_the_committed_sweep_holds(tmp_path, capsys):
+def test_a_small_pedestrian_sweep_writes_what_the_committed_sweep_holds(tmp_path, run_cli):
     """The generalised command writes the committed sweep's cells, columns and episodes."""
     out = tmp_path / "sweep"
     code, stdout, err = small_sweep(
-        capsys, out, "--pedestrians", "1,8", "--velocity-uncertainty", "0.6", "--methods", "dwa", "--episodes", "2"
+        run_cli, out, "--pedestrians", "1,8", "--velocity-uncertainty", "0.6", "--methods", "dwa", "--episodes", "2"
     )
     assert code == 0, err
     assert re.search(r"\| 8 \| 0\.6 \| dwa \| \d/2 \|", stdout) and "Wall time of the run:" in stdout
@@ -156,10 +146,10 @@ def test_a_small_pedestrian_sweep_writes_what_the_committed_sweep_holds(tmp_path
         }
 
 
-def test_a_small_highway_sweep_writes_one_row_per_density_and_method(tmp_path, capsys):
+def test_a_small_highway_sweep_writes_one_row_per_density_and_method(tmp_path, run_cli):
     out = tmp_path / "highway"
     code, stdout, err = small_sweep(
-        capsys, out, "--scenario", "highway", "--vehicles", "2,5", "--methods", "dwa,nominal", "--episodes", "1"
+        run_cli, out, "--scenario", "highway", "--vehicles", "2,5", "--methods", "dwa,nominal", "--episodes", "1"
     )
     assert code == 0, err
     header = "| vehicles | method | failures / episodes | failure 95% CI | collisions | off road | timeouts |"
@@ -366,8 +356,8 @@ def test_cells_share_seeds_and_worlds_but_not_crowds():
         (["--scenario", "tjunction", "--methods", "sideways"], r"argument --methods: method must be one of"),
     ],
 )
-def test_bad_options_exit_2_with_one_line_before_any_episode(tmp_path, capsys, argv, message):
-    code, out, err = run(capsys, "sweep", *argv, "--no-progress", "--out", tmp_path / "never")
+def test_bad_options_exit_2_with_one_line_before_any_episode(tmp_path, run_cli, argv, message):
+    code, out, err = run_cli("sweep", *argv, "--no-progress", "--out", tmp_path / "never")
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and err.startswith("minimaxplan sweep: error: "), err
     assert re.search(message, err), err

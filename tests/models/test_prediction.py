@@ -450,17 +450,6 @@ def test_tube_contains_and_to_dict():
 
 
 # ----------------------------------------------------------------------------- errors
-@pytest.fixture
-def small_system():
-    return UncertainLinearSystem(
-        np.eye(2),
-        np.ones((1, 2, 2)),
-        np.ones((2, 1)),
-        w=Box.from_center(np.zeros(2), 0.1),
-        theta=Box.from_center(np.zeros(1), 0.1),
-    )
-
-
 def test_bad_arguments_are_rejected(small_system):
     x0 = Box.from_center(np.zeros(2), 0.1)
     with pytest.raises(DimensionError, match=r"controls must have shape \(\*, 1\), got shape \(3, 2\)"):

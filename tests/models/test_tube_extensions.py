@@ -400,17 +400,6 @@ def test_box_inputs_between_the_point_tubes():
 
 
 # ----------------------------------------------------------------------------- errors
-@pytest.fixture
-def small_system():
-    return UncertainLinearSystem(
-        np.eye(2),
-        np.ones((1, 2, 2)),
-        np.ones((2, 1)),
-        w=Box.from_center(np.zeros(2), 0.1),
-        theta=Box.from_center(np.zeros(1), 0.1),
-    )
-
-
 X0 = Box.from_center(np.zeros(2), 0.1)
 U3 = np.zeros((3, 1))
 THETA = Box.from_center(np.zeros(1), 0.1)

@@ -1,4 +1,5 @@
-"""Random uncertain systems, controllers and true-trajectory simulation for the planner tests."""
+"""Random uncertain systems, controllers and true-trajectory simulation for the planner tests,
+and the straight three-lane road of the road baselines' tests."""
 
 import numpy as np
 
@@ -128,3 +129,16 @@ def robot_system(dt=0.1):
 
 
 ROBOT_ACTIONS = [OpenLoop(u) for u in ([-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0])]
+
+
+def three_lanes(points):
+    """A straight 3-lane road along +x, lanes centred at y = 0, 4, 8 (the highway's frame):
+    a `RoadReference` (progress, offset from the nearest lane centre, heading 0)."""
+    p = np.asarray(points, dtype=float)
+    nearest = np.clip(np.round(p[..., 1] / 4.0), 0, 2)
+    return p[..., 0], p[..., 1] - 4.0 * nearest, np.zeros(p.shape[:-1])
+
+
+def on_three_lanes(points):
+    """Whether points lie on `three_lanes` (|y - 4| <= 6): a `RoadTest`."""
+    return np.abs(np.asarray(points, dtype=float)[..., 1] - 4.0) <= 6.0

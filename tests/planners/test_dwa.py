@@ -9,7 +9,7 @@ from minimaxplan.models import DimensionError, InputError, NonFiniteError
 from minimaxplan.planners.dwa import DWAParameters, DynamicWindowPlanner, NavigationScene
 from minimaxplan.scenarios.robot import robot_system
 
-from ._systems import random_system
+from ._systems import on_three_lanes, random_system, three_lanes
 from ._systems import run_baseline_episode as run_episode
 
 finite = dict(allow_nan=False, allow_infinity=False)
@@ -211,17 +211,6 @@ from minimaxplan.scenarios.vehicles import VehicleParameters, bicycle_step  # no
 
 CAR = VehicleParameters()
 BICYCLE = partial(bicycle_step, vehicle=CAR)
-
-
-def three_lanes(points):
-    """A straight 3-lane road along +x, lanes centred at y = 0, 4, 8 (the highway's frame)."""
-    p = np.asarray(points, dtype=float)
-    nearest = np.clip(np.round(p[..., 1] / 4.0), 0, 2)
-    return p[..., 0], p[..., 1] - 4.0 * nearest, np.zeros(p.shape[:-1])
-
-
-def on_three_lanes(points):
-    return np.abs(np.asarray(points, dtype=float)[..., 1] - 4.0) <= 6.0
 
 
 def road_scene(vehicles=None, **kwargs):

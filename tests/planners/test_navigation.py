@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from minimaxplan.models import InputError
-from minimaxplan.planners.navigation import NavigationFunction
+from minimaxplan.planners.navigation import NavigationCache, NavigationFunction
 
 finite = dict(allow_nan=False, allow_infinity=False)
 points = st.tuples(st.floats(0, 20, **finite), st.floats(0, 20, **finite))
@@ -97,3 +97,18 @@ def test_waypoint_is_lookahead_along_the_path_or_the_goal():
     np.testing.assert_allclose(nav.waypoint([14.8, 5.1], 3.0), [15.0, 5.0])
     with pytest.raises(InputError, match="lookahead"):
         nav.waypoint(start, -1.0)
+
+
+def test_cache_keeps_the_function_until_the_goal_the_discs_or_the_grid_change():
+    cache = NavigationCache(clearance=0.4, resolution=0.2)
+    goal, centers, radii = np.array([5.0, 5.0]), np.array([[2.0, 2.0]]), np.array([0.5])
+    here = np.array([[0.0, 0.0]])
+    first = cache.get(goal, centers, radii, here)
+    assert first.clearance == 0.4 and first.resolution == 0.2
+    assert cache.get(goal.copy(), centers.copy(), radii.copy(), here) is first
+    assert cache.get(np.array([5.0, 6.0]), centers, radii, here) is not first
+    moved = cache.get(goal, centers, np.array([0.6]), here)
+    assert moved is not first
+    far = np.array([[first.extent_high[0] + 1.0, 0.0]])
+    rebuilt = cache.get(goal, centers, np.array([0.6]), far)
+    assert rebuilt is not moved and rebuilt.covers(far)

@@ -11,6 +11,7 @@ from minimaxplan.planners.dwa import NavigationScene
 from minimaxplan.planners.teb import TEBParameters, TimedElasticBand, band_cost
 from minimaxplan.scenarios.robot import robot_system
 
+from ._systems import on_three_lanes, three_lanes
 from ._systems import run_baseline_episode as run_episode
 
 finite = dict(allow_nan=False, allow_infinity=False)
@@ -180,17 +181,6 @@ from minimaxplan.scenarios.road_world import rectangles_collide  # noqa: E402
 from minimaxplan.scenarios.vehicles import VehicleParameters, bicycle_step  # noqa: E402
 
 CAR = VehicleParameters()
-
-
-def three_lanes(points):
-    """A straight 3-lane road along +x, lanes centred at y = 0, 4, 8."""
-    p = np.asarray(points, dtype=float)
-    nearest = np.clip(np.round(p[..., 1] / 4.0), 0, 2)
-    return p[..., 0], p[..., 1] - 4.0 * nearest, np.zeros(p.shape[:-1])
-
-
-def on_three_lanes(points):
-    return np.abs(np.asarray(points, dtype=float)[..., 1] - 4.0) <= 6.0
 
 
 def lane_goals(x: float) -> np.ndarray:
