@@ -45,6 +45,7 @@ from minimaxplan.scenarios.traffic_models import VehicleBelief, prior_belief
 
 from . import experiment
 from .episode import DEFAULT_CONFIG, EpisodeJob, EpisodeRecord, LoopConfig
+from .figures import pyplot, save_png
 from .road_planning import EgoSetup, RoadOracleMethod, RoadRobustMethod
 from .road_scenario import DrivingWorld, RoadScenario
 from .suboptimality import draw_suboptimality, fit_trend
@@ -572,13 +573,8 @@ def plot_road_study(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     pathlib.Path
         ``path``.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     rows = [r for r in study["rows"] if r["mean"] is not None]
-    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
+    fig, (left, right) = pyplot().subplots(1, 2, figsize=(11, 4))
     draw_suboptimality(left, {**study, "rows": rows})
     left.set_title(f"{study['scenario']}: suboptimality over {study['horizon_decisions']} decisions")
     n = [r["n"] for r in rows]
@@ -590,7 +586,4 @@ def plot_road_study(study: dict, path: str | pathlib.Path) -> pathlib.Path:
     right.set_title(f"Achieved velocity, {study['episodes']} episodes per N")
     right.legend()
     fig.tight_layout()
-    out = pathlib.Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_png(fig, path)

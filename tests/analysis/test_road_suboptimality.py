@@ -8,7 +8,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from minimaxplan.analysis import cli
 from minimaxplan.analysis import experiment as experiment_module
 from minimaxplan.analysis import road_suboptimality as study_module
 from minimaxplan.analysis.episode import DEFAULT_CONFIG, LoopConfig, run_job
@@ -22,18 +21,8 @@ from minimaxplan.analysis.road_suboptimality import (
 from minimaxplan.models.errors import InputError
 
 
-def run(capsys, *argv) -> tuple[int, str, str]:
-    try:
-        code = cli.main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse usage errors
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
-def test_a_tiny_road_study_runs_end_to_end(tmp_path, capsys):
-    code, out, err = run(
-        capsys,
+def test_a_tiny_road_study_runs_end_to_end(tmp_path, run_cli):
+    code, out, err = run_cli(
         *("suboptimality", "--scenario", "highway", "--samples", "1,3", "--episodes", "2", "--horizon", "2"),
         *("--workers", "1", "--no-progress", "--out", tmp_path),
     )
@@ -252,8 +241,8 @@ def no_work(monkeypatch):
         (["--scenario", "highway", "--seed", "x"], "argument --seed: "),
     ],
 )
-def test_a_bad_option_exits_2_on_one_line(capsys, no_work, tmp_path, argv, option):
-    code, out, err = run(capsys, "suboptimality", *argv, "--out", tmp_path / "out")
+def test_a_bad_option_exits_2_on_one_line(run_cli, no_work, tmp_path, argv, option):
+    code, out, err = run_cli("suboptimality", *argv, "--out", tmp_path / "out")
     assert code == 2, err
     assert out == "" and err.count("\n") == 1 and "Traceback" not in err
     assert err.startswith("minimaxplan suboptimality") and option in err, err
@@ -284,7 +273,7 @@ def test_a_warm_up_needs_a_positive_length():
         WarmedRoadScenario("highway", 0)
 
 
-def test_the_scenario_option_picks_the_study(tmp_path, capsys, monkeypatch):
+def test_the_scenario_option_picks_the_study(tmp_path, run_cli, monkeypatch):
     """The default stays the robot's study (no scenario passed); a robot name is passed on; a road name goes to the road study."""
     from minimaxplan.analysis import suboptimality
 
@@ -309,7 +298,7 @@ def test_the_scenario_option_picks_the_study(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(suboptimality, "suboptimality_study", robot)
     monkeypatch.setattr(study_module, "road_suboptimality_study", road)
     for argv in ([], ["--scenario", "static"], ["--scenario", "pedestrian"], ["--scenario", "tjunction"]):
-        code, _, err = run(capsys, "suboptimality", *argv, "--samples", "2,5", "--out", tmp_path)
+        code, _, err = run_cli("suboptimality", *argv, "--samples", "2,5", "--out", tmp_path)
         assert code == 0, err
     assert [c[0] for c in calls] == ["robot", "robot", "robot", "tjunction"]
     assert "scenario" not in calls[0][2] and "scenario" not in calls[1][2]
