@@ -337,3 +337,76 @@ def test_lane_keeping_forecast_contains_highway_envs_vehicles_along_a_lane_keepi
                 inside = np.all(keep.state_lower[n, j] <= state) and np.all(state <= keep.state_upper[n, j])
                 total["inside" if inside else "outside"] += 1
     assert total["outside"] == 0 and total["inside"] > 500, total
+
+
+def _misses_module():
+    import importlib.util
+    import pathlib
+    import sys
+
+    path = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "highway_env_misses.py"
+    spec = importlib.util.spec_from_file_location("highway_env_misses", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("highway_env_misses", module)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _fact(lane=("0", "1", 1), target=None, speed=20.0, crashed=False, curved=False, centre=(0.0, 4.0)):
+    return {
+        "crashed": crashed,
+        "lane": list(lane),
+        "target": list(target or lane),
+        "target_centre": list(centre),
+        "speed": speed,
+        "curved": curved,
+    }
+
+
+def test_miss_classifier_on_a_small_case():
+    """benchmarks/highway_env_misses.py: each miss gets the first kind that applies from the step before
+    the decision's start to the missed sub-step."""
+    misses = _misses_module()
+    classify = misses.classify_miss
+    box = {"lower": [-1.0, 3.0, 0.0, -0.1], "upper": [1.0, 5.0, 30.0, 0.1]}  # reaches (0, 4), not (0, 8)
+
+    def miss(substep, name="vehicle 1"):
+        return {"name": name, "substep": substep, **box}
+
+    plain = [{"vehicle 1": _fact()} for _ in range(8)]
+    assert classify(miss(2), plain, 3) == "unexplained"
+    assert classify(miss(2, "vehicle 9"), plain, 3) == "unexplained"  # no facts at all
+    crashed = [dict(f) for f in plain]
+    crashed[5] = {"vehicle 1": _fact(crashed=True, speed=-1.0)}
+    assert classify(miss(2), crashed, 3) == "crash"  # crash first
+    assert classify(miss(1), crashed, 3) == "unexplained"  # the crash is after the miss
+    reversing = [dict(f) for f in plain]
+    reversing[4] = {"vehicle 1": _fact(speed=-0.1)}
+    assert classify(miss(2), reversing, 3) == "reversing"
+    changing = [dict(f) for f in plain]
+    changing[2] = {"vehicle 1": _fact(target=("0", "1", 2), centre=(0.0, 8.0))}  # the step before the start
+    changing[3] = changing[4] = changing[5] = changing[2]
+    assert classify(miss(2), changing, 3) == "lane change ruled out"
+    towards = [dict(f) for f in plain]
+    towards[5] = {"vehicle 1": _fact(target=("0", "1", 0), centre=(0.0, 4.0))}
+    assert classify(miss(2), towards, 3) == "lane change allowed"
+    switching = [dict(f) for f in plain]
+    switching[4] = switching[5] = {"vehicle 1": _fact(target=("1", "2", 1))}
+    assert classify(miss(2), switching, 3) == "route lane switch"
+    curved = [dict(f) for f in plain]
+    curved[5] = {"vehicle 1": _fact(curved=True)}
+    assert classify(miss(2), curved, 3) == "curved lane"
+    summary = misses.summarise(
+        [
+            {
+                "scenario": "s",
+                "seed": 0,
+                "boxes_checked": 10,
+                "boxes_missed": 3,
+                "recorded": 3,
+                "misses": [{"kind": "crash"}, {"kind": "crash"}, {"kind": "unexplained", "name": "vehicle 1"}],
+            }
+        ]
+    )["s"]
+    assert summary["kinds"] == {"crash": {"misses": 2, "episodes": 1}, "unexplained": {"misses": 1, "episodes": 1}}
+    assert summary["unexplained"] == [{"seed": 0, "kind": "unexplained", "name": "vehicle 1"}]
