@@ -27,9 +27,15 @@ is not in its observation) to the missed sub-step (`classify_miss`):
     change out (its gap rule, its settling or its interval rule disagree with MOBIL);
 ``lane change allowed``
     a lane change was in progress and the box reaches the target lane's centre;
+``a leader's lane change``
+    another vehicle (not the ego, whose every path is in its reach) up to
+    `LEADER_RANGE` m ahead was changing lane into or out of this vehicle's lane: the
+    vehicle followed a leader the forecast did not give it (a change the forecast
+    ruled out, the first kind, seen from the follower);
 ``route lane switch``
-    its target lane moved to another edge (highway-env steers to the next lane of its
-    route before the current one ends);
+    its target lane is on another edge than its lane, or moved to another edge
+    (highway-env steers to the next lane of its route 2.5 m before the current one
+    ends);
 ``curved lane``
     it drove on a ``CircularLane``;
 ``unexplained``
@@ -70,10 +76,13 @@ KINDS = (
     "reversing",
     "lane change ruled out",
     "lane change allowed",
+    "a leader's lane change",
     "route lane switch",
     "curved lane",
     "unexplained",
 )
+#: How far ahead a lane-changing vehicle counts as a leader, m.
+LEADER_RANGE = 150.0
 #: Misses recorded per episode here (the loop's default keeps the first 100).
 RECORDED_MISSES = 100_000
 
@@ -93,7 +102,8 @@ def vehicle_facts(vehicle, network) -> dict:
     dict
         ``crashed``, ``lane`` and ``target`` (lane indices as lists), ``target_centre``
         (the point of the target lane's centre line at the vehicle's longitudinal
-        position), ``speed`` and ``curved`` (its lane is a ``CircularLane``).
+        position), ``position``, ``heading``, ``speed`` and ``curved`` (its lane is a
+        ``CircularLane``).
     """
     from highway_env.road.lane import CircularLane
 
@@ -105,6 +115,8 @@ def vehicle_facts(vehicle, network) -> dict:
         "lane": list(vehicle.lane_index),
         "target": list(target),
         "target_centre": [float(v) for v in lane.position(s, 0.0)],
+        "position": [float(v) for v in vehicle.position],
+        "heading": float(vehicle.heading),
         "speed": float(vehicle.speed),
         "curved": isinstance(vehicle.lane, CircularLane),
     }
@@ -180,6 +192,21 @@ def _changing(fact: Mapping) -> bool:
     return lane[:2] == target[:2] and lane[2] != target[2]
 
 
+def _leader_changing(step: Mapping[str, Mapping], name: str) -> bool:
+    """Whether a vehicle other than ``name`` and the ego, ahead within `LEADER_RANGE`, changes lane into or out of its lane."""
+    me = step[name]
+    direction = np.array([np.cos(me["heading"]), np.sin(me["heading"])])
+    for other, fact in step.items():
+        if other in (name, "ego") or not _changing(fact):
+            continue
+        if me["lane"] not in (fact["lane"], fact["target"]):
+            continue
+        ahead = float(np.dot(np.asarray(fact["position"]) - np.asarray(me["position"]), direction))
+        if 0.0 < ahead <= LEADER_RANGE:
+            return True
+    return False
+
+
 def classify_miss(miss: Mapping, facts: Sequence[Mapping[str, Mapping]], start: int) -> str:
     """The kind of one missed box (the first of `KINDS` that applies).
 
@@ -213,7 +240,10 @@ def classify_miss(miss: Mapping, facts: Sequence[Mapping[str, Mapping]], start: 
         centre = np.asarray(seen[-1]["target_centre"], float)
         reaches = bool(np.all(lower[:2] <= centre) and np.all(centre <= upper[:2]))
         return "lane change allowed" if reaches else "lane change ruled out"
-    if any(f["target"][:2] != seen[0]["target"][:2] for f in seen):
+    window = facts[max(start - 1, 0) : end + 1]
+    if any(_leader_changing(step, name) for step in window if name in step):
+        return "a leader's lane change"
+    if any(f["target"][:2] != f["lane"][:2] or f["target"][:2] != seen[0]["target"][:2] for f in seen):
         return "route lane switch"
     if any(f["curved"] for f in seen):
         return "curved lane"
@@ -232,7 +262,8 @@ def attribute(record) -> list[dict]:
     -------
     list of dict
         Per miss: ``kind``, ``name``, ``decision``, ``substep``, ``time``, ``excess``,
-        ``coordinates``.
+        ``coordinates``; an unexplained one also its ``state``, ``lower``, ``upper`` and
+        the ``facts`` of every vehicle over its window.
     """
     facts = record.extra["world"]["facts"]
     steps = record.trace["decision_steps"]
@@ -242,7 +273,9 @@ def attribute(record) -> list[dict]:
         row = {k: miss[k] for k in ("name", "decision", "substep", "time", "excess", "coordinates")}
         row["kind"] = kind
         if kind == "unexplained":
-            row.update(state=miss["state"], lower=miss["lower"], upper=miss["upper"])
+            start = steps[miss["decision"]]
+            window = facts[max(start - 1, 0) : start + int(miss["substep"]) + 1]
+            row.update(state=miss["state"], lower=miss["lower"], upper=miss["upper"], facts=window)
         out.append(row)
     return out
 

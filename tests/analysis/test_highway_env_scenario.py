@@ -352,12 +352,16 @@ def _misses_module():
     return module
 
 
-def _fact(lane=("0", "1", 1), target=None, speed=20.0, crashed=False, curved=False, centre=(0.0, 4.0)):
+def _fact(
+    lane=("0", "1", 1), target=None, speed=20.0, crashed=False, curved=False, centre=(0.0, 4.0), position=(0.0, 4.0)
+):
     return {
         "crashed": crashed,
         "lane": list(lane),
         "target": list(target or lane),
         "target_centre": list(centre),
+        "position": list(position),
+        "heading": 0.0,
         "speed": speed,
         "curved": curved,
     }
@@ -390,9 +394,21 @@ def test_miss_classifier_on_a_small_case():
     towards = [dict(f) for f in plain]
     towards[5] = {"vehicle 1": _fact(target=("0", "1", 0), centre=(0.0, 4.0))}
     assert classify(miss(2), towards, 3) == "lane change allowed"
+    cut_in = [dict(f) for f in plain]  # vehicle 2, 30 m ahead, changes into vehicle 1's lane
+    cut_in[4] = {"vehicle 1": _fact(), "vehicle 2": _fact(lane=("0", "1", 2), target=("0", "1", 1), position=(30, 6))}
+    assert classify(miss(2), cut_in, 3) == "a leader's lane change"
+    behind = [dict(f) for f in plain]  # behind it, or the ego: not a leader the forecast missed
+    behind[4] = {
+        "vehicle 1": _fact(),
+        "vehicle 2": _fact(lane=("0", "1", 2), target=("0", "1", 1), position=(-30, 6)),
+        "ego": _fact(lane=("0", "1", 2), target=("0", "1", 1), position=(30, 6)),
+    }
+    assert classify(miss(2), behind, 3) == "unexplained"
     switching = [dict(f) for f in plain]
     switching[4] = switching[5] = {"vehicle 1": _fact(target=("1", "2", 1))}
     assert classify(miss(2), switching, 3) == "route lane switch"
+    ahead_of_lane = [{"vehicle 1": _fact(lane=("0", "1", 0), target=("1", "2", 0))} for _ in range(8)]
+    assert classify(miss(2), ahead_of_lane, 3) == "route lane switch"  # switched before the window
     curved = [dict(f) for f in plain]
     curved[5] = {"vehicle 1": _fact(curved=True)}
     assert classify(miss(2), curved, 3) == "curved lane"
