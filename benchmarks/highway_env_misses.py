@@ -21,6 +21,10 @@ is not in its observation) to the missed sub-step (`classify_miss`):
     every model;
 ``reversing``
     its speed was negative (highway-env's vehicles brake through 0 to ``MIN_SPEED``);
+``lane change aborted``
+    a lane change in progress was aborted (highway-env's MOBIL sets the target back to
+    the current lane when another vehicle changes into the same lane: the vehicle
+    turns back, a manoeuvre the forecast's lane-change rows do not have);
 ``lane change ruled out``
     a lane change was in progress (``target_lane_index != lane_index`` on the same
     edge) and the box does not reach its target lane's centre: the forecast ruled the
@@ -43,8 +47,9 @@ is not in its observation) to the missed sub-step (`classify_miss`):
 
 Writes benchmarks/results/highway_env_misses.md and .json (kind -> misses and
 episodes, per environment; every unexplained miss in full). Needs the ``vehicle``
-extra. Usage: ``python benchmarks/highway_env_misses.py [--episodes N] [--workers W]``
-(default 50 episodes, seeds 0..N-1, 2 workers).
+extra. Usage: ``python benchmarks/highway_env_misses.py [--episodes N] [--workers W]
+[--env ID]`` (default 50 episodes, seeds 0..N-1, 2 workers, both environments; with
+``--env`` only that one is run, the other's results in the files are kept).
 """
 
 from __future__ import annotations
@@ -74,6 +79,7 @@ RESULTS = pathlib.Path(__file__).parent / "results"
 KINDS = (
     "crash",
     "reversing",
+    "lane change aborted",
     "lane change ruled out",
     "lane change allowed",
     "a leader's lane change",
@@ -81,6 +87,8 @@ KINDS = (
     "curved lane",
     "unexplained",
 )
+#: highway-env id -> the registered scenario name.
+SCENARIOS = {"highway-fast-v0": "highway-env:highway-fast-v0", "intersection-v0": "highway-env:intersection-v0"}
 #: How far ahead a lane-changing vehicle counts as a leader, m.
 LEADER_RANGE = 150.0
 #: Misses recorded per episode here (the loop's default keeps the first 100).
@@ -235,6 +243,8 @@ def classify_miss(miss: Mapping, facts: Sequence[Mapping[str, Mapping]], start: 
     if any(f["speed"] < 0.0 for f in seen):
         return "reversing"
     changes = [f for f in seen if _changing(f)]
+    if any(_changing(a) and b["lane"] == a["lane"] and b["target"] != a["target"] for a, b in zip(seen, seen[1:])):
+        return "lane change aborted"
     if changes:
         lower, upper = np.asarray(miss["lower"], float), np.asarray(miss["upper"], float)
         centre = np.asarray(seen[-1]["target_centre"], float)
@@ -331,14 +341,19 @@ def summarise(episodes: Sequence[Mapping]) -> dict:
     return out
 
 
-def markdown(summary: Mapping, meta: Mapping) -> str:
-    """The kind -> count table per scenario."""
-    lines = [
-        "# highway-env: every missed box of the robust method, attributed",
+def markdown(summary: Mapping, runs: Mapping) -> str:
+    """The kind -> count table per scenario, with each scenario's run (date, workers, wall time, load)."""
+    lines = ["# highway-env: every missed box of the robust method, attributed", ""]
+    for scenario, meta in sorted(runs.items()):
+        lines.append(
+            f"* {scenario}: `python benchmarks/highway_env_misses.py --episodes {meta['episodes']}` "
+            f"(seeds 0-{meta['episodes'] - 1}), {meta['date']}, {meta['workers']} workers, "
+            f"{meta['wall_time_s']:.0f} s wall, load {meta['load']}"
+        )
+    lines += [
         "",
-        f"`python benchmarks/highway_env_misses.py --episodes {meta['episodes']}` (seeds 0-{meta['episodes'] - 1}), "
-        f"{meta['date']}, {meta['workers']} workers, {meta['wall_time_s']:.0f} s wall, load {meta['load']}.",
-        "Kinds in `benchmarks/highway_env_misses.py` (the first that applies, from the decision's start to the miss).",
+        "Kinds in `benchmarks/highway_env_misses.py` (the first that applies, from the step before the "
+        "decision's start to the miss).",
         "",
         "| scenario | kind | misses | episodes |",
         "|---|---|---|---|",
@@ -360,14 +375,18 @@ def main(argv: Sequence[str] | None = None) -> dict:
     parser.add_argument("--episodes", type=int, default=50)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=pathlib.Path, default=RESULTS)
+    parser.add_argument(
+        "--env",
+        action="append",
+        choices=sorted(SCENARIOS),
+        help="run only this environment (repeatable); the others' results in --out are kept",
+    )
     args = parser.parse_args(argv)
     _init_worker()
     config = LoopConfig()
     jobs = []
-    for name, env_id in (
-        ("highway-env:highway-fast-v0", "highway-fast-v0"),
-        ("highway-env:intersection-v0", "intersection-v0"),
-    ):
+    for env_id in args.env or sorted(SCENARIOS):
+        name = SCENARIOS[env_id]
         factory = functools.partial(DiagnosedScenario, env_id)
         scenario = factory()
         for seed in range(args.episodes):
@@ -379,7 +398,6 @@ def main(argv: Sequence[str] | None = None) -> dict:
         with concurrent.futures.ProcessPoolExecutor(max_workers=args.workers, initializer=_init_worker) as pool:
             episodes = list(pool.map(_episode, jobs))
     wall = time.perf_counter() - started
-    summary = summarise(episodes)
     meta = {
         "episodes": args.episodes,
         "workers": args.workers,
@@ -388,12 +406,19 @@ def main(argv: Sequence[str] | None = None) -> dict:
         "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "python": platform.python_version(),
     }
+    path = args.out / "highway_env_misses.json"
+    runs = {scenario: meta for scenario in {job.scenario for job in jobs}}
+    if args.env and path.exists():  # keep the other environments' episodes and runs
+        previous = json.loads(path.read_text())
+        ran = set(runs)
+        episodes = [e for e in previous["episodes"] if e["scenario"] not in ran] + episodes
+        runs = {**{k: v for k, v in previous["runs"].items() if k not in ran}, **runs}
+    episodes.sort(key=lambda e: (e["scenario"], e["seed"]))
+    summary = summarise(episodes)
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "highway_env_misses.json").write_text(
-        json.dumps({"meta": meta, "summary": summary, "episodes": episodes}, indent=1) + "\n"
-    )
-    (args.out / "highway_env_misses.md").write_text(markdown(summary, meta))
-    print(markdown(summary, meta))
+    path.write_text(json.dumps({"runs": runs, "summary": summary, "episodes": episodes}, indent=1) + "\n")
+    (args.out / "highway_env_misses.md").write_text(markdown(summary, runs))
+    print(markdown(summary, runs))
     return summary
 
 

@@ -391,6 +391,9 @@ def test_miss_classifier_on_a_small_case():
     changing[2] = {"vehicle 1": _fact(target=("0", "1", 2), centre=(0.0, 8.0))}  # the step before the start
     changing[3] = changing[4] = changing[5] = changing[2]
     assert classify(miss(2), changing, 3) == "lane change ruled out"
+    aborted = [dict(f) for f in plain]  # MOBIL sets the target back while changing
+    aborted[4] = {"vehicle 1": _fact(target=("0", "1", 0), centre=(0.0, 0.0))}
+    assert classify(miss(2), aborted, 3) == "lane change aborted"
     towards = [dict(f) for f in plain]
     towards[5] = {"vehicle 1": _fact(target=("0", "1", 0), centre=(0.0, 4.0))}
     assert classify(miss(2), towards, 3) == "lane change allowed"
