@@ -33,9 +33,13 @@ robust
     sequence as the leaders' input; a sequence's value is the discounted sum of the
     reward (highway-env's, normalised) along the ego's predicted states, 0 from the first
     sub-step at which the ego's rectangle box meets a vehicle's box (a possible
-    collision). A `PredictingPolicy`: the ego's predicted state and every forecast
-    vehicle's state box are checked after each sub-step (``boxes_checked``,
-    ``boxes_missed``).
+    collision). On the highway a second forecast from the exact reach of the
+    lane-keeping sequences (SLOWER/IDLE/FASTER, `LANE_KEEPING_NAMES`), which a sequence
+    reads up to its last lane-keeping sub-step (`kept_substeps`), the general one after:
+    sound because a forecast's boxes up to sub-step n read the ego's reach only up to n
+    (as the road worlds' lane-keeping forecast). A `PredictingPolicy`: the ego's
+    predicted state and the state boxes of the forecast that valued the executed
+    decision are checked after each sub-step (``boxes_checked``, ``boxes_missed``).
 nominal
     The same search on a point-like forecast: the nominal parameters (the priors'
     centres), the measured speed as the target speed, no lane change (the road without
