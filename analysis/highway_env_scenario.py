@@ -33,9 +33,13 @@ robust
     sequence as the leaders' input; a sequence's value is the discounted sum of the
     reward (highway-env's, normalised) along the ego's predicted states, 0 from the first
     sub-step at which the ego's rectangle box meets a vehicle's box (a possible
-    collision). A `PredictingPolicy`: the ego's predicted state and every forecast
-    vehicle's state box are checked after each sub-step (``boxes_checked``,
-    ``boxes_missed``).
+    collision). On the highway a second forecast from the exact reach of the
+    lane-keeping sequences (SLOWER/IDLE/FASTER, `LANE_KEEPING_NAMES`), which a sequence
+    reads up to its last lane-keeping sub-step (`kept_substeps`), the general one after:
+    sound because a forecast's boxes up to sub-step n read the ego's reach only up to n
+    (as the road worlds' lane-keeping forecast). A `PredictingPolicy`: the ego's
+    predicted state and the state boxes of the forecast that valued the executed
+    decision are checked after each sub-step (``boxes_checked``, ``boxes_missed``).
 nominal
     The same search on a point-like forecast: the nominal parameters (the priors'
     centres), the measured speed as the target speed, no lane change (the road without
@@ -61,7 +65,7 @@ from typing import Any
 import numpy as np
 
 from minimaxplan.models import Box
-from minimaxplan.models.errors import InputError
+from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.planners.bicycle_model import HIGHWAY_ACTIONS, TJUNCTION_ACTIONS
 from minimaxplan.scenarios.road import Road
 from minimaxplan.scenarios.road_world import Observation
@@ -82,8 +86,13 @@ __all__ = [
     "HighwayEnvNominalMethod",
     "HighwayEnvOracleMethod",
     "simulate_ego",
+    "sequence_reach",
+    "lane_keeping_sequences",
+    "kept_substeps",
+    "box_overlaps",
     "learner_scenario",
     "LEARNER_NOISE",
+    "LANE_KEEPING_NAMES",
 ]
 
 #: Registered scenario name -> highway-env id.
@@ -339,10 +348,131 @@ def _rect_boxes(states: np.ndarray, vehicle) -> np.ndarray:
     return np.concatenate([corners.min(axis=-2), corners.max(axis=-2)], axis=-1)
 
 
+#: highway-env's meta-actions that keep the ego's target lane (speed changes only).
+LANE_KEEPING_NAMES = ("SLOWER", "IDLE", "FASTER")
+
+
+def sequence_reach(trajectories: np.ndarray, vehicle) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The ego's rectangle boxes along each trajectory and their union over the trajectories.
+
+    Parameters
+    ----------
+    trajectories : numpy.ndarray, shape (sequences, steps + 1, 4)
+        ``(x, y, v, psi)`` of the ego under each action sequence (`simulate_ego`).
+    vehicle : VehicleParameters
+        The ego's rectangle.
+
+    Returns
+    -------
+    boxes : numpy.ndarray, shape (sequences, steps + 1, 4)
+        ``[x_lo, y_lo, x_hi, y_hi]`` of the rectangle of each trajectory at each sub-step.
+    reach : numpy.ndarray, shape (steps + 1, 4)
+        The smallest box that holds every trajectory's rectangle at each sub-step,
+        rounded outward by one ulp (the ego's exact reach over these sequences).
+    speed, heading : numpy.ndarray, shape (steps + 1, 2)
+        ``(low, high)`` of the speed and heading over the trajectories, rounded outward.
+
+    Notes
+    -----
+    The reach at sub-step n reads the trajectories up to n only, so a forecast that is
+    causal in its ego reach (`forecast_traffic`) gives, up to n, boxes valid for every
+    ego path that agrees with one of these trajectories up to n.
+    """
+    trajectories = np.asarray(trajectories, dtype=float)
+    if trajectories.ndim != 3 or trajectories.shape[-1] != 4 or trajectories.shape[0] == 0:
+        raise DimensionError(f"trajectories must have shape (sequences >= 1, steps + 1, 4), got {trajectories.shape}")
+    boxes = _rect_boxes(trajectories, vehicle)
+    reach = np.concatenate(
+        [np.nextafter(boxes[..., :2].min(axis=0), -np.inf), np.nextafter(boxes[..., 2:].max(axis=0), np.inf)], axis=1
+    )
+    bounds = []
+    for column in (2, 3):
+        values = trajectories[..., column]
+        bounds.append(
+            np.stack([np.nextafter(values.min(axis=0), -np.inf), np.nextafter(values.max(axis=0), np.inf)], axis=1)
+        )
+    return boxes, reach, bounds[0], bounds[1]
+
+
+def lane_keeping_sequences(sequences: np.ndarray, names: list[str]) -> np.ndarray:
+    """Which action sequences keep the ego's target lane (every meta-action in `LANE_KEEPING_NAMES`).
+
+    Parameters
+    ----------
+    sequences : numpy.ndarray of int, shape (sequences, decisions)
+        Action indices into ``names``.
+    names : list of str
+        The actions' names.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (sequences,)
+    """
+    keeps = np.array([name in LANE_KEEPING_NAMES for name in names], dtype=bool)
+    return np.all(keeps[np.asarray(sequences, dtype=int)], axis=1)
+
+
+def kept_substeps(sequences: np.ndarray, names: list[str], substeps: int, steps: int) -> np.ndarray:
+    """The last sub-step up to which each sequence is a lane-keeping path.
+
+    Parameters
+    ----------
+    sequences : numpy.ndarray of int, shape (sequences, decisions)
+        Action indices into ``names`` (then IDLE to the horizon).
+    names : list of str
+        The actions' names.
+    substeps : int
+        Sub-steps per decision.
+    steps : int
+        The horizon, sub-steps.
+
+    Returns
+    -------
+    numpy.ndarray of int, shape (sequences,)
+        ``steps`` for a sequence of lane-keeping actions only (its IDLE tail keeps the
+        lane too); else ``p * substeps`` with ``p`` its leading lane-keeping decisions.
+
+    Notes
+    -----
+    Up to sub-step ``p * substeps`` the ego's trajectory under such a sequence is the
+    trajectory of a sequence of lane-keeping actions (a decision's meta-action acts
+    from its first sub-step on), so it lies in their reach up to there: the
+    lane-keeping forecast, causal in its ego reach, holds for it up to there.
+    """
+    keeps = np.array([name in LANE_KEEPING_NAMES for name in names], dtype=bool)[np.asarray(sequences, dtype=int)]
+    leading = np.where(keeps.all(axis=1), keeps.shape[1], np.argmin(keeps, axis=1))
+    return np.where(leading == keeps.shape[1], int(steps), np.minimum(leading * int(substeps), int(steps)))
+
+
+def box_overlaps(boxes: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """Whether each sequence's ego box meets any vehicle's box at each sub-step (closed boxes).
+
+    Parameters
+    ----------
+    boxes : numpy.ndarray, shape (sequences, steps + 1, 4)
+        The ego's rectangle boxes (`sequence_reach`).
+    other : numpy.ndarray, shape (steps + 1, m, 4)
+        The forecast's boxes (empty boxes meet nothing).
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (sequences, steps + 1)
+    """
+    overlap = (
+        (boxes[:, :, None, 0] <= other[None, :, :, 2])
+        & (other[None, :, :, 0] <= boxes[:, :, None, 2])
+        & (boxes[:, :, None, 1] <= other[None, :, :, 3])
+        & (other[None, :, :, 1] <= boxes[:, :, None, 3])
+    )
+    return np.any(overlap, axis=2)
+
+
 class _SearchMethod(Method[HighwayEnvWorld]):
     """The exhaustive search over `SEARCH_DECISIONS` meta-actions shared by robust and nominal."""
 
     predicting = False
+    #: Value the paths that keep their lane against a second forecast from the lane-keeping reach.
+    lane_keeping = False
 
     def __init__(self, scenario: Any, config: LoopConfig) -> None:
         if not isinstance(scenario, HighwayEnvScenario):
@@ -417,23 +547,19 @@ class _SearchMethod(Method[HighwayEnvWorld]):
         scenario = world.adapter.scenario
         if scenario is None:
             raise InputError("the world's adapter has not been reset")
-        vehicle = scenario.vehicle
-        boxes = _rect_boxes(trajectories, vehicle)  # (sequences, steps + 1, 4)
-        reach = np.concatenate([boxes[..., :2].min(axis=0), boxes[..., 2:].max(axis=0)], axis=1)
-        reach = np.concatenate([np.nextafter(reach[:, :2], -np.inf), np.nextafter(reach[:, 2:], np.inf)], axis=1)
-        speed = np.stack([trajectories[..., 2].min(axis=0), trajectories[..., 2].max(axis=0)], axis=1)
-        heading = np.stack([trajectories[..., 3].min(axis=0), trajectories[..., 3].max(axis=0)], axis=1)
-        speed = np.stack([np.nextafter(speed[:, 0], -np.inf), np.nextafter(speed[:, 1], np.inf)], axis=1)
-        heading = np.stack([np.nextafter(heading[:, 0], -np.inf), np.nextafter(heading[:, 1], np.inf)], axis=1)
+        boxes, reach, speed, heading = sequence_reach(trajectories, scenario.vehicle)
         forecast = self.forecast(measurement, reach, speed, heading)
-        other = forecast.boxes  # (steps + 1, m, 4)
-        overlap = (
-            (boxes[:, :, None, 0] <= other[None, :, :, 2])
-            & (other[None, :, :, 0] <= boxes[:, :, None, 2])
-            & (boxes[:, :, None, 1] <= other[None, :, :, 3])
-            & (other[None, :, :, 1] <= boxes[:, :, None, 3])
-        )
-        hit: np.ndarray = np.any(overlap, axis=2)  # (sequences, steps + 1)
+        hit = box_overlaps(boxes, forecast.boxes)  # (sequences, steps + 1)
+        kept = np.zeros(len(self.sequences), dtype=int)  # sub-steps read from the lane-keeping forecast
+        keep_forecast = None
+        if self.lane_keeping:
+            keeping = lane_keeping_sequences(self.sequences, names)
+            if not keeping.all():
+                _, keep_reach, keep_speed, keep_heading = sequence_reach(trajectories[keeping], scenario.vehicle)
+                keep_forecast = self.forecast(measurement, keep_reach, keep_speed, keep_heading)
+                kept = kept_substeps(self.sequences, names, S, steps)
+                on_keep = np.arange(steps + 1)[None, :] <= kept[:, None]
+                hit = np.where(on_keep, box_overlaps(boxes, keep_forecast.boxes), hit)
         hit[:, 0] = False
         alive = ~np.logical_or.accumulate(hit, axis=1)
         rewards = np.stack([self._reward(t) for t in trajectories]) * alive
@@ -444,6 +570,9 @@ class _SearchMethod(Method[HighwayEnvWorld]):
         predicted: dict[int, dict[str, tuple]] = {}
         if self.predicting:
             ego = trajectories[best]
+            # the executed decision was valued against the lane-keeping forecast when its action keeps the lane
+            if keep_forecast is not None and kept[best] >= S:
+                forecast = keep_forecast
             limit = _removal_free(world, forecast, S)
             for k in range(1, S + 1):
                 row = {"ego": (ego[k], ego[k])}
@@ -459,6 +588,8 @@ class _SearchMethod(Method[HighwayEnvWorld]):
                 "safe_sequences": int(alive[:, -1].sum()),
             }
         )
+        if self.lane_keeping:
+            self.decisions[-1]["lane_keeping"] = bool(keep_forecast is not None and kept[best] >= S)
         idle = names.index(_IDLE)
         cls = _PredictingSearchPolicy if self.predicting else _SearchPolicy
         return cls(first, idle, predicted)
@@ -502,6 +633,7 @@ class HighwayEnvRobustMethod(_SearchMethod):
     """The search against `forecast_traffic`'s sound boxes under prior beliefs (see the module docstring)."""
 
     predicting = True
+    lane_keeping = True
 
     def start(self, world: HighwayEnvWorld) -> None:
         """Enumerate the sequences; on the highway, a `TrafficLearner` of the episode.
@@ -514,6 +646,7 @@ class HighwayEnvRobustMethod(_SearchMethod):
         super().start(world)
         self.learner: Any = None
         self.prior_fallbacks: set[int] = set()
+        self._believed: tuple[float, dict[int, VehicleBelief]] | None = None
         road, scenario = world.adapter.road, world.adapter.scenario
         if "highway" in world.adapter.env_id and road is not None and scenario is not None:
             from .traffic_learning import TrafficLearner
@@ -540,6 +673,19 @@ class HighwayEnvRobustMethod(_SearchMethod):
         reach, speed, heading : numpy.ndarray
             The ego's rectangle boxes, speed and heading bounds over every sequence.
         """
+        return self.world.adapter.forecast(
+            observation,
+            HORIZON,
+            ego_reach=reach,
+            ego_speed=speed,
+            ego_heading=heading,
+            beliefs=self._beliefs(observation),
+        )
+
+    def _beliefs(self, observation: Observation) -> dict[int, VehicleBelief]:
+        """The learner's beliefs at this observation (computed once per observation: both forecasts read them)."""
+        if self._believed is not None and self._believed[0] == observation.time:
+            return self._believed[1]
         beliefs: dict[int, VehicleBelief] = {}
         if self.learner is not None:
             self._learn(observation)
@@ -548,9 +694,8 @@ class HighwayEnvRobustMethod(_SearchMethod):
                     beliefs.update(self.learner.beliefs([int(agent)]))
                 except InputError:  # every hypothesis eliminated: highway-env is not the learner's model
                     self.prior_fallbacks.add(int(agent))
-        return self.world.adapter.forecast(
-            observation, HORIZON, ego_reach=reach, ego_speed=speed, ego_heading=heading, beliefs=beliefs
-        )
+        self._believed = (observation.time, beliefs)
+        return beliefs
 
     def report(self) -> dict:
         """The decisions and the vehicles whose learned belief fell back to the prior."""

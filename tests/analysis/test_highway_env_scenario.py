@@ -156,3 +156,276 @@ def test_nominal_forecast_takes_a_reversing_vehicle():
     empty = np.tile([np.inf, np.inf, -np.inf, -np.inf], (steps + 1, 1))
     forecast = method.forecast(dataclasses.replace(observation, vehicles=vehicles), empty, None, None)
     assert forecast.boxes.shape == (steps + 1, len(observation.ids), 4)
+
+
+def test_lane_keeping_sequences_and_the_substeps_they_keep():
+    from minimaxplan.analysis.highway_env_scenario import kept_substeps, lane_keeping_sequences
+
+    names = ["SLOWER", "LANE_LEFT", "IDLE", "LANE_RIGHT", "FASTER"]
+    sequences = np.array([[0, 2], [4, 0], [0, 1], [1, 0], [3, 3], [2, 3]])
+    np.testing.assert_array_equal(lane_keeping_sequences(sequences, names), [True, True, False, False, False, False])
+    # all-keeping: the whole horizon (the IDLE tail keeps the lane); else the leading keeping decisions
+    np.testing.assert_array_equal(kept_substeps(sequences, names, 5, 25), [25, 25, 5, 0, 0, 5])
+
+
+def test_sequence_reach_is_the_union_of_the_rectangles_rounded_outward():
+    from minimaxplan.analysis.highway_env_scenario import sequence_reach
+    from minimaxplan.models import DimensionError
+    from minimaxplan.scenarios.vehicles import DEFAULT_VEHICLE, vehicle_corners
+
+    trajectories = np.array(
+        [[[0.0, 0.0, 20.0, 0.0], [4.0, 0.0, 20.0, 0.0]], [[0.0, 0.0, 20.0, 0.0], [5.0, 1.0, 25.0, 0.1]]]
+    )
+    boxes, reach, speed, heading = sequence_reach(trajectories, DEFAULT_VEHICLE)
+    corners = vehicle_corners(trajectories, DEFAULT_VEHICLE)
+    np.testing.assert_array_equal(boxes[..., :2], corners.min(axis=-2))
+    assert np.all(reach[:, :2] < boxes[..., :2].min(axis=0)) and np.all(reach[:, 2:] > boxes[..., 2:].max(axis=0))
+    np.testing.assert_array_equal(reach[1, :2], np.nextafter(boxes[:, 1, :2].min(axis=0), -np.inf))
+    assert speed[1, 0] < 20.0 < 25.0 < speed[1, 1] and heading[1, 0] < 0.0 < 0.1 < heading[1, 1]
+    with pytest.raises(DimensionError, match="trajectories"):
+        sequence_reach(trajectories[0], DEFAULT_VEHICLE)
+
+
+def _fixed_forecast(forecast, box):
+    """``forecast`` with every vehicle's box at every sub-step after 0 replaced by ``box``."""
+    import dataclasses
+
+    boxes = np.array(forecast.boxes)
+    boxes[1:] = box
+    return dataclasses.replace(forecast, boxes=boxes)
+
+
+def test_robust_method_values_lane_keeping_paths_against_the_lane_keeping_forecast():
+    """On the highway two forecasts: the general one from the reach of every sequence, the lane-keeping
+    one from the reach of the SLOWER/IDLE/FASTER sequences. A path reads the second while it keeps its
+    lane, the first after; the run-time check holds the boxes of the forecast that valued the
+    executed decision."""
+    from minimaxplan.analysis.highway_env_scenario import lane_keeping_sequences, sequence_reach
+
+    scenario = HighwayEnvScenario("highway-fast-v0")
+    config = LoopConfig()
+    world = scenario.make_world(3, config)
+    method = HighwayEnvRobustMethod(scenario, config)
+    method.start(world)
+    observation = world.measure()
+    calls = []
+    inner = method.forecast
+
+    def forecast(obs, reach, speed, heading):
+        real = inner(obs, reach, speed, heading)
+        calls.append((reach, real))
+        # the general forecast: a vehicle's box over the whole road (every path hits it at sub-step 1);
+        # the lane-keeping one: its real boxes far away (no path keeping its lane hits it)
+        if len(calls) == 1:
+            return _fixed_forecast(real, [-1e6, -1e6, 1e6, 1e6])
+        return _fixed_forecast(real, [1e6, 1e6, 1e6 + 1.0, 1e6 + 1.0])
+
+    method.forecast = forecast
+    policy = method.decide(observation)
+    assert len(calls) == 2
+    names = [a[0] for a in world.actions]
+    S = world.substeps
+    keeping = lane_keeping_sequences(method.sequences, names)
+    assert 0 < keeping.sum() < len(keeping)
+    # the second forecast read the exact reach of the lane-keeping sequences only
+    base = world.adapter.env.unwrapped
+    swap = {"LANE_LEFT": "LANE_RIGHT", "LANE_RIGHT": "LANE_LEFT"}
+    steps = world.adapter.steps(5.0)
+    keep_trajectories = np.stack(
+        [
+            simulate_ego(
+                base.vehicle, base.road.network, [swap.get(names[k], names[k]) for k in seq] + ["IDLE"] * 3, S, 0.2
+            )[: steps + 1]
+            for seq in method.sequences[keeping]
+        ]
+    )
+    np.testing.assert_array_equal(calls[1][0], sequence_reach(keep_trajectories, world.adapter.scenario.vehicle)[1])
+    assert not np.array_equal(calls[0][0], calls[1][0])
+    decision = method.decisions[-1]
+    assert decision["lane_keeping"] is True and decision["safe_sequences"] == keeping.sum()
+    assert decision["action"] in ("SLOWER", "IDLE", "FASTER")
+    # the run-time check reads the lane-keeping forecast's state boxes (the real ones, from the second call)
+    real_keep = calls[1][1]
+    for j, agent in enumerate(real_keep.ids):
+        lo, hi = policy.predicted_boxes(1)[f"vehicle {int(agent)}"]
+        np.testing.assert_array_equal(lo, real_keep.state_lower[1, j])
+        np.testing.assert_array_equal(hi, real_keep.state_upper[1, j])
+
+
+def test_robust_method_values_lane_changes_against_the_general_forecast():
+    """A sequence that changes lane reads the general forecast from its lane change on: with the
+    lane-keeping forecast hitting every path and the general one none, only sequences that change
+    lane at the first decision escape, and the check holds the general forecast's boxes."""
+    scenario = HighwayEnvScenario("highway-fast-v0")
+    config = LoopConfig()
+    world = scenario.make_world(3, config)
+    method = HighwayEnvRobustMethod(scenario, config)
+    method.start(world)
+    calls = []
+    inner = method.forecast
+
+    def forecast(obs, reach, speed, heading):
+        real = inner(obs, reach, speed, heading)
+        calls.append(real)
+        if len(calls) == 1:
+            return _fixed_forecast(real, [1e6, 1e6, 1e6 + 1.0, 1e6 + 1.0])
+        return _fixed_forecast(real, [-1e6, -1e6, 1e6, 1e6])
+
+    method.forecast = forecast
+    policy = method.decide(world.measure())
+    names = [a[0] for a in world.actions]
+    decision = method.decisions[-1]
+    first = method.sequences[:, 0]
+    changes_first = np.array([names[k] in ("LANE_LEFT", "LANE_RIGHT") for k in first])
+    assert decision["safe_sequences"] == changes_first.sum() > 0
+    assert decision["action"] in ("LANE_LEFT", "LANE_RIGHT") and decision["lane_keeping"] is False
+    general = calls[0]
+    for j, agent in enumerate(general.ids):
+        lo, _ = policy.predicted_boxes(world.substeps)[f"vehicle {int(agent)}"]
+        np.testing.assert_array_equal(lo, general.state_lower[world.substeps, j])
+
+
+def test_robust_method_forecasts_once_at_the_intersection():
+    """Every intersection action keeps the lane: one forecast, as before."""
+    scenario = HighwayEnvScenario("intersection-v0")
+    world = scenario.make_world(0, LoopConfig())
+    method = HighwayEnvRobustMethod(scenario, LoopConfig())
+    method.start(world)
+    calls = []
+    inner = method.forecast
+    method.forecast = lambda *args: calls.append(1) or inner(*args)
+    method.decide(world.measure())
+    assert len(calls) == 1 and method.decisions[-1]["lane_keeping"] is False
+
+
+def test_lane_keeping_forecast_contains_highway_envs_vehicles_along_a_lane_keeping_path():
+    """Containment of the lane-keeping forecast on a highway-env scene, the ego keeping its lane (IDLE)
+    over the whole horizon, in the cases the model covers (no lane change in progress, no crash, no
+    change of target lane: highway-env's ground truth read here, in the test only)."""
+    total = {"inside": 0, "outside": 0, "excluded": 0}
+    for seed in (0, 5):
+        scenario = HighwayEnvScenario("highway-fast-v0")
+        world = scenario.make_world(seed, LoopConfig())
+        method = HighwayEnvRobustMethod(scenario, LoopConfig())
+        method.start(world)
+        captured = []
+        inner = method.forecast
+        method.forecast = lambda *args, out=captured, f=inner: out.append(f(*args)) or out[-1]
+        method.decide(world.measure())
+        assert len(captured) == 2
+        keep = captured[1]
+        base = world.adapter.env.unwrapped
+        vehicles = {world.adapter.agent_id(v): v for v in base.road.vehicles if v is not base.vehicle}
+        first = {a: (v.lane_index, v.target_lane_index) for a, v in vehicles.items()}
+        idle = [a[0] for a in world.actions].index("IDLE")
+        excluded: set[int] = set()
+        for n in range(1, keep.steps + 1):
+            world.apply(np.array([idle]))
+            if world.done:
+                break
+            for j, agent in enumerate(keep.ids):
+                v = vehicles[int(agent)]
+                if v not in base.road.vehicles:
+                    excluded.add(int(agent))
+                lane, target = first[int(agent)]
+                if v.crashed or v.target_lane_index != target or v.lane_index != lane or lane != target:
+                    excluded.add(int(agent))
+                if int(agent) in excluded:
+                    total["excluded"] += 1
+                    continue
+                state = np.array([v.position[0], v.position[1], v.speed, v.heading])
+                inside = np.all(keep.state_lower[n, j] <= state) and np.all(state <= keep.state_upper[n, j])
+                total["inside" if inside else "outside"] += 1
+    assert total["outside"] == 0 and total["inside"] > 500, total
+
+
+def _misses_module():
+    import importlib.util
+    import pathlib
+    import sys
+
+    path = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "highway_env_misses.py"
+    spec = importlib.util.spec_from_file_location("highway_env_misses", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("highway_env_misses", module)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _fact(
+    lane=("0", "1", 1), target=None, speed=20.0, crashed=False, curved=False, centre=(0.0, 4.0), position=(0.0, 4.0)
+):
+    return {
+        "crashed": crashed,
+        "lane": list(lane),
+        "target": list(target or lane),
+        "target_centre": list(centre),
+        "position": list(position),
+        "heading": 0.0,
+        "speed": speed,
+        "curved": curved,
+    }
+
+
+def test_miss_classifier_on_a_small_case():
+    """benchmarks/highway_env_misses.py: each miss gets the first kind that applies from the step before
+    the decision's start to the missed sub-step."""
+    misses = _misses_module()
+    classify = misses.classify_miss
+    box = {"lower": [-1.0, 3.0, 0.0, -0.1], "upper": [1.0, 5.0, 30.0, 0.1]}  # reaches (0, 4), not (0, 8)
+
+    def miss(substep, name="vehicle 1"):
+        return {"name": name, "substep": substep, **box}
+
+    plain = [{"vehicle 1": _fact()} for _ in range(8)]
+    assert classify(miss(2), plain, 3) == "unexplained"
+    assert classify(miss(2, "vehicle 9"), plain, 3) == "unexplained"  # no facts at all
+    crashed = [dict(f) for f in plain]
+    crashed[5] = {"vehicle 1": _fact(crashed=True, speed=-1.0)}
+    assert classify(miss(2), crashed, 3) == "crash"  # crash first
+    assert classify(miss(1), crashed, 3) == "unexplained"  # the crash is after the miss
+    reversing = [dict(f) for f in plain]
+    reversing[4] = {"vehicle 1": _fact(speed=-0.1)}
+    assert classify(miss(2), reversing, 3) == "reversing"
+    changing = [dict(f) for f in plain]
+    changing[2] = {"vehicle 1": _fact(target=("0", "1", 2), centre=(0.0, 8.0))}  # the step before the start
+    changing[3] = changing[4] = changing[5] = changing[2]
+    assert classify(miss(2), changing, 3) == "lane change ruled out"
+    aborted = [dict(f) for f in plain]  # MOBIL sets the target back while changing
+    aborted[4] = {"vehicle 1": _fact(target=("0", "1", 0), centre=(0.0, 0.0))}
+    assert classify(miss(2), aborted, 3) == "lane change aborted"
+    towards = [dict(f) for f in plain]
+    towards[5] = {"vehicle 1": _fact(target=("0", "1", 0), centre=(0.0, 4.0))}
+    assert classify(miss(2), towards, 3) == "lane change allowed"
+    cut_in = [dict(f) for f in plain]  # vehicle 2, 30 m ahead, changes into vehicle 1's lane
+    cut_in[4] = {"vehicle 1": _fact(), "vehicle 2": _fact(lane=("0", "1", 2), target=("0", "1", 1), position=(30, 6))}
+    assert classify(miss(2), cut_in, 3) == "a leader's lane change"
+    behind = [dict(f) for f in plain]  # behind it, or the ego: not a leader the forecast missed
+    behind[4] = {
+        "vehicle 1": _fact(),
+        "vehicle 2": _fact(lane=("0", "1", 2), target=("0", "1", 1), position=(-30, 6)),
+        "ego": _fact(lane=("0", "1", 2), target=("0", "1", 1), position=(30, 6)),
+    }
+    assert classify(miss(2), behind, 3) == "unexplained"
+    switching = [dict(f) for f in plain]
+    switching[4] = switching[5] = {"vehicle 1": _fact(target=("1", "2", 1))}
+    assert classify(miss(2), switching, 3) == "route lane switch"
+    ahead_of_lane = [{"vehicle 1": _fact(lane=("0", "1", 0), target=("1", "2", 0))} for _ in range(8)]
+    assert classify(miss(2), ahead_of_lane, 3) == "route lane switch"  # switched before the window
+    curved = [dict(f) for f in plain]
+    curved[5] = {"vehicle 1": _fact(curved=True)}
+    assert classify(miss(2), curved, 3) == "curved lane"
+    summary = misses.summarise(
+        [
+            {
+                "scenario": "s",
+                "seed": 0,
+                "boxes_checked": 10,
+                "boxes_missed": 3,
+                "recorded": 3,
+                "misses": [{"kind": "crash"}, {"kind": "crash"}, {"kind": "unexplained", "name": "vehicle 1"}],
+            }
+        ]
+    )["s"]
+    assert summary["kinds"] == {"crash": {"misses": 2, "episodes": 1}, "unexplained": {"misses": 1, "episodes": 1}}
+    assert summary["unexplained"] == [{"seed": 0, "kind": "unexplained", "name": "vehicle 1"}]

@@ -323,3 +323,30 @@ def test_the_library_imports_neither_the_adapter_nor_highway_env():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+@pytest.mark.parametrize("cut", [3, 5])
+def test_the_adapters_forecast_at_a_step_reads_the_ego_reach_only_up_to_it(cut):
+    """Causality on the adapter's call path (its road from highway-env, road edges, target-speed priors),
+    on which the robust method's lane-keeping forecast rests: boxes up to sub-step n do not depend on
+    the ego's reach, speed or heading after n."""
+    adapter = _adapter("highway-fast-v0", 5)
+    observation = adapter.reset(4)
+    steps = adapter.steps(HORIZON)
+    ego = observation.ego
+    states = np.array([[ego[0] + ego[2] * adapter.dt * n, ego[1], ego[2], 0.0] for n in range(steps + 1)])
+    corners = vehicle_corners(states, adapter.scenario.vehicle)
+    reach = np.concatenate([corners.min(axis=1), corners.max(axis=1)], axis=1)
+    speed = np.stack([states[:, 2], states[:, 2]], axis=1)
+    heading = np.zeros((steps + 1, 2))
+    wide_reach, wide_speed, wide_heading = reach.copy(), speed.copy(), heading.copy()
+    wide_reach[cut + 1 :, :2] -= 6.0
+    wide_reach[cut + 1 :, 2:] += 6.0
+    wide_speed[cut + 1 :] = [0.0, adapter.scenario.vehicle.max_speed]
+    wide_heading[cut + 1 :] = [-np.pi, np.pi]
+    narrow = adapter.forecast(observation, HORIZON, ego_reach=reach, ego_speed=speed, ego_heading=heading)
+    wide = adapter.forecast(observation, HORIZON, ego_reach=wide_reach, ego_speed=wide_speed, ego_heading=wide_heading)
+    np.testing.assert_array_equal(narrow.boxes[: cut + 1], wide.boxes[: cut + 1])
+    np.testing.assert_array_equal(narrow.state_lower[: cut + 1], wide.state_lower[: cut + 1])
+    np.testing.assert_array_equal(narrow.state_upper[: cut + 1], wide.state_upper[: cut + 1])
+    assert not np.array_equal(narrow.boxes, wide.boxes)  # the wider reach matters after the cut
