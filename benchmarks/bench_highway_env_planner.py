@@ -364,7 +364,7 @@ def markdown(results: dict) -> str:
         "(a copy of the environment with `IntervalVehicle`s in every node, `env.step` per action on a deep "
         "copy, the same K, actions, reward, depth rule). Median (min-max) over the scenes; ratio = "
         "reference / library per scene. `decide`: the registered robust method's own decision on highway-env "
-        "(exhaustive over two meta-actions, no budget).",
+        "(exhaustive over two meta-actions, no budget; on the highway two forecasts, the second for the lane-keeping sequences).",
         "",
     ]
     for env_id, table in results["tables"].items():
