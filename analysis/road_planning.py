@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from minimaxplan.kernels.bicycle import apply_action, ego_control
-from minimaxplan.models import InputError
+from minimaxplan.models import DimensionError, InputError
 from minimaxplan.models.validation import as_count, as_positive_scalar, check_instance
 from minimaxplan.planners import RobustTreePlanner
 from minimaxplan.planners.bicycle_model import (
@@ -417,6 +417,19 @@ class ObstacleTables:
     lane_keeping_table: np.ndarray | None = None
     lane_keeping_checked: dict | None = None
 
+    def __post_init__(self) -> None:
+        if (self.lane_keeping_table is None) != (self.lane_keeping_checked is None):
+            raise InputError(
+                "lane_keeping_table and lane_keeping_checked go together (the boxes the plan of a "
+                "lane-keeping path was valued on are the ones to check): got only one of them"
+            )
+        table = np.asarray(self.table)
+        if self.lane_keeping_table is not None and np.shape(self.lane_keeping_table) != table.shape:
+            raise DimensionError(
+                f"lane_keeping_table must have the shape of table {table.shape}, "
+                f"got shape {np.shape(self.lane_keeping_table)}"
+            )
+
 
 class _EgoPolicy:
     """The ego's controllers at one speed level and target lane for one decision (a `PredictingPolicy`)."""
@@ -495,7 +508,8 @@ class RoadPlanningMethod(Method[DrivingWorld]):
         decision = planner.plan(root)
         states, _, after = model.predict(root, decision.action)
         checked = tables.checked
-        if keeping is not None and after.kept and tables.lane_keeping_checked is not None:
+        if keeping is not None and after.kept:
+            assert tables.lane_keeping_checked is not None  # ObstacleTables keeps the two together
             checked = tables.lane_keeping_checked
         predicted: dict[int, dict[str, tuple]] = {}
         for k in range(1, states.shape[0] + 1):

@@ -246,7 +246,9 @@ class FrozenLearner:
         """Record the current measurement, on which `beliefs` places the frozen beliefs (no model is learned).
 
         On the highway the wrapped learner is fed it too, for the lanes in force only
-        (see the Notes); a measurement already seen is not fed twice.
+        (see the Notes), if it is of a sub-step after the last one learned from (the
+        episode's first measurement re-measures the warm-up's last sub-step, and a
+        decision's measurement is its last sub-step's).
 
         Parameters
         ----------
@@ -254,7 +256,7 @@ class FrozenLearner:
             The measurement of a sub-step after the freeze.
         """
         check_instance("observation", observation, Observation)
-        if self.tracks_lanes and (self.current is None or observation.time != self.current.time):
+        if self.tracks_lanes and int(round(observation.time / self.learner.dt)) > self.learner.step:
             self.learner.observe(observation)
         self.current = observation
 

@@ -95,7 +95,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from minimaxplan.models import Box
-from minimaxplan.models.errors import NoConsistentModel, SolverFailure
+from minimaxplan.models.errors import InputError, NoConsistentModel, SolverFailure
 from minimaxplan.scenarios.road import ARC, Road
 from minimaxplan.scenarios.road_world import HighwayScenario, Observation, TJunctionScenario
 from minimaxplan.scenarios.traffic_models import VehicleBelief
@@ -652,8 +652,20 @@ class TrafficLearner:
         ----------
         observation : Observation
             The noisy states of every vehicle on the road (and the ego) at this sub-step.
+
+        Raises
+        ------
+        InputError
+            If the observation's sub-step is not after the last one observed (each
+            sub-step is learned from once, in order; a second measurement of a sub-step
+            would silently replace the state its rows were built on).
         """
         step = int(round(observation.time / self.dt))
+        if step <= self.step:
+            raise InputError(
+                f"observation.time = {observation.time!r} is sub-step {step}, not after the last observed "
+                f"sub-step {self.step}: observe each sub-step once, in order"
+            )
         self.step = step
         self._box_cache = {}
         ids = np.asarray(observation.ids, dtype=int)

@@ -1421,14 +1421,16 @@ def forecast_traffic(
             dist_lo, dist_hi = pk_lo - s_hi[:, None], pk_hi - s_lo[:, None]
             poss_pre = pre & (dist_hi > 0)
             gap_cand = np.where(poss_pre, np.maximum(dist_lo, 0.0) - length, np.inf)
-            # an occupant of a lane beyond the prefix is at least the route distance to that lane's
-            # start plus its centre's arc length on it away (a candidate leader is ahead: >= 0)
-            arc_lo = _centre_arc_length_lower(road, beyond_used, k_lo, k_hi, present)  # (m + 1, n_lanes)
-            bey_dist = np.where(
-                bey_lanes, beyond_start[:, None, :] + arc_lo[None, :, :] - s_hi[:, None, None], np.inf
-            ).min(axis=-1)
-            bey_dist = np.where(np.isnan(bey_dist), 0.0, bey_dist)
-            gap_cand = np.where(bey, np.minimum(gap_cand, np.maximum(bey_dist, 0.0) - length), gap_cand)
+            if bey.any():  # never on the highway (its rows have no lane beyond a prefix)
+                # an occupant of a lane beyond the prefix is at least the route distance to that lane's
+                # start plus its centre's arc length on it away (a candidate leader is ahead: >= 0)
+                cols = beyond_used
+                arc_lo = _centre_arc_length_lower(road, cols, k_lo, k_hi, present)[:, cols]  # (m + 1, lanes)
+                bey_dist = np.where(
+                    bey_lanes[..., cols], beyond_start[:, None, cols] + arc_lo[None] - s_hi[:, None, None], np.inf
+                ).min(axis=-1)
+                bey_dist = np.where(np.isnan(bey_dist), 0.0, bey_dist)
+                gap_cand = np.where(bey, np.minimum(gap_cand, np.maximum(bey_dist, 0.0) - length), gap_cand)
             kp_lo = np.append(lower[n, :, 3], e_head[n, 0])[None, :] - heading[:, None]
             kp_hi = np.append(upper[n, :, 3], e_head[n, 1])[None, :] - heading[:, None]
             with np.errstate(invalid="ignore"):

@@ -11,12 +11,13 @@ from minimaxplan.analysis.road_planning import (
     FORECAST_STEPS,
     REACH_DECISIONS,
     EgoSetup,
+    ObstacleTables,
     conservative_first,
     ego_reach,
     lane_keeping_actions,
     lane_keeping_reach,
 )
-from minimaxplan.models import InputError
+from minimaxplan.models import DimensionError, InputError
 from minimaxplan.planners import HIGHWAY_ACTIONS, TJUNCTION_ACTIONS, BicycleModel
 from minimaxplan.planners.bicycle_model import LANE_KEEPING_PREFIX
 from minimaxplan.scenarios import make_road_world
@@ -148,3 +149,17 @@ def test_the_ego_reach_refuses_bad_input():
         ego_reach(model, root, (20.0, 30.0), -1, 0.1, vehicle)
     with pytest.raises(InputError, match="model"):
         ego_reach("a model", root, (20.0, 30.0), 10, 0.1, vehicle)
+
+
+def test_obstacle_tables_keep_the_lane_keeping_table_with_its_boxes():
+    """A lane-keeping table without the boxes to check (or the reverse) is refused: the run-time
+    check would otherwise read the general forecast's boxes for a plan valued on the other."""
+    table = np.zeros((3, 2, 4))
+    ObstacleTables(table, {})
+    ObstacleTables(table, {}, np.ones((3, 2, 4)), {})
+    with pytest.raises(InputError, match="go together"):
+        ObstacleTables(table, {}, np.ones((3, 2, 4)))
+    with pytest.raises(InputError, match="go together"):
+        ObstacleTables(table, {}, None, {})
+    with pytest.raises(DimensionError, match=r"\(3, 2, 4\)"):
+        ObstacleTables(table, {}, np.ones((3, 1, 4)), {})

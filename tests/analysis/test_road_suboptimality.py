@@ -155,6 +155,8 @@ def test_frozen_highway_beliefs_track_the_lanes_in_force_with_the_frozen_boxes()
     method = FrozenRobustMethod(scenario, DEFAULT_CONFIG)
     method.start(world)
     frozen_learner = method.frozen_learner
+    frozen_learner.see(world.measure())  # a re-measurement of the warm-up's last sub-step: not learned from
+    assert frozen_learner.learner.step == 10
     for _ in range(60):
         world.apply(np.zeros(2))
         observation = world.measure()

@@ -4,6 +4,7 @@ intention in force, the true parameters stay in the boxes, clear wrong intention
 import dataclasses
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -13,6 +14,7 @@ from minimaxplan.analysis.traffic_learning import (
     hold_lane_control,
     remainder_bound,
 )
+from minimaxplan.models import InputError
 from minimaxplan.scenarios.road_world import make_road_world
 from minimaxplan.scenarios.traffic_models import VehicleBelief
 
@@ -120,3 +122,19 @@ def test_elimination_statistics():
     stats = elimination_statistics([("a", 3), ("a", 5), ("a", None), ("b", None), ("a", 10)])
     assert stats["a"] == {"count": 4, "eliminated": 3, "median": 5.0, "min": 3, "max": 10}
     assert stats["b"]["eliminated"] == 0 and stats["b"]["median"] is None
+
+
+def test_the_learner_refuses_a_sub_step_it_has_already_learned_from():
+    """A second measurement of a learned sub-step (or an earlier one) is a typed error, not a silent overwrite."""
+    world = make_road_world("highway", 0)
+    learner = TrafficLearner(world.road, world.scenario)
+    learner.observe(world.measure())
+    world.apply(hold_lane_control(world))
+    first = world.measure()
+    learner.observe(first)
+    rows = {a: [h.lat_rows.n for h in t.hyps] for a, t in learner.tracks.items()}
+    for again in (world.measure(), first):
+        with pytest.raises(InputError, match="sub-step 1, not after the last observed sub-step 1"):
+            learner.observe(again)
+    assert learner.step == 1
+    assert {a: [h.lat_rows.n for h in t.hyps] for a, t in learner.tracks.items()} == rows
