@@ -201,3 +201,21 @@ def test_every_turning_route_has_lanes_beyond_its_prefix_with_route_distances():
         row = _rows_of(route)[0]
         assert set(row.beyond_start) == set(row.beyond)
         assert ROAD.kinds[row.beyond[0]] == ARC
+
+
+def test_a_box_holding_the_arc_centre_with_the_leader_near_its_edge():
+    """A found case: the leader on arc 10 near the edge of a box that holds the arc's centre, the leader's
+    angle outside the corners' angular hull; the bound is below the world's gap only because
+    `_centre_arc_length_lower` gives up on a box holding the centre (random draws rarely hit this)."""
+    follower = [-53.37326633657052, -2.546674434218904, 5.0, -1.7365569681729225]
+    leader = [-11.741125138030435, -1.4393281544755983, 5.0, 2.7484488346573333]
+    box_lo, box_hi = (
+        np.array([-12.304111213253904, -27.40923201057997]),
+        np.array([17.133068169260895, 14.830466890048823]),
+    )
+    route = (0, 10, 7)
+    assert np.all(box_lo <= ROAD.centers[10]) and np.all(ROAD.centers[10] <= box_hi)
+    pairs = _compose(route, 0, follower, 10, route, leader, box_lo, box_hi, 0.0)
+    assert pairs
+    for world, bound in pairs:
+        assert world >= bound
