@@ -31,7 +31,16 @@ NOMINAL_B = np.array([5.0, 8.33])
 
 
 def _traffic(
-    states, routes, *, controlled=None, theta_a=None, timer=None, interval=None, courteous=None, target_speed=None
+    states,
+    routes,
+    *,
+    controlled=None,
+    theta_a=None,
+    timer=None,
+    interval=None,
+    courteous=None,
+    target_speed=None,
+    route_index=None,
 ):
     states = np.asarray(states, dtype=float)
     n = states.shape[0]
@@ -43,7 +52,7 @@ def _traffic(
         exited=np.zeros(n, bool),
         spawn_step=np.zeros(n, int),
         routes=routes,
-        route_index=np.zeros(n, int),
+        route_index=np.zeros(n, int) if route_index is None else np.asarray(route_index, dtype=int),
         theta_a=np.tile(NOMINAL_A, (n, 1)) if theta_a is None else theta_a,
         theta_b=np.tile(NOMINAL_B, (n, 1)),
         target_speed=states[:, 2].copy() if target_speed is None else target_speed,
