@@ -417,7 +417,7 @@ def _slip(delta):
     return np.arctan(0.5 * np.tan(delta))
 
 
-def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = DEFAULT_VEHICLE):
+def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = DEFAULT_VEHICLE, *, ff=None):
     """Per-step disturbance boxes: the true bicycle step minus `lateral_system`'s, over a box.
 
     Parameters
@@ -429,6 +429,10 @@ def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = 
         Sub-step, s.
     vehicle : VehicleParameters
         L and the steering bound.
+    ff : tuple of 2 ndarray, optional
+        ``(lo, hi)`` of a feed-forward steering term added to ``delta_r`` before the
+        clip (on a curved route: ``L theta_b1 (h(s + tau v) - h(s)) / v``); the linear
+        step is then the one of ``delta_r`` with it. Default none.
 
     Returns
     -------
@@ -460,6 +464,8 @@ def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = 
     k_lo, k_hi = length / v[1], length / v[0]
     d_lo, d_hi = _mul(-k_hi, -k_lo, s_lo, s_hi)
     d_lo, d_hi = _out(d_lo, d_hi)
+    if ff is not None:
+        d_lo, d_hi = _out(d_lo + ff[0], d_hi + ff[1])
     dc_lo, dc_hi = np.clip(d_lo, -dmax, dmax), np.clip(d_hi, -dmax, dmax)
     c_lo, c_hi = dc_hi - d_hi, dc_lo - d_lo  # clip(x) - x, nonincreasing
     g_lo, g_hi = _slip(dc_lo) - dc_lo / 2, _slip(dc_hi) - dc_hi / 2
@@ -583,6 +589,22 @@ def _lin(c0, cx, cy, x_lo, x_hi, y_lo, y_hi):
 def _centre_arc_length_lower(road: Road, lanes, centre_lo, centre_hi, present) -> np.ndarray:
     """Lower bounds of `Road.frenet`'s arc length ``s`` on some lanes over boxes of points.
 
+    `_centre_arc_length_bounds`' lower bounds (same parameters).
+    """
+    return _centre_arc_length_bounds(road, lanes, centre_lo, centre_hi, present)[0]
+
+
+def _centre_arc_length_upper(road: Road, lanes, centre_lo, centre_hi, present) -> np.ndarray:
+    """Upper bounds of `Road.frenet`'s arc length ``s`` on some lanes over boxes of points.
+
+    `_centre_arc_length_bounds`' upper bounds (same parameters).
+    """
+    return _centre_arc_length_bounds(road, lanes, centre_lo, centre_hi, present)[1]
+
+
+def _centre_arc_length_bounds(road: Road, lanes, centre_lo, centre_hi, present) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of `Road.frenet`'s arc length ``s`` on some lanes over boxes of points.
+
     Parameters
     ----------
     road : Road
@@ -596,23 +618,25 @@ def _centre_arc_length_lower(road: Road, lanes, centre_lo, centre_hi, present) -
 
     Returns
     -------
-    ndarray, shape (k, n_lanes)
-        ``min s`` over each box: exact on a straight lane (s is linear); on an arc, from
-        the angles of the box's corners seen from the arc's centre (the extreme rays of a
-        box that does not hold that centre touch corners), ``-inf`` where the box holds
-        the centre or its angles reach `Road.frenet`'s wrap (``mid_angle + pi``). Rounded
-        outward by `ROUND_MARGIN`.
+    low, high : ndarray, shape (k, n_lanes)
+        ``min s`` and ``max s`` over each box: exact on a straight lane (s is linear); on
+        an arc, from the angles of the box's corners seen from the arc's centre (the
+        extreme rays of a box that does not hold that centre touch corners), ``-inf`` and
+        ``+inf`` where the box holds the centre or its angles reach `Road.frenet`'s wrap
+        (``mid_angle + pi``); unbounded on the other lanes. Rounded outward by
+        `ROUND_MARGIN`.
     """
     out = np.full((len(centre_lo), len(road)), -np.inf)
+    out_hi = np.full((len(centre_lo), len(road)), np.inf)
     lanes = np.asarray(lanes, dtype=int)
     rows = np.flatnonzero(np.asarray(present, dtype=bool) & np.all(centre_lo <= centre_hi, axis=1))
     if lanes.size == 0 or rows.size == 0:
-        return out
+        return out, out_hi
     lo, hi = centre_lo[rows], centre_hi[rows]
     for lane in lanes:
         if road.kinds[lane] != ARC:
             start, d = road.starts[lane], road.directions[lane]
-            s_lo, _ = _lin(-float(start @ d), d[0], d[1], lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1])
+            s_lo, s_hi = _lin(-float(start @ d), d[0], d[1], lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1])
         else:
             cx, cy = road.centers[lane]
             holds = (lo[:, 0] <= cx) & (cx <= hi[:, 0]) & (lo[:, 1] <= cy) & (cy <= hi[:, 1])
@@ -625,9 +649,24 @@ def _centre_arc_length_lower(road: Road, lanes, centre_lo, centre_hi, present) -
             usable = ~holds & (d_lo > -np.pi) & (d_hi < np.pi)
             radius, half = float(road.radii[lane]), float(road.lengths[lane]) / 2
             s_lo = np.where(road.signs[lane] > 0, half + radius * d_lo, half - radius * d_hi)
+            s_hi = np.where(road.signs[lane] > 0, half + radius * d_hi, half - radius * d_lo)
             s_lo = np.where(usable, s_lo, -np.inf)
+            s_hi = np.where(usable, s_hi, np.inf)
         out[rows, lane] = s_lo - ROUND_MARGIN * (1 + np.abs(s_lo))
-    return out
+        out_hi[rows, lane] = s_hi + ROUND_MARGIN * (1 + np.abs(s_hi))
+    return out, out_hi
+
+
+def _arc_offset_bounds(center, radius, sign, x_lo, x_hi, y_lo, y_hi):
+    """Exact bounds of an arc lane's Frenet offset ``sign (radius - |p - center|)`` over boxes of points."""
+    gx = np.maximum(np.maximum(x_lo - center[..., 0], center[..., 0] - x_hi), 0.0)
+    gy = np.maximum(np.maximum(y_lo - center[..., 1], center[..., 1] - y_hi), 0.0)
+    near = np.hypot(gx, gy)
+    far = np.hypot(
+        np.maximum(np.abs(x_lo - center[..., 0]), np.abs(x_hi - center[..., 0])),
+        np.maximum(np.abs(y_lo - center[..., 1]), np.abs(y_hi - center[..., 1])),
+    )
+    return _out(np.where(sign > 0, radius - far, near - radius), np.where(sign > 0, radius - near, far - radius))
 
 
 def _matvec(m, lo, hi):
@@ -703,6 +742,10 @@ class _Row:
     prefix: dict  # lane -> (s_start, s_end)
     beyond: tuple
     beyond_start: dict = field(default_factory=dict)  # beyond lane -> its route distance from s = 0
+    # the route's centre line from s = 0, piece by piece: (a, b, kind, start point, direction or centre,
+    # radius, sign, polar angle at a, route heading at a); empty: the fine model ends with the prefix
+    pieces: tuple = ()
+    cap_to: float = np.inf
 
 
 def _route_rows(road: Road, veh: int, belief: VehicleBelief, state: np.ndarray, vehicle, rules) -> list:
@@ -761,25 +804,35 @@ def _route_rows(road: Road, veh: int, belief: VehicleBelief, state: np.ndarray, 
             prefix[lane] = (s0, s0 + float(road.lengths[lane]))
             k += 1
         beyond = tuple(rest[k:])
-        fine = bool(prefix) and road.kinds[cur] == STRAIGHT
         last_end = max((e for _, e in prefix.values()), default=0.0)
         # the world measures a leader's distance along the route (`find_leaders`: the sum of the
         # route lanes' lengths before its lane, plus its centre's arc length on that lane); the row's
         # s is that distance from cur's start where the prefix lanes abut, as they do on every road here
         beyond_start = {}
         sums = np.cumsum([0.0] + [float(road.lengths[lane]) for lane in rest])
-        if all(abs(prefix[lane][0] - sums[i]) <= COLLINEAR_TOL for i, lane in enumerate(rest[:k])):
+        if k == 0 or all(abs(prefix[lane][0] - sums[i]) <= COLLINEAR_TOL for i, lane in enumerate(rest[:k])):
             beyond_start = {lane: float(sums[k + i]) for i, lane in enumerate(beyond)}
-        prefix_end = np.inf if not beyond else last_end
+        pieces = _route_pieces(road, cur, prefix, last_end, beyond, beyond_start)
+        fine = bool(pieces) or (bool(prefix) and road.kinds[cur] == STRAIGHT)
+        prefix_end = np.inf if not beyond or pieces else last_end
+        if road.kinds[cur] == ARC:  # the frame's line: the arc's tangent at its start
+            o = road.position_at(cur, 0.0)
+            hd = float(road.heading_at(cur, 0.0))
+            u = np.array([np.cos(hd), np.sin(hd)])
         stop_s = np.nan
         for i in range(min(k, len(rest) - 1)):
             if junction[rest[i + 1]] and not junction[rest[i]]:
                 stop_s = prefix[rest[i]][1]
                 break
-        cap_from, cap_speed = np.inf, np.inf
+        cap_from, cap_speed, cap_to = np.inf, np.inf, np.inf
         if beyond and road.kinds[beyond[0]] == ARC:
             cap_from = last_end - vehicle.length / 2 - rules.curve_approach
             cap_speed = float(np.sqrt(rules.curve_lateral_acceleration * road.radii[beyond[0]]))
+            if pieces:  # the curve cap holds up to the arc's end (beyond it the lane is straight)
+                cap_to = beyond_start[beyond[0]] + float(road.lengths[beyond[0]])
+        if road.kinds[cur] == ARC and pieces:
+            cap_from, cap_to = -np.inf, float(road.lengths[cur])
+            cap_speed = float(np.sqrt(rules.curve_lateral_acceleration * road.radii[cur]))
         rows.append(
             _Row(
                 veh,
@@ -797,11 +850,59 @@ def _route_rows(road: Road, veh: int, belief: VehicleBelief, state: np.ndarray, 
                 prefix,
                 beyond,
                 beyond_start,
+                pieces,
+                cap_to,
             )
         )
     if not rows:
         raise InputError(f"belief of agent {belief.agent}: no route holds one of its lanes {belief.lanes}")
     return rows
+
+
+def _route_pieces(road: Road, cur: int, prefix: dict, last_end: float, beyond: tuple, beyond_start: dict) -> tuple:
+    """The route's centre line from the row's origin as pieces, or () when it is not one G1 curve.
+
+    A piece is ``(a, b, kind, point, vector, radius, sign, phi0, h0)``: route distances
+    ``[a, b]``; a straight piece's start point and direction, an arc's centre (radius,
+    sign, polar angle ``phi0`` at ``a``); ``h0`` the route heading at ``a`` relative to
+    the row's start heading (continuous, unwrapped). The world steers by the frame of the
+    route lane its centre is in (`_progress` moves on when the arc length passes the
+    lane's end, and consecutive lanes meet on a common normal), so ``s`` (the route
+    distance) and ``e`` (the lane offset) are that lane's Frenet coordinates.
+    """
+    if beyond and len(beyond_start) != len(beyond):
+        return ()
+    lanes = beyond  # with no prefix, cur is the first lane beyond it
+    if sum(road.kinds[lane] == ARC for lane in lanes) > 1:  # the lateral terms assume one arc
+        return ()
+    pieces = []
+    heading0 = float(road.heading_at(cur, 0.0))
+    h, end = 0.0, 0.0
+    if prefix:
+        pieces.append((0.0, last_end, STRAIGHT, road.starts[cur], road.directions[cur], 0.0, 0.0, 0.0, 0.0))
+        end = last_end
+        point = road.starts[cur] + last_end * road.directions[cur]
+    else:
+        point = road.position_at(cur, 0.0)
+    for lane in lanes:
+        a = beyond_start[lane]
+        start_point = road.position_at(lane, 0.0)
+        start_heading = float(road.heading_at(lane, 0.0))
+        # the pieces must join with a common point and tangent (G1): the steering frames then agree there
+        if abs(a - end) > COLLINEAR_TOL or np.linalg.norm(start_point - point) > COLLINEAR_TOL:
+            return ()
+        if abs(wrap_to_pi(start_heading - (heading0 + h))) > COLLINEAR_TOL:
+            return ()
+        b = a + float(road.lengths[lane])
+        if road.kinds[lane] == ARC:
+            sign, radius = float(road.signs[lane]), float(road.radii[lane])
+            pieces.append((a, b, ARC, start_point, road.centers[lane], radius, sign, float(road.start_angles[lane]), h))
+            h += sign * float(road.lengths[lane]) / radius
+        else:
+            pieces.append((a, b, STRAIGHT, start_point, road.directions[lane], 0.0, 0.0, 0.0, h))
+        end = b
+        point = road.position_at(lane, float(road.lengths[lane]))
+    return tuple(pieces)
 
 
 def _structure(dt: float, length: float) -> np.ndarray:
@@ -914,6 +1015,18 @@ def forecast_traffic(
     accepted at some step so far (the later of two switches into a lane was checked
     against the earlier).
 
+    Routes through an arc (the T-junction's turns) keep the fine model on the arc and the
+    lane after it (`_route_pieces`): ``s`` is the route distance and ``e``, ``chi`` the
+    Frenet offset and heading error of the lane the centre is in (the lane the world
+    steers by). On or near the arc the step adds, as bounded terms: the pursuit law's
+    feed-forward ``L theta_b1 tau kappa`` inside ``delta_r`` (the pursuit point's heading
+    ahead), the route's turn over the step ``-(h(s+) - h(s))`` in ``chi``, the outward
+    drift of a straight move in the arc's frame (``<= D^2 / (2 A)``, ``A`` the distance
+    from the arc's centre) and the change of frame at the arc's end in ``e``, and the arc's
+    route-distance step ``R atan(D cos(chi + beta) / A)``. World boxes are the hull over
+    the pieces the ``s`` box meets (straight: linear; arc: polar, exact ranges of cos and
+    sin). Leaders beyond the prefix count only where they may be ahead along the route.
+
     A vehicle's output is the hull over its rows (the union of its surviving
     hypotheses); ``guaranteed`` is False from the first step after one of its rows left
     the fine region (then its box is the coarse reachable box).
@@ -973,10 +1086,19 @@ def forecast_traffic(
     stop_s = np.full(R, np.nan)
     cap_from = np.full(R, np.inf)
     cap_speed = np.full(R, np.inf)
+    cap_to = np.full(R, np.inf)
+    K = max([1] + [len(row.pieces) for _, rows in per_vehicle for row in rows])
+    # route pieces (`_route_pieces`); the first extends backwards and the last forwards without end
+    pc_a, pc_b = np.full((R, K), np.inf), np.full((R, K), np.inf)
+    pc_kind = np.full((R, K), -1)
+    pc_pt, pc_vec = np.zeros((R, K, 2)), np.zeros((R, K, 2))
+    pc_rad, pc_sgn, pc_phi0, pc_h0 = np.ones((R, K)), np.zeros((R, K)), np.zeros((R, K)), np.zeros((R, K))
+    routed = np.zeros(R, dtype=bool)  # rows whose fine model follows the route's pieces
     pre_lo = np.full((R, n_lanes), np.nan)
     pre_hi = np.full((R, n_lanes), np.nan)
     beyond = np.zeros((R, n_lanes), dtype=bool)
     beyond_start = np.full((R, n_lanes), np.nan)  # NaN: no bound (the gap to its occupants is only >= 0)
+    bey_end = np.full((R, n_lanes), np.nan)
     route_mask = np.zeros((R, n_lanes), dtype=bool)
     side = np.zeros((R, n_lanes), dtype=bool)
     nbr = np.full((R, 2), -1, dtype=int)
@@ -990,12 +1112,26 @@ def forecast_traffic(
             alive[r], fine[r] = row.alive, row.fine
             origin[r], u[r], c[r], row_lane[r] = row.origin, row.u, row.c, row.lane
             prefix_end[r], exit_s[r], stop_s[r] = row.prefix_end, row.exit_s, row.stop_s
-            cap_from[r], cap_speed[r] = row.cap_from, row.cap_speed
+            cap_from[r], cap_speed[r], cap_to[r] = row.cap_from, row.cap_speed, row.cap_to
+            if row.pieces and (len(row.pieces) > 1 or row.pieces[0][2] == ARC):
+                routed[r] = True
+                for q, (a, b, kind, pt, vec, rad, sgn, phi0, h0) in enumerate(row.pieces):
+                    pc_a[r, q], pc_b[r, q], pc_kind[r, q] = a, b, kind
+                    pc_pt[r, q], pc_vec[r, q] = pt, vec
+                    pc_rad[r, q], pc_sgn[r, q], pc_phi0[r, q], pc_h0[r, q] = (
+                        (rad if kind == ARC else 1.0),
+                        sgn,
+                        phi0,
+                        h0,
+                    )
+                pc_a[r, 0] = -np.inf
+                pc_b[r, len(row.pieces) - 1] = np.inf
             for lane, (s0, s1) in row.prefix.items():
                 pre_lo[r, lane], pre_hi[r, lane] = s0, s1
             beyond[r, list(row.beyond)] = True
             for lane, start in row.beyond_start.items():
                 beyond_start[r, lane] = start
+                bey_end[r, lane] = start + float(road.lengths[lane])
             route_mask[r] = ~np.isnan(pre_lo[r]) | beyond[r]
             if road.side_of[row.lane] >= 0:
                 side[r, list(road.side_lanes(row.lane))] = True
@@ -1021,6 +1157,73 @@ def forecast_traffic(
     nrm = np.stack([-u[:, 1], u[:, 0]], axis=1)
     heading = np.arctan2(u[:, 1], u[:, 0])
     widths = road.widths[row_lane]
+    pc_used = pc_kind >= 0
+    pc_arc = pc_kind == ARC
+    pc_kappa = np.where(pc_arc, pc_sgn / pc_rad, 0.0)
+    pc_lo = np.where(pc_used, pc_a, np.inf)  # the route distance where each piece starts (first: 0)
+    pc_lo[:, 0] = np.where(pc_used[:, 0], 0.0, np.inf)
+    has_arc = routed & pc_arc.any(axis=1)
+
+    def route_heading(s_at):
+        """The route's heading at s (R,) relative to the row's start heading (continuous)."""
+        with np.errstate(invalid="ignore"):
+            inside = np.where(pc_used, np.clip(s_at[:, None], pc_a, pc_b) - pc_lo, 0.0)
+        return np.where(pc_arc, pc_kappa * inside, 0.0).sum(axis=1)
+
+    def pieces_met(lo, hi):
+        """(R, K): the pieces whose route-distance range meets [lo, hi]."""
+        return pc_used & (pc_a <= hi[:, None]) & (pc_b >= lo[:, None])
+
+    def heading_range(s_lo_, s_hi_):
+        """Bounds of the route heading over [s_lo, s_hi] (piecewise linear: ends and piece starts)."""
+        h_a, h_b = route_heading(s_lo_), route_heading(s_hi_)
+        lo, hi = np.minimum(h_a, h_b), np.maximum(h_a, h_b)
+        inner = pieces_met(s_lo_, s_hi_) & (pc_a >= s_lo_[:, None])
+        lo = np.minimum(lo, np.where(inner, pc_h0, np.inf).min(axis=1))
+        hi = np.maximum(hi, np.where(inner, pc_h0, -np.inf).max(axis=1))
+        return lo, hi
+
+    def curvature_range(lo, hi):
+        """Bounds of the route's curvature over [lo, hi], (R,) each (0 off the routed rows)."""
+        met = pieces_met(lo, hi)
+        k_lo = np.where(met, pc_kappa, np.inf).min(axis=1)
+        k_hi = np.where(met, pc_kappa, -np.inf).max(axis=1)
+        return np.where(routed, k_lo, 0.0), np.where(routed, k_hi, 0.0)
+
+    def route_xy(rows, s_lo_, s_hi_, e_lo_, e_hi_):
+        """World boxes of the centres of the rows ``rows`` from their (s, e) boxes: the hull over the pieces met."""
+        met = pieces_met(s_lo_, s_hi_)[rows]
+        out = [
+            np.full(len(rows), np.inf),
+            np.full(len(rows), -np.inf),
+            np.full(len(rows), np.inf),
+            np.full(len(rows), -np.inf),
+        ]
+        sl, sh, el, eh = s_lo_[rows], s_hi_[rows], e_lo_[rows], e_hi_[rows]
+        for q in range(K):
+            on = met[:, q]
+            if not on.any():
+                continue
+            a, b = pc_a[rows, q], pc_b[rows, q]
+            t_lo, t_hi = np.maximum(sl, a) - pc_lo[rows, q], np.minimum(sh, b) - pc_lo[rows, q]
+            pt, vec = pc_pt[rows, q], pc_vec[rows, q]
+            straight = ~pc_arc[rows, q]
+            x_s = _lin(pt[:, 0], vec[:, 0], -vec[:, 1], t_lo, t_hi, el, eh)
+            y_s = _lin(pt[:, 1], vec[:, 1], vec[:, 0], t_lo, t_hi, el, eh)
+            rad, sgn = pc_rad[rows, q], pc_sgn[rows, q]
+            ph_a, ph_b = pc_phi0[rows, q] + sgn * t_lo / rad, pc_phi0[rows, q] + sgn * t_hi / rad
+            ph_lo, ph_hi = np.minimum(ph_a, ph_b), np.maximum(ph_a, ph_b)
+            r_lo = rad - np.maximum(sgn * el, sgn * eh)
+            r_hi = rad - np.minimum(sgn * el, sgn * eh)
+            with np.errstate(invalid="ignore"):
+                xa = _mul(r_lo, r_hi, *cos_interval(ph_lo, ph_hi))
+                ya = _mul(r_lo, r_hi, *sin_interval(ph_lo, ph_hi))
+            x_a = _out(vec[:, 0] + xa[0], vec[:, 0] + xa[1])  # an arc's vec is its centre
+            y_a = _out(vec[:, 1] + ya[0], vec[:, 1] + ya[1])
+            for i, (st_, ar_) in enumerate(((x_s[0], x_a[0]), (x_s[1], x_a[1]), (y_s[0], y_a[0]), (y_s[1], y_a[1]))):
+                val = np.where(straight, st_, ar_)
+                out[i] = np.where(on, (np.minimum if i % 2 == 0 else np.maximum)(out[i], val), out[i])
+        return out
 
     # ------------------------------------------------------- initial boxes
     mv = meas[veh_of]
@@ -1034,6 +1237,34 @@ def forecast_traffic(
     s_lo, s_hi = _lin(-np.sum(origin * u, axis=1), u[:, 0], u[:, 1], x_lo, x_hi, y_lo, y_hi)
     l_lo, l_hi = _lin(-np.sum(origin * nrm, axis=1) - c, nrm[:, 0], nrm[:, 1], x_lo, x_hi, y_lo, y_hi)
     ch_lo, ch_hi = _out(chi0 - noise[3], chi0 + noise[3])
+    on_arc = np.flatnonzero(routed & pc_arc[:, 0])
+    if on_arc.size:  # the row's frame is its arc's: Frenet bounds of the measured box, heading error from them
+        lane_a = row_lane[on_arc]
+        arc_lo, arc_hi = _centre_arc_length_bounds(
+            road,
+            np.unique(lane_a),
+            np.stack([x_lo[on_arc], y_lo[on_arc]], 1),
+            np.stack([x_hi[on_arc], y_hi[on_arc]], 1),
+            np.ones(on_arc.size, dtype=bool),
+        )
+        s_lo[on_arc], s_hi[on_arc] = arc_lo[np.arange(on_arc.size), lane_a], arc_hi[np.arange(on_arc.size), lane_a]
+        l_lo[on_arc], l_hi[on_arc] = _arc_offset_bounds(
+            pc_vec[on_arc, 0],
+            pc_rad[on_arc, 0],
+            pc_sgn[on_arc, 0],
+            x_lo[on_arc],
+            x_hi[on_arc],
+            y_lo[on_arc],
+            y_hi[on_arc],
+        )
+        s_mid, _ = road.frenet(lane_a, mv[on_arc, 0], mv[on_arc, 1])
+        chi_a = wrap_to_pi(mv[on_arc, 3] - road.heading_at(lane_a, s_mid))
+        h_unw[on_arc] = mv[on_arc, 3] - chi_a - pc_kappa[on_arc, 0] * s_mid  # the route heading at s_mid
+        hh_lo, hh_hi = heading_range(s_lo, s_hi)
+        ch_lo[on_arc], ch_hi[on_arc] = _out(
+            p_lo[on_arc] - h_unw[on_arc] - hh_hi[on_arc], p_hi[on_arc] - h_unw[on_arc] - hh_lo[on_arc]
+        )
+        fine[on_arc] &= np.isfinite(s_lo[on_arc]) & np.isfinite(s_hi[on_arc])
     fine &= (np.maximum(-ch_lo, ch_hi) <= CHI_MAX) & (s_hi + beh.pursuit_time * v_hi <= prefix_end)
     # one basis per vehicle (rows share it): the nominal matrix at the measured speed
     phi = _structure(dt, length)
@@ -1103,12 +1334,81 @@ def forecast_traffic(
         c_hi = hi[R:].reshape(R, 2 * C, 2).max(axis=1)
         return np.minimum(lo[:R], c_lo), np.maximum(hi[:R], c_hi)
 
+    arc_q = np.argmax(pc_arc, axis=1)
+    arc_rad = pc_rad[np.arange(R), arc_q]
+    arc_sgn = np.where(has_arc, pc_sgn[np.arange(R), arc_q], 0.0)
+    arc_end = np.where(has_arc, pc_b[np.arange(R), arc_q], np.nan)
+    arc_start = np.where(has_arc, pc_a[np.arange(R), arc_q], np.nan)
+
+    def curved_rows(v_hi_):
+        """Per row: whether a step may meet the arc, the curvature ranges of the pursuit window and of the
+        motion, and whether the motion may leave the arc at its end."""
+        reach_d = 1.5 * v_hi_ * dt  # a step moves the centre's route distance by at most R / A v dt
+        m_lo, m_hi = s_lo - reach_d, s_hi + reach_d
+        w_lo, w_hi = s_lo, s_hi + tau * v_hi_
+        kw = curvature_range(np.minimum(w_lo, m_lo), np.maximum(w_hi, m_hi))
+        km = curvature_range(m_lo, m_hi)
+        with np.errstate(invalid="ignore"):
+            arc_in = has_arc & (arc_start <= m_hi) & (arc_end >= m_lo)
+            end_in = has_arc & (arc_end >= m_lo) & (arc_end <= m_hi)
+        kw = (np.where(arc_in, kw[0], 0.0), np.where(arc_in, kw[1], 0.0))
+        km = (np.where(arc_in, km[0], 0.0), np.where(arc_in, km[1], 0.0))
+        return arc_in, kw, km, end_in
+
+    def curved_terms(rr_, d, e, a, ff, km, end_in):
+        """The extra terms of a step on or near the arc, for rows rr_ (one per unit).
+
+        ``d``: (lo, hi) of the displacement ``v dt``; ``e``: the offset box; ``a``: the
+        velocity's angle to the lane ``chi + beta``; ``ff``: the feed-forward steering. With
+        ``A = r - sign D sin(a)`` (the distance from the arc's centre, ``r = R - sign e``): in
+        the arc the offset moves by ``-sign D^2 cos^2 a / (A + r+)`` beyond the straight step
+        (``|.| <= D^2 / (2 A)``), and by at most as much, of the other sign, when the centre
+        passes the arc's end (the next lane's frame); the route distance by ``R atan(D cos a / A)``;
+        the heading error by ``-(h(s+) - h(s))``, the route's turn over the step. Returns the
+        e and chi terms beyond the linear step (with ``delta_r`` holding ``ff``) and the
+        route-distance step.
+        """
+        rad, sg = arc_rad[rr_], arc_sgn[rr_]
+        c = cos_interval(*a)
+        sn = sin_interval(*a)
+        dsin = _mul(d[0], d[1], *sn)
+        de = (np.where(sg > 0, e[0], -e[1]), np.where(sg > 0, e[1], -e[0]))
+        tot = (e[0] + dsin[0], e[1] + dsin[1])
+        dsum = (np.where(sg > 0, tot[0], -tot[1]), np.where(sg > 0, tot[1], -tot[0]))
+        a_lo = rad - np.maximum(dsum[1], de[1])
+        a_hi = rad - np.minimum(dsum[0], de[0])
+        bad = ~(a_lo > 0.0)
+        a_lo = np.where(bad, 1.0, a_lo)
+        a_hi = np.where(bad, 1.0, a_hi)
+        dc = _mul(d[0], d[1], *c)
+        x_lo = np.minimum(dc[0] / a_lo, dc[0] / a_hi)
+        x_hi = np.maximum(dc[1] / a_lo, dc[1] / a_hi)
+        ds = (np.minimum(dc[0], rad * np.arctan(x_lo)), np.maximum(dc[1], rad * np.arctan(x_hi)))
+        xm = np.maximum(np.abs(x_lo), np.abs(x_hi))
+        sigma = np.where(xm > 0.0, np.arctan(xm) / np.where(xm > 0.0, xm, 1.0), 1.0)
+        rho_a = _mul(*_mul(rad / a_hi, rad / a_lo, *c), sigma, np.ones_like(sigma))
+        rho = (np.minimum(rho_a[0], c[0]), np.maximum(rho_a[1], c[1]))  # ds / D, hulled with the straight step's
+        km_rho = _mul(km[0][rr_], km[1][rr_], *rho)
+        bracket = (ff[0] / length - km_rho[1], ff[1] / length - km_rho[0])
+        chi_x = _mul(d[0], d[1], *bracket)
+        m_e = d[1] ** 2 / (2.0 * a_lo)
+        arc_part, end_part = m_e, np.where(end_in[rr_], m_e, 0.0)
+        eps_e = (np.where(sg > 0, -arc_part, -end_part), np.where(sg > 0, end_part, arc_part))
+        ff_e = _mul(d[0], d[1], ff[0] / 2, ff[1] / 2)
+        e_x = (ff_e[0] + eps_e[0], ff_e[1] + eps_e[1])
+        big = np.where(bad, np.inf, 0.0)
+        e_x, chi_x = _out(e_x[0] - big, e_x[1] + big), _out(chi_x[0] - big, chi_x[1] + big)
+        return e_x, chi_x, _out(ds[0] - big, ds[1] + big), _mul(km[0][rr_], km[1][rr_], *ds)
+
     def lateral_step(idx, v_lo, v_hi):
         """One step of the units idx: vertex bound plus remainders (v >= V_MIN), hulled with the
         direct interval step of the bicycle (v < V_MIN); the basis and identity boxes intersected."""
         rr = unit_row[idx]
         e_lo, e_hi = eu_lo[idx], eu_hi[idx]
         vlo, vhi = v_lo[rr], v_hi[rr]
+        arc_in, kw, km, end_in = curved_rows(v_hi)
+        curved_u = arc_in[rr]
+        ff_row = _mul(tb_lo[:, 0], tb_hi[:, 0], length * tau * kw[0], length * tau * kw[1])
         f_ok = vhi >= V_MIN
         l_ok = vlo < V_MIN
         vf_lo_, vf_hi_ = np.maximum(vlo, V_MIN), np.maximum(vhi, V_MIN)
@@ -1132,6 +1432,21 @@ def forecast_traffic(
                 bv_hi = vf_hi_[sel] if k == bins - 1 else vf_lo_[sel] * ratio[sel] ** ((k + 1) / bins)
                 q_lo, q_hi = tb_lo[rs, 1] / bv_hi, tb_hi[rs, 1] / bv_lo
                 r_e, r_c, _, a_f = lateral_remainder(eb, cb, (bv_lo, bv_hi), b1s, (q_lo, q_hi), dt, vehicle)
+                sub = np.flatnonzero(curved_u[sel])
+                if sub.size:  # on or near the arc: the feed-forward in the law, the frame's turn and drift
+                    rsub = rs[sub]
+                    ffs = (ff_row[0][rsub], ff_row[1][rsub])
+                    e_s, c_s = (eb[0][sub], eb[1][sub]), (cb[0][sub], cb[1][sub])
+                    vb = (bv_lo[sub], bv_hi[sub])
+                    r_e2, r_c2, _, a_f2 = lateral_remainder(
+                        e_s, c_s, vb, (b1s[0][sub], b1s[1][sub]), (q_lo[sub], q_hi[sub]), dt, vehicle, ff=ffs
+                    )
+                    e_x, c_x, ds_c, _ = curved_terms(rsub, (vb[0] * dt, vb[1] * dt), e_s, a_f2, ffs, km, end_in)
+                    r_e, r_c, a_f = [tuple(np.array(a, copy=True) for a in t) for t in (r_e, r_c, a_f)]
+                    for tgt, src, extra in ((r_e, r_e2, e_x), (r_c, r_c2, c_x)):
+                        lo_x, hi_x = _out(src[0] + extra[0], src[1] + extra[1])
+                        tgt[0][sub], tgt[1][sub] = lo_x, hi_x
+                    a_f[0][sub], a_f[1][sub] = a_f2
                 p_lo_ = np.stack([bv_lo, b1s[0], q_lo], 1)
                 p_hi_ = np.stack([bv_hi, b1s[1], q_hi], 1)
                 rw_lo, rw_hi = np.stack([r_e[0], r_c[0]], 1), np.stack([r_e[1], r_c[1]], 1)
@@ -1143,6 +1458,9 @@ def forecast_traffic(
                 )
                 i1_lo, i1_hi = _out(i1_lo + rw_lo, i1_hi + rw_hi)
                 s1 = _mul(bv_lo * dt, bv_hi * dt, *cos_interval(*a_f))
+                if sub.size:
+                    s1 = (s1[0].copy(), s1[1].copy())
+                    s1[0][sub], s1[1][sub] = ds_c
                 zf_lo[sel], zf_hi[sel] = np.minimum(zf_lo[sel], z1_lo), np.maximum(zf_hi[sel], z1_hi)
                 if_lo[sel], if_hi[sel] = np.minimum(if_lo[sel], i1_lo), np.maximum(if_hi[sel], i1_hi)
                 sf[0][sel], sf[1][sel] = np.minimum(sf[0][sel], s1[0]), np.maximum(sf[1][sel], s1[1])
@@ -1157,8 +1475,30 @@ def forecast_traffic(
             dc = _mul(2 * vl_lo * dt / length, 2 * vl_hi * dt / length, np.sin(_slip(d_l[0])), np.sin(_slip(d_l[1])))
             low_e = _out(e_box[0] + de[0], e_box[1] + de[1])
             low_c = _out(c_box[0] + dc[0], c_box[1] + dc[1])
+            ds_l = _mul(vl_lo * dt, vl_hi * dt, *cos_interval(*a_l))
+            sub = np.flatnonzero(curved_u)
+            if sub.size:  # on or near the arc: the feed-forward in the law (any share of it below speed_epsilon)
+                rsub = rr[sub]
+                ffd = (np.minimum(ff_row[0][rsub], 0.0), np.maximum(ff_row[1][rsub], 0.0))
+                e_s, c_s = (e_box[0][sub], e_box[1][sub]), (c_box[0][sub], c_box[1][sub])
+                vs = (vh_lo[sub], vh_hi[sub])
+                q_s = (tb_lo[rsub, 1] / vs[1], tb_hi[rsub, 1] / vs[0])
+                _, _, d_s, a_s = lateral_remainder(e_s, c_s, vs, (b1[0][sub], b1[1][sub]), q_s, dt, vehicle, ff=ffd)
+                dd = (vl_lo[sub] * dt, vl_hi[sub] * dt)
+                de_s = _mul(*dd, *sin_interval(*a_s))
+                dc_s = _mul(2 * dd[0] / length, 2 * dd[1] / length, np.sin(_slip(d_s[0])), np.sin(_slip(d_s[1])))
+                zero = np.zeros(sub.size)
+                e_x, _, ds_c, turn_c = curved_terms(rsub, dd, e_s, a_s, (zero, zero), km, end_in)
+                low_e = tuple(np.array(a, copy=True) for a in low_e)
+                low_c = tuple(np.array(a, copy=True) for a in low_c)
+                ds_l = tuple(np.array(a, copy=True) for a in ds_l)
+                le = _out(e_s[0] + de_s[0] + e_x[0], e_s[1] + de_s[1] + e_x[1])
+                lc = _out(c_s[0] + dc_s[0] - turn_c[1], c_s[1] + dc_s[1] - turn_c[0])
+                low_e[0][sub], low_e[1][sub] = le
+                low_c[0][sub], low_c[1][sub] = lc
+                ds_l[0][sub], ds_l[1][sub] = ds_c
             step_lo, step_hi = np.stack([low_e[0], low_c[0]], 1), np.stack([low_e[1], low_c[1]], 1)
-            return step_lo, step_hi, _mul(vl_lo * dt, vl_hi * dt, *cos_interval(*a_l))
+            return step_lo, step_hi, ds_l
 
         # The direct step over the whole speed box contains the fine step's set too: intersect them (both
         # sound). Where the speed box is wide and reaches low speeds, the linearised law's stiff gains
@@ -1209,10 +1549,16 @@ def forecast_traffic(
             with np.errstate(invalid="ignore"):
                 fx = _lin(origin[:, 0], u[:, 0], -u[:, 1], s_lo, s_hi, lat_lo, lat_hi)
                 fy = _lin(origin[:, 1], u[:, 1], u[:, 0], s_lo, s_hi, lat_lo, lat_hi)
-            cx_lo, cx_hi = np.where(fine, fx[0], x_lo), np.where(fine, fx[1], x_hi)
-            cy_lo, cy_hi = np.where(fine, fy[0], y_lo), np.where(fine, fy[1], y_hi)
             ps_lo = np.where(fine, h_unw + ch_lo, p_lo)
             ps_hi = np.where(fine, h_unw + ch_hi, p_hi)
+            rt = np.flatnonzero(routed & fine & alive)
+            if rt.size:  # rows on their route's pieces: the hull over the pieces met, the route's heading added
+                fx, fy = [a.copy() for a in fx], [a.copy() for a in fy]
+                fx[0][rt], fx[1][rt], fy[0][rt], fy[1][rt] = route_xy(rt, s_lo, s_hi, lat_lo, lat_hi)
+                hr_lo, hr_hi = heading_range(s_lo, s_hi)
+                ps_lo[rt], ps_hi[rt] = _out(h_unw[rt] + hr_lo[rt] + ch_lo[rt], h_unw[rt] + hr_hi[rt] + ch_hi[rt])
+            cx_lo, cx_hi = np.where(fine, fx[0], x_lo), np.where(fine, fx[1], x_hi)
+            cy_lo, cy_hi = np.where(fine, fy[0], y_lo), np.where(fine, fy[1], y_hi)
             dead = ~alive
             cx_lo[dead] = cy_lo[dead] = ps_lo[dead] = 0.0
             cx_hi[dead] = cy_hi[dead] = ps_hi[dead] = 0.0
@@ -1384,6 +1730,11 @@ def forecast_traffic(
             row_int = np.where(
                 fine[:, None], in_prefix & (np.nan_to_num(pre_lo, nan=np.inf) <= s_hi[:, None]), route_mask
             )
+            if routed.any():  # beyond the prefix too (the lanes of a routed row are its route lanes met by s)
+                met_bey = (np.nan_to_num(beyond_start, nan=np.inf) <= s_hi[:, None]) & (
+                    np.nan_to_num(bey_end, nan=-np.inf) >= s_lo[:, None]
+                )
+                row_int |= (routed & fine)[:, None] & met_bey
             row_int &= alive[:, None]
             switched = (
                 row_int & ~belief_lane[:, None]
@@ -1426,6 +1777,11 @@ def forecast_traffic(
                 # start plus its centre's arc length on it away (a candidate leader is ahead: >= 0)
                 cols = beyond_used
                 arc_lo = _centre_arc_length_lower(road, cols, k_lo, k_hi, present)[:, cols]  # (m + 1, lanes)
+                arc_hi = _centre_arc_length_upper(road, cols, k_lo, k_hi, present)[:, cols]
+                # a leader is ahead along the route: an occupant that is certainly behind the row is not one
+                ahead = beyond_start[:, None, cols] + arc_hi[None] > s_lo[:, None, None]
+                bey_lanes[..., cols] &= ahead | np.isnan(beyond_start[:, None, cols])
+                bey = bey_lanes.any(axis=-1) & ~same
                 bey_dist = np.where(
                     bey_lanes[..., cols], beyond_start[:, None, cols] + arc_lo[None] - s_hi[:, None, None], np.inf
                 ).min(axis=-1)
@@ -1453,8 +1809,8 @@ def forecast_traffic(
             front_lo = np.where(may_stop, np.minimum(front_lo, 0.0), front_lo)
             front_hi = np.where(may_stop, np.maximum(front_hi, 0.0), front_hi)
             front_hi = np.where(np.isfinite(gap_hi), front_hi, np.inf)
-            vt_lo = np.where(s_hi >= cap_from, np.minimum(t_lo, cap_speed), t_lo)
-            vt_hi = np.where(s_lo >= cap_from, np.minimum(t_hi, cap_speed), t_hi)
+            vt_lo = np.where((s_hi >= cap_from) & (s_lo <= cap_to), np.minimum(t_lo, cap_speed), t_lo)
+            vt_hi = np.where((s_lo >= cap_from) & (s_hi <= cap_to), np.minimum(t_hi, cap_speed), t_hi)
             coarse = ~fine  # no information on the front object or the curve cap
             gap_lo = np.where(coarse, -length, gap_lo)
             front_lo = np.where(coarse, -vmax, front_lo)
