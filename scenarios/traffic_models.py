@@ -1349,7 +1349,8 @@ def forecast_traffic(
         kw = curvature_range(np.minimum(w_lo, m_lo), np.maximum(w_hi, m_hi))
         km = curvature_range(m_lo, m_hi)
         with np.errstate(invalid="ignore"):
-            arc_in = has_arc & (arc_start <= m_hi) & (arc_end >= m_lo)
+            # the pursuit point may reach the arc before the motion does (tau > 1.5 dt, e.g. dt = 0.05)
+            arc_in = has_arc & (arc_start <= np.maximum(m_hi, w_hi)) & (arc_end >= m_lo)
             end_in = has_arc & (arc_end >= m_lo) & (arc_end <= m_hi)
         kw = (np.where(arc_in, kw[0], 0.0), np.where(arc_in, kw[1], 0.0))
         km = (np.where(arc_in, km[0], 0.0), np.where(arc_in, km[1], 0.0))
