@@ -40,6 +40,19 @@ is not in its observation) to the missed sub-step (`classify_miss`):
     its target lane is on another edge than its lane, or moved to another edge
     (highway-env steers to the next lane of its route 2.5 m before the current one
     ends);
+``next-lane leader unseen``
+    highway-env found no front vehicle on the vehicle's current lane while a search of
+    the connected lanes finds one: ``intersection-v0`` keeps its v0 default
+    ``neighbour_vehicles_connected_lanes = False``, so its vehicles do not follow a leader
+    on their next route lane, while the library's model (and world) follows the nearest
+    vehicle along the route, so highway-env's vehicle brakes less than the model allows;
+``crossing leader``
+    highway-env's front vehicle of this one (`Road.neighbour_vehicles`, any vehicle whose
+    centre is on the lane, a crossing one included) drove at a heading more than
+    `CROSSING_ANGLE` from its own: highway-env's `LinearVehicle` reads that leader's own
+    speed (``min(front.speed - speed, 0)``), the library's model (and world) its speed
+    along the follower's lane, which is lower for a crossing leader, so highway-env's
+    vehicle brakes less than the model allows;
 ``curved lane``
     it drove on a ``CircularLane``;
 ``unexplained``
@@ -84,6 +97,8 @@ KINDS = (
     "lane change allowed",
     "a leader's lane change",
     "route lane switch",
+    "next-lane leader unseen",
+    "crossing leader",
     "curved lane",
     "unexplained",
 )
@@ -91,11 +106,13 @@ KINDS = (
 SCENARIOS = {"highway-fast-v0": "highway-env:highway-fast-v0", "intersection-v0": "highway-env:intersection-v0"}
 #: How far ahead a lane-changing vehicle counts as a leader, m.
 LEADER_RANGE = 150.0
+#: A front vehicle whose heading differs from the follower's by more than this (rad) is a crossing leader.
+CROSSING_ANGLE = 0.2
 #: Misses recorded per episode here (the loop's default keeps the first 100).
 RECORDED_MISSES = 100_000
 
 
-def vehicle_facts(vehicle, network) -> dict:
+def vehicle_facts(vehicle, network, road=None) -> dict:
     """highway-env's ground truth of one vehicle now (diagnosis only).
 
     Parameters
@@ -104,14 +121,18 @@ def vehicle_facts(vehicle, network) -> dict:
         The vehicle.
     network : highway_env.road.road.RoadNetwork
         Its road network.
+    road : highway_env.road.road.Road, optional
+        Its road: then ``front_heading`` is the heading of its front vehicle as
+        highway-env's behaviour finds it (None when it has none), and
+        ``front_connected`` whether a search of the connected lanes finds one.
 
     Returns
     -------
     dict
         ``crashed``, ``lane`` and ``target`` (lane indices as lists), ``target_centre``
         (the point of the target lane's centre line at the vehicle's longitudinal
-        position), ``position``, ``heading``, ``speed`` and ``curved`` (its lane is a
-        ``CircularLane``).
+        position), ``position``, ``heading``, ``speed``, ``curved`` (its lane is a
+        ``CircularLane``), ``front_heading`` and ``front_connected``.
     """
     from highway_env.road.lane import CircularLane
 
@@ -127,7 +148,28 @@ def vehicle_facts(vehicle, network) -> dict:
         "heading": float(vehicle.heading),
         "speed": float(vehicle.speed),
         "curved": isinstance(vehicle.lane, CircularLane),
+        "front_heading": _front_heading(vehicle, road),
+        "front_connected": _front_connected(vehicle, road),
     }
+
+
+def _front_connected(vehicle, road) -> bool | None:
+    if road is None:
+        return None
+    flag = road.neighbour_vehicles_connected_lanes
+    road.neighbour_vehicles_connected_lanes = True
+    try:
+        front, _ = road.neighbour_vehicles(vehicle)
+    finally:
+        road.neighbour_vehicles_connected_lanes = flag
+    return front is not None
+
+
+def _front_heading(vehicle, road) -> float | None:
+    if road is None:
+        return None
+    front, _ = road.neighbour_vehicles(vehicle)
+    return None if front is None else float(front.heading)
 
 
 class DiagnosedWorld(HighwayEnvWorld):
@@ -148,10 +190,10 @@ class DiagnosedWorld(HighwayEnvWorld):
     def _facts(self) -> dict[str, dict]:
         base = self.adapter.env.unwrapped
         network = base.road.network
-        out = {"ego": vehicle_facts(base.vehicle, network)}
+        out = {"ego": vehicle_facts(base.vehicle, network, base.road)}
         for v in base.road.vehicles:
             if v is not base.vehicle:
-                out[f"vehicle {self.adapter.agent_id(v)}"] = vehicle_facts(v, network)
+                out[f"vehicle {self.adapter.agent_id(v)}"] = vehicle_facts(v, network, base.road)
         return out
 
     def apply(self, u: np.ndarray) -> str:
@@ -215,6 +257,11 @@ def _leader_changing(step: Mapping[str, Mapping], name: str) -> bool:
     return False
 
 
+def _crossing(fact: Mapping) -> bool:
+    front = fact.get("front_heading")
+    return front is not None and abs(float(np.angle(np.exp(1j * (front - fact["heading"]))))) > CROSSING_ANGLE
+
+
 def classify_miss(miss: Mapping, facts: Sequence[Mapping[str, Mapping]], start: int) -> str:
     """The kind of one missed box (the first of `KINDS` that applies).
 
@@ -255,6 +302,10 @@ def classify_miss(miss: Mapping, facts: Sequence[Mapping[str, Mapping]], start: 
         return "a leader's lane change"
     if any(f["target"][:2] != f["lane"][:2] or f["target"][:2] != seen[0]["target"][:2] for f in seen):
         return "route lane switch"
+    if any(f.get("front_connected") and f.get("front_heading") is None for f in seen):
+        return "next-lane leader unseen"
+    if any(_crossing(f) for f in seen):
+        return "crossing leader"
     if any(f["curved"] for f in seen):
         return "curved lane"
     return "unexplained"

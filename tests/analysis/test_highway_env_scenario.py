@@ -353,7 +353,15 @@ def _misses_module():
 
 
 def _fact(
-    lane=("0", "1", 1), target=None, speed=20.0, crashed=False, curved=False, centre=(0.0, 4.0), position=(0.0, 4.0)
+    lane=("0", "1", 1),
+    target=None,
+    speed=20.0,
+    crashed=False,
+    curved=False,
+    centre=(0.0, 4.0),
+    position=(0.0, 4.0),
+    front_heading=None,
+    front_connected=None,
 ):
     return {
         "crashed": crashed,
@@ -364,6 +372,8 @@ def _fact(
         "heading": 0.0,
         "speed": speed,
         "curved": curved,
+        "front_heading": front_heading,
+        "front_connected": front_connected,
     }
 
 
@@ -412,6 +422,21 @@ def test_miss_classifier_on_a_small_case():
     assert classify(miss(2), switching, 3) == "route lane switch"
     ahead_of_lane = [{"vehicle 1": _fact(lane=("0", "1", 0), target=("1", "2", 0))} for _ in range(8)]
     assert classify(miss(2), ahead_of_lane, 3) == "route lane switch"  # switched before the window
+    unseen = [dict(f) for f in plain]  # no front vehicle on its lane, one on a connected lane
+    unseen[4] = {"vehicle 1": _fact(front_connected=True, front_heading=None)}
+    assert classify(miss(2), unseen, 3) == "next-lane leader unseen"
+    seen_too = [dict(f) for f in plain]  # a front vehicle found on its own lane too: not unseen
+    seen_too[4] = {"vehicle 1": _fact(front_connected=True, front_heading=0.0)}
+    assert classify(miss(2), seen_too, 3) == "unexplained"
+    crossing = [dict(f) for f in plain]  # its highway-env leader crosses at right angles
+    crossing[4] = {"vehicle 1": _fact(front_heading=np.pi / 2, curved=True)}
+    assert classify(miss(2), crossing, 3) == "crossing leader"
+    following = [dict(f) for f in plain]  # a leader in the same direction is no crossing one
+    following[4] = {"vehicle 1": _fact(front_heading=0.1)}
+    assert classify(miss(2), following, 3) == "unexplained"
+    wrapped = [dict(f) for f in plain]  # headings compared modulo 2 pi
+    wrapped[4] = {"vehicle 1": _fact(front_heading=2 * np.pi + 0.05)}
+    assert classify(miss(2), wrapped, 3) == "unexplained"
     curved = [dict(f) for f in plain]
     curved[5] = {"vehicle 1": _fact(curved=True)}
     assert classify(miss(2), curved, 3) == "curved lane"
