@@ -214,7 +214,9 @@ def test_vehicles_on_an_arc_keep_the_fine_model():
         on = _on_arc(world, observations[t0], t0)
         assert on, f"seed {seed}: no vehicle on an arc at sub-step {t0}"
         for k in on:
-            assert forecast.guaranteed[:6, k].all(), f"seed {seed}: vehicle {observations[t0].ids[k]} coarse within 0.5 s"
+            assert forecast.guaranteed[:6, k].all(), (
+                f"seed {seed}: vehicle {observations[t0].ids[k]} coarse within 0.5 s"
+            )
 
 
 # ------------------------------------------------------- leaders beyond the prefix
