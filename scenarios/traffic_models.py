@@ -1397,7 +1397,9 @@ def forecast_traffic(
         eps_e = (np.where(sg > 0, -arc_part, -end_part), np.where(sg > 0, end_part, arc_part))
         ff_e = _mul(d[0], d[1], ff[0] / 2, ff[1] / 2)
         e_x = (ff_e[0] + eps_e[0], ff_e[1] + eps_e[1])
-        big = np.where(bad, np.inf, 0.0)
+        # a box reaching the arc's centre is outside the terms' validity: widen it past CHI_MAX (finite, so no
+        # inf - inf reaches the vertex bound) and the row turns coarse at the next step
+        big = np.where(bad, 4.0 * np.pi, 0.0)
         e_x, chi_x = _out(e_x[0] - big, e_x[1] + big), _out(chi_x[0] - big, chi_x[1] + big)
         return e_x, chi_x, _out(ds[0] - big, ds[1] + big), _mul(km[0][rr_], km[1][rr_], *ds)
 
