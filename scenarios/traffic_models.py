@@ -46,6 +46,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -594,14 +595,6 @@ def _centre_arc_length_lower(road: Road, lanes, centre_lo, centre_hi, present) -
     return _centre_arc_length_bounds(road, lanes, centre_lo, centre_hi, present)[0]
 
 
-def _centre_arc_length_upper(road: Road, lanes, centre_lo, centre_hi, present) -> np.ndarray:
-    """Upper bounds of `Road.frenet`'s arc length ``s`` on some lanes over boxes of points.
-
-    `_centre_arc_length_bounds`' upper bounds (same parameters).
-    """
-    return _centre_arc_length_bounds(road, lanes, centre_lo, centre_hi, present)[1]
-
-
 def _centre_arc_length_bounds(road: Road, lanes, centre_lo, centre_hi, present) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of `Road.frenet`'s arc length ``s`` on some lanes over boxes of points.
 
@@ -859,13 +852,27 @@ def _route_rows(road: Road, veh: int, belief: VehicleBelief, state: np.ndarray, 
     return rows
 
 
+class _Piece(NamedTuple):
+    """One piece of a route's centre line (`_route_pieces`)."""
+
+    a: float  # route distance where it starts
+    b: float  # ... and ends
+    kind: int  # STRAIGHT or ARC
+    point: np.ndarray  # its start point
+    vector: np.ndarray  # a straight piece's direction, an arc's centre
+    radius: float  # an arc's radius (1 on a straight piece)
+    sign: float  # an arc's turning sign (0 on a straight piece)
+    phi0: float  # an arc's polar angle at a
+    h0: float  # the route heading at a, relative to the row's start heading
+
+
 def _route_pieces(road: Road, cur: int, prefix: dict, last_end: float, beyond: tuple, beyond_start: dict) -> tuple:
     """The route's centre line from the row's origin as pieces, or () when it is not one G1 curve.
 
-    A piece is ``(a, b, kind, point, vector, radius, sign, phi0, h0)``: route distances
-    ``[a, b]``; a straight piece's start point and direction, an arc's centre (radius,
-    sign, polar angle ``phi0`` at ``a``); ``h0`` the route heading at ``a`` relative to
-    the row's start heading (continuous, unwrapped). The world steers by the frame of the
+    Each piece is a `_Piece`: route distances ``[a, b]``; a straight piece's start point
+    and direction, an arc's centre (radius, sign, polar angle ``phi0`` at ``a``); ``h0``
+    the route heading at ``a`` relative to the row's start heading (continuous,
+    unwrapped). The world steers by the frame of the
     route lane its centre is in (`_progress` moves on when the arc length passes the
     lane's end, and consecutive lanes meet on a common normal), so ``s`` (the route
     distance) and ``e`` (the lane offset) are that lane's Frenet coordinates.
@@ -879,7 +886,7 @@ def _route_pieces(road: Road, cur: int, prefix: dict, last_end: float, beyond: t
     heading0 = float(road.heading_at(cur, 0.0))
     h, end = 0.0, 0.0
     if prefix:
-        pieces.append((0.0, last_end, STRAIGHT, road.starts[cur], road.directions[cur], 0.0, 0.0, 0.0, 0.0))
+        pieces.append(_Piece(0.0, last_end, STRAIGHT, road.starts[cur], road.directions[cur], 1.0, 0.0, 0.0, 0.0))
         end = last_end
         point = road.starts[cur] + last_end * road.directions[cur]
     else:
@@ -896,10 +903,12 @@ def _route_pieces(road: Road, cur: int, prefix: dict, last_end: float, beyond: t
         b = a + float(road.lengths[lane])
         if road.kinds[lane] == ARC:
             sign, radius = float(road.signs[lane]), float(road.radii[lane])
-            pieces.append((a, b, ARC, start_point, road.centers[lane], radius, sign, float(road.start_angles[lane]), h))
+            pieces.append(
+                _Piece(a, b, ARC, start_point, road.centers[lane], radius, sign, float(road.start_angles[lane]), h)
+            )
             h += sign * float(road.lengths[lane]) / radius
         else:
-            pieces.append((a, b, STRAIGHT, start_point, road.directions[lane], 0.0, 0.0, 0.0, h))
+            pieces.append(_Piece(a, b, STRAIGHT, start_point, road.directions[lane], 1.0, 0.0, 0.0, h))
         end = b
         point = road.position_at(lane, float(road.lengths[lane]))
     return tuple(pieces)
@@ -1098,7 +1107,6 @@ def forecast_traffic(
     pre_hi = np.full((R, n_lanes), np.nan)
     beyond = np.zeros((R, n_lanes), dtype=bool)
     beyond_start = np.full((R, n_lanes), np.nan)  # NaN: no bound (the gap to its occupants is only >= 0)
-    bey_end = np.full((R, n_lanes), np.nan)
     route_mask = np.zeros((R, n_lanes), dtype=bool)
     side = np.zeros((R, n_lanes), dtype=bool)
     nbr = np.full((R, 2), -1, dtype=int)
@@ -1113,17 +1121,13 @@ def forecast_traffic(
             origin[r], u[r], c[r], row_lane[r] = row.origin, row.u, row.c, row.lane
             prefix_end[r], exit_s[r], stop_s[r] = row.prefix_end, row.exit_s, row.stop_s
             cap_from[r], cap_speed[r], cap_to[r] = row.cap_from, row.cap_speed, row.cap_to
-            if row.pieces and (len(row.pieces) > 1 or row.pieces[0][2] == ARC):
+            if row.pieces and (len(row.pieces) > 1 or row.pieces[0].kind == ARC):
                 routed[r] = True
-                for q, (a, b, kind, pt, vec, rad, sgn, phi0, h0) in enumerate(row.pieces):
-                    pc_a[r, q], pc_b[r, q], pc_kind[r, q] = a, b, kind
-                    pc_pt[r, q], pc_vec[r, q] = pt, vec
-                    pc_rad[r, q], pc_sgn[r, q], pc_phi0[r, q], pc_h0[r, q] = (
-                        (rad if kind == ARC else 1.0),
-                        sgn,
-                        phi0,
-                        h0,
-                    )
+                for q, piece in enumerate(row.pieces):
+                    pc_a[r, q], pc_b[r, q], pc_kind[r, q] = piece.a, piece.b, piece.kind
+                    pc_pt[r, q], pc_vec[r, q] = piece.point, piece.vector
+                    pc_rad[r, q], pc_sgn[r, q] = piece.radius, piece.sign
+                    pc_phi0[r, q], pc_h0[r, q] = piece.phi0, piece.h0
                 pc_a[r, 0] = -np.inf
                 pc_b[r, len(row.pieces) - 1] = np.inf
             for lane, (s0, s1) in row.prefix.items():
@@ -1131,7 +1135,6 @@ def forecast_traffic(
             beyond[r, list(row.beyond)] = True
             for lane, start in row.beyond_start.items():
                 beyond_start[r, lane] = start
-                bey_end[r, lane] = start + float(road.lengths[lane])
             route_mask[r] = ~np.isnan(pre_lo[r]) | beyond[r]
             if road.side_of[row.lane] >= 0:
                 side[r, list(road.side_lanes(row.lane))] = True
@@ -1166,9 +1169,9 @@ def forecast_traffic(
 
     def route_heading(s_at):
         """The route's heading at s (R,) relative to the row's start heading (continuous)."""
-        with np.errstate(invalid="ignore"):
-            inside = np.where(pc_used, np.clip(s_at[:, None], pc_a, pc_b) - pc_lo, 0.0)
-        return np.where(pc_arc, pc_kappa * inside, 0.0).sum(axis=1)
+        with np.errstate(invalid="ignore"):  # unused pieces span [inf, inf]
+            inside = np.where(pc_arc, np.clip(s_at[:, None], pc_a, pc_b) - pc_lo, 0.0)
+        return (pc_kappa * inside).sum(axis=1)  # 0 on straight pieces, also where s is unbounded
 
     def pieces_met(lo, hi):
         """(R, K): the pieces whose route-distance range meets [lo, hi]."""
@@ -1264,7 +1267,12 @@ def forecast_traffic(
         ch_lo[on_arc], ch_hi[on_arc] = _out(
             p_lo[on_arc] - h_unw[on_arc] - hh_hi[on_arc], p_hi[on_arc] - h_unw[on_arc] - hh_lo[on_arc]
         )
-        fine[on_arc] &= np.isfinite(s_lo[on_arc]) & np.isfinite(s_hi[on_arc])
+        bounded = np.isfinite(s_lo[on_arc]) & np.isfinite(s_hi[on_arc])
+        fine[on_arc] &= bounded
+        # a box holding the arc's centre has no arc-frame bounds: the row is coarse from the start, and its
+        # (unused) frame boxes are kept finite so that no inf * 0 reaches the bases
+        loose = on_arc[~bounded]
+        s_lo[loose] = s_hi[loose] = ch_lo[loose] = ch_hi[loose] = 0.0
     fine &= (np.maximum(-ch_lo, ch_hi) <= CHI_MAX) & (s_hi + beh.pursuit_time * v_hi <= prefix_end)
     # one basis per vehicle (rows share it): the nominal matrix at the measured speed
     phi = _structure(dt, length)
@@ -1343,7 +1351,16 @@ def forecast_traffic(
     def curved_rows(v_hi_):
         """Per row: whether a step may meet the arc, the curvature ranges of the pursuit window and of the
         motion, and whether the motion may leave the arc at its end."""
-        reach_d = 1.5 * v_hi_ * dt  # a step moves the centre's route distance by at most R / A v dt
+        if not has_arc.any():  # the highway: no row has an arc
+            zero = np.zeros(R)
+            return np.zeros(R, dtype=bool), (zero, zero), (zero, zero), np.zeros(R, dtype=bool)
+        # a step moves the centre's route distance by at most D R / A (D = v dt, A >= R - |e| - D the
+        # distance from the arc's centre; `curved_terms`), at least 1.5 D taken
+        d_hi = v_hi_ * dt
+        a_lo = arc_rad - np.maximum(np.abs(e_lo[:, 0]), np.abs(e_hi[:, 0])) - d_hi
+        with np.errstate(divide="ignore", invalid="ignore"):
+            factor = np.where(has_arc & (a_lo > 0.0), np.maximum(1.5, arc_rad / a_lo), np.where(has_arc, np.inf, 1.5))
+        reach_d = factor * d_hi
         m_lo, m_hi = s_lo - reach_d, s_hi + reach_d
         w_lo, w_hi = s_lo, s_hi + tau * v_hi_
         kw = curvature_range(np.minimum(w_lo, m_lo), np.maximum(w_hi, m_hi))
@@ -1735,7 +1752,7 @@ def forecast_traffic(
             )
             if routed.any():  # beyond the prefix too (the lanes of a routed row are its route lanes met by s)
                 met_bey = (np.nan_to_num(beyond_start, nan=np.inf) <= s_hi[:, None]) & (
-                    np.nan_to_num(bey_end, nan=-np.inf) >= s_lo[:, None]
+                    np.nan_to_num(beyond_start + road.lengths[None, :], nan=-np.inf) >= s_lo[:, None]
                 )
                 row_int |= (routed & fine)[:, None] & met_bey
             row_int &= alive[:, None]
@@ -1779,8 +1796,8 @@ def forecast_traffic(
                 # an occupant of a lane beyond the prefix is at least the route distance to that lane's
                 # start plus its centre's arc length on it away (a candidate leader is ahead: >= 0)
                 cols = beyond_used
-                arc_lo = _centre_arc_length_lower(road, cols, k_lo, k_hi, present)[:, cols]  # (m + 1, lanes)
-                arc_hi = _centre_arc_length_upper(road, cols, k_lo, k_hi, present)[:, cols]
+                arc_lo, arc_hi = _centre_arc_length_bounds(road, cols, k_lo, k_hi, present)
+                arc_lo, arc_hi = arc_lo[:, cols], arc_hi[:, cols]  # (m + 1, lanes)
                 # a leader is ahead along the route: an occupant that is certainly behind the row is not one
                 ahead = beyond_start[:, None, cols] + arc_hi[None] > s_lo[:, None, None]
                 bey_lanes[..., cols] &= ahead | np.isnan(beyond_start[:, None, cols])

@@ -14,6 +14,8 @@ from minimaxplan.scenarios.road_world import HighwayScenario, Observation, TJunc
 from minimaxplan.scenarios.traffic_models import (
     TrafficForecast,
     VehicleBelief,
+    _arc_offset_bounds,
+    _centre_arc_length_bounds,
     _centre_arc_length_lower,
     acceleration_feature_bounds,
     cos_interval,
@@ -275,23 +277,57 @@ def test_the_feed_forward_counts_from_when_the_pursuit_point_reaches_the_arc(dt)
     seed=st.integers(0, 2**31),
 )
 def test_the_arc_length_bound_holds_for_every_point_of_the_box(lane, s, off, wx, wy, seed):
-    """`_centre_arc_length_lower` is below `Road.frenet`'s s of every point of the box (straight lanes and arcs)."""
+    """`_centre_arc_length_bounds` holds `Road.frenet`'s s of every point of the box (straight lanes and arcs),
+    and `_centre_arc_length_lower` is its lower half."""
     road = make_road_world("tjunction", 0).road
     s = min(s, float(road.lengths[lane]) + 10.0)
     centre = road.position_at(np.array([lane]), np.array([s]), np.array([off]))[0]
     lo, hi = centre - [wx / 2, wy / 2], centre + [wx / 2, wy / 2]
     bound = _centre_arc_length_lower(road, [lane], lo[None], hi[None], np.array([True]))[0]
+    low, high = (b[0] for b in _centre_arc_length_bounds(road, [lane], lo[None], hi[None], np.array([True])))
+    assert np.array_equal(bound, low)
     assert np.all(np.isneginf(np.delete(bound, lane)))  # only the lanes asked for
+    assert np.all(np.isposinf(np.delete(high, lane)))
     rng = np.random.default_rng(seed)
     points = np.vstack(
         [rng.uniform(lo, hi, (200, 2)), [[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]]]
     )
     arc_length, _ = road.frenet(np.full(len(points), lane), points[:, 0], points[:, 1])
     assert np.all(arc_length >= bound[lane])
+    assert np.all(arc_length <= high[lane])
     if road.kinds[lane] != 1:  # straight: exact (attained at a corner)
         assert bound[lane] == pytest.approx(arc_length[-4:].min(), abs=1e-6)
+        assert high[lane] == pytest.approx(arc_length[-4:].max(), abs=1e-6)
     elif np.hypot(*(centre - road.centers[lane])) > 4.0 + np.hypot(wx, wy):  # an arc, the box away from its centre
         assert np.isfinite(bound[lane]) and bound[lane] >= arc_length.min() - 2.0 * np.hypot(wx, wy) - 1e-6
+
+
+@settings(max_examples=60)
+@given(
+    lane=st.sampled_from([8, 9, 10, 11]),
+    s=st.floats(-5.0, 25.0),
+    off=st.floats(-6.0, 6.0),
+    wx=st.floats(0.0, 6.0),
+    wy=st.floats(0.0, 6.0),
+    seed=st.integers(0, 2**31),
+)
+def test_the_arc_offset_bounds_are_exact_over_the_box(lane, s, off, wx, wy, seed):
+    """`_arc_offset_bounds` holds the arc's Frenet offset of every point of the box and is attained
+    (at the box's point nearest to the arc's centre and at its farthest corner)."""
+    road = make_road_world("tjunction", 0).road
+    centre = road.position_at(np.array([lane]), np.array([s]), np.array([off]))[0]
+    lo, hi = centre - [wx / 2, wy / 2], centre + [wx / 2, wy / 2]
+    c, radius, sign = road.centers[lane], float(road.radii[lane]), float(road.signs[lane])
+    e_lo, e_hi = _arc_offset_bounds(c, radius, sign, lo[0], hi[0], lo[1], hi[1])
+    rng = np.random.default_rng(seed)
+    nearest = np.clip(c, lo, hi)
+    corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
+    points = np.vstack([rng.uniform(lo, hi, (200, 2)), corners, nearest])
+    _, offset = road.frenet(np.full(len(points), lane), points[:, 0], points[:, 1])
+    assert np.all((offset >= e_lo) & (offset <= e_hi))
+    extremes = offset[-5:]  # the corners and the nearest point: the far and near distances
+    assert e_lo == pytest.approx(extremes.min(), abs=1e-6)
+    assert e_hi == pytest.approx(extremes.max(), abs=1e-6)
 
 
 def test_leaders_beyond_the_prefix_are_bounded_by_their_route_distance(monkeypatch):
@@ -303,8 +339,10 @@ def test_leaders_beyond_the_prefix_are_bounded_by_their_route_distance(monkeypat
     """
     import minimaxplan.scenarios.traffic_models as module
 
-    def no_bound(road, lanes, lo, hi, present):
-        return np.full((len(lo), len(road)), -np.inf)
+    bounds = module._centre_arc_length_bounds
+
+    def no_bound(road, lanes, lo, hi, present):  # the old rule: no lower bound (the upper one kept)
+        return np.full((len(lo), len(road)), -np.inf), bounds(road, lanes, lo, hi, present)[1]
 
     tighter = 0.0
     for seed in (0, 1):
@@ -313,7 +351,7 @@ def test_leaders_beyond_the_prefix_are_bounded_by_their_route_distance(monkeypat
             misses, checked, forecast = _check(world, run, observations, t0, 50)
             assert checked > 0 and misses == 0
             with monkeypatch.context() as patch:
-                patch.setattr(module, "_centre_arc_length_lower", no_bound)
+                patch.setattr(module, "_centre_arc_length_bounds", no_bound)
                 old_misses, _, old = _check(world, run, observations, t0, 50)
             assert old_misses == 0
             gain = forecast.state_lower[..., 2] - old.state_lower[..., 2]
