@@ -64,6 +64,7 @@ from minimaxplan.planners.bicycle_model import (
     TJUNCTION_ACTIONS,
     TJUNCTION_TARGET_SPEEDS,
     BicycleModel,
+    BicycleState,
     ego_controller,
 )
 from minimaxplan.scenarios.driving_reward import world_reward
@@ -506,7 +507,8 @@ class RoadPlanningMethod(Method[DrivingWorld]):
         planner = RobustTreePlanner([model], model.actions, gamma=self.config.gamma, budget=self.config.budget)
         root = model.initial_state(measurement.ego, level=self.level, lane=self.lane, time=t)
         decision = planner.plan(root)
-        states, _, after = model.predict(root, decision.action)
+        action, latest = self._choose(model, root, decision)
+        states, _, after = model.predict(root, action)
         checked = tables.checked
         if keeping is not None and after.kept:
             assert tables.lane_keeping_checked is not None  # ObstacleTables keeps the two together
@@ -516,20 +518,26 @@ class RoadPlanningMethod(Method[DrivingWorld]):
             boxes = {"ego": (states[k - 1], states[k - 1])}
             boxes.update(checked.get(k, {}))
             predicted[k] = boxes
-        _, speed_change, lane_change = self.ego.actions[decision.action]
+        _, speed_change, lane_change = self.ego.actions[action]
         level, lane = apply_action(self.ego.controller, self.level, self.lane, speed_change, lane_change)
         policy = _EgoPolicy(self.ego.controller, int(level), int(lane), predicted)
         self.level, self.lane = after.level, after.lane
         self.decisions.append(
             {
                 "step": int(t),
-                "action": self.ego.actions[decision.action][0],
+                "action": self.ego.actions[action][0],
+                "tree_action": self.ego.actions[decision.action][0],
                 "lower": float(decision.lower),
                 "upper": float(decision.upper),
                 "depth": int(decision.depth),
+                "latest_collision": latest,
             }
         )
         return policy
+
+    def _choose(self, model: BicycleModel, root: BicycleState, decision) -> tuple[int, list[int] | None]:
+        """The action to execute: the tree's (the base rule), and no survival figures."""
+        return int(decision.action), None
 
     def observe(self, transition: Transition) -> None:
         """Nothing to learn (the robust method learns)."""
@@ -603,6 +611,51 @@ class RoadRobustMethod(_LearningMethod):
         keep_reach = lane_keeping_reach(self.model, root, keeping, FORECAST_STEPS, scenario.vehicle)
         keep_table, keep_checked = self._forecast(observation, beliefs, keep_reach, count=False)
         return ObstacleTables(table, checked, keep_table, keep_checked)
+
+    def _choose(self, model: BicycleModel, root: BicycleState, decision) -> tuple[int, list[int] | None]:
+        """The tree's action, unless another first action keeps the ego clear of every box for longer.
+
+        The tree maximises the worst-case discounted return; when every plan may collide
+        within the forecast, that return is the reward collected until the first possible
+        collision, and a plan that takes speed first and then brakes may collect more of it
+        than braking now, for the same collision time (a box that reaches every stopping
+        place at once) or a later one only a little earlier. Such a plan gives up the time
+        in which new measurements can shrink the boxes. So, for each first action ``a``,
+        the latest first possible collision (`BicycleModel.first_possible_collision`) over
+        the examined plans that start with it: ``a`` then each action held, and the tree's
+        best sequence (its last action held) when it starts with ``a``; the executed action
+        is the tree's when its figure is the largest (always when some plan of it stays
+        clear for the whole forecast), else the action of the largest figure with the
+        largest tree lower bound (smallest index on ties; the actions are ordered
+        braking first, `conservative_first`).
+
+        Returns
+        -------
+        action : int
+            The action to execute.
+        latest : list of int or None
+            Per action, the latest first possible collision in sub-steps (``FORECAST_STEPS
+            + 1`` when some examined plan stays clear for the whole forecast); None when the
+            tree's best sequence stays clear (the others are not examined).
+        """
+        horizon = FORECAST_STEPS
+        clear = horizon + 1
+        tree = int(decision.action)
+        sequence = tuple(int(a) for a in decision.sequence_indices)
+        if model.first_possible_collision(root, sequence, horizon) == clear:
+            return tree, None
+        latest = []
+        for first in range(model.n_actions):
+            plans = [(first, held) for held in range(model.n_actions)]
+            if sequence[0] == first:
+                plans.append(sequence)
+            latest.append(max(model.first_possible_collision(root, plan, horizon) for plan in plans))
+        best = max(latest)
+        if latest[tree] == best:
+            return tree, latest
+        lower = np.asarray(decision.action_lower, dtype=float)
+        candidates = [a for a in range(model.n_actions) if latest[a] == best]
+        return max(candidates, key=lambda a: (lower[a], -a)), latest
 
     def _forecast(self, observation: Observation, beliefs, ego: tuple, *, count: bool):
         """One forecast from the ego's ``(reach, speed, heading)``: its boxes and the state boxes to check."""

@@ -660,6 +660,50 @@ class BicycleModel:
         (after,) = self._kept_after(state, np.array([a]))
         return states, controls, BicycleState(final, int(level), int(lane), state.time + self.substeps, *after)
 
+    def first_possible_collision(self, state: BicycleState, plan: Sequence[int], horizon: int) -> int:
+        """The first sub-step at which a plan's ego may collide, or ``horizon + 1`` if none does.
+
+        The plan's actions are taken in turn from ``state`` and its last one is then held;
+        each sub-step state is scored with the reward its transition reads in `expand`
+        (``lane_keeping_reward`` while the path is of the lane-keeping family). A
+        possible collision is a zero case of that reward: the ego's rectangle meets an
+        obstacle box, or leaves the road.
+
+        Parameters
+        ----------
+        state : BicycleState
+            The start state.
+        plan : sequence of int
+            Action indices, at least one.
+        horizon : int
+            Sub-steps examined, ``>= 1`` (at most to the end of the rewards' obstacle
+            tables, beyond which every state is a zero case).
+
+        Returns
+        -------
+        int
+            In ``[1, horizon + 1]``, relative to ``state.time``.
+        """
+        horizon = as_count("horizon", horizon)
+        actions = [int(a) for a in self._action_index(tuple(plan))]
+        if not actions:
+            raise InputError("plan must hold at least one action, got an empty sequence")
+        elapsed = 0
+        decision = 0
+        while elapsed < horizon:
+            action = actions[min(decision, len(actions) - 1)]
+            states, _, after = self.predict(state, action)
+            reward = self.lane_keeping_reward if after.kept and self.lane_keeping_reward is not None else self.reward
+            times = state.time + 1 + np.arange(states.shape[0])
+            _, collided = reward.box_minimum(states, states, times)
+            collided = np.asarray(collided, dtype=bool)[: horizon - elapsed]
+            if collided.any():
+                return elapsed + 1 + int(np.argmax(collided))
+            elapsed += states.shape[0]
+            decision += 1
+            state = after
+        return horizon + 1
+
     def initial_state(self, x, *, level: int, lane: int, time: int = 0) -> BicycleState:
         """The planner's root state from the ego's (exactly known) state.
 
