@@ -16,9 +16,10 @@ from minimaxplan.analysis.road_planning import (
     ego_reach,
     lane_keeping_actions,
     lane_keeping_reach,
+    latest_collision_action,
 )
 from minimaxplan.models import DimensionError, InputError
-from minimaxplan.planners import HIGHWAY_ACTIONS, TJUNCTION_ACTIONS, BicycleModel
+from minimaxplan.planners import HIGHWAY_ACTIONS, TJUNCTION_ACTIONS, BicycleModel, RobustTreePlanner
 from minimaxplan.planners.bicycle_model import LANE_KEEPING_PREFIX
 from minimaxplan.scenarios import make_road_world
 from minimaxplan.scenarios.vehicles import vehicle_corners
@@ -163,3 +164,66 @@ def test_obstacle_tables_keep_the_lane_keeping_table_with_its_boxes():
         ObstacleTables(table, {}, None, {})
     with pytest.raises(DimensionError, match=r"\(3, 2, 4\)"):
         ObstacleTables(table, {}, np.ones((3, 1, 4)), {})
+
+
+def _sweeping_box_case(y0, v0, start, speed):
+    """A T-junction ego in the stem and one box that covers the junction's end of the stem from sub-step
+    ``start`` and grows towards the ego at ``speed`` m per sub-step: every plan may collide, sooner the
+    further the ego goes."""
+    from minimaxplan.scenarios.road_world import TJunctionScenario
+
+    world = make_road_world("tjunction", 3, scenario=TJunctionScenario(headway_min=1e6))
+    ego = EgoSetup(world)
+    n = np.arange(FORECAST_STEPS + 1)
+    table = np.tile(np.array([np.inf, np.inf, -np.inf, -np.inf]), (FORECAST_STEPS + 1, 1, 1))
+    on = n >= start
+    table[on, 0] = np.stack(
+        [np.full(on.sum(), -4.0), -5.0 - speed * (n[on] - start), np.full(on.sum(), 4.0), np.full(on.sum(), -5.0)],
+        axis=1,
+    )
+    model = BicycleModel(ego.controller, ego.reward.with_obstacles(table, 0), ego.actions)
+    root = model.initial_state(np.array([2.0, y0, v0, np.pi / 2]), level=ego.level, lane=ego.lane)
+    decision = RobustTreePlanner([model], model.actions, gamma=0.9, budget=100).plan(root)
+    return ego, model, root, decision
+
+
+def test_the_robust_rule_brakes_when_speeding_first_meets_the_box_sooner():
+    """The tree's best plan (FASTER, then braking) collects more reward until its possible collision than
+    braking now, but meets the box 3 sub-steps sooner: the executed action is SLOWER."""
+    ego, model, root, decision = _sweeping_box_case(-30.0, 4.5, 20, 2.0)
+    names = [a[0] for a in ego.actions]
+    action, latest = latest_collision_action(model, root, decision, horizon=FORECAST_STEPS)
+    assert names[decision.action] == "FASTER" and decision.action_lower[decision.action] == max(decision.action_lower)
+    assert names[action] == "SLOWER" and latest[action] == max(latest) > latest[decision.action]
+    # the figure is attained by a plan of the chosen action, and no examined plan of the tree's action reaches it
+    assert model.first_possible_collision(root, (action, action), FORECAST_STEPS) == latest[action]
+    assert all(
+        model.first_possible_collision(root, plan, FORECAST_STEPS) < latest[action]
+        for plan in [(decision.action, held) for held in model.actions] + [tuple(decision.sequence_indices)]
+    )
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    y0=st.floats(-45.0, -20.0),
+    v0=st.floats(0.0, 9.0),
+    start=st.integers(0, 45),
+    speed=st.floats(0.0, 3.0),
+)
+def test_property_the_robust_rule_executes_an_action_that_stays_clear_longest(y0, v0, start, speed):
+    """Whatever the scene, the executed action's figure is the largest; the tree's action is kept when its
+    best sequence stays clear or its figure is the largest."""
+    ego, model, root, decision = _sweeping_box_case(y0, v0, start, speed)
+    action, latest = latest_collision_action(model, root, decision, horizon=FORECAST_STEPS)
+    clear = model.first_possible_collision(root, tuple(decision.sequence_indices), FORECAST_STEPS)
+    if latest is None:
+        assert clear == FORECAST_STEPS + 1 and action == decision.action
+        return
+    assert clear <= FORECAST_STEPS and latest[action] == max(latest)
+    assert (action == decision.action) == (latest[decision.action] == max(latest))
+    for first in model.actions:
+        assert latest[first] == max(
+            model.first_possible_collision(root, plan, FORECAST_STEPS)
+            for plan in [(first, held) for held in model.actions]
+            + ([tuple(decision.sequence_indices)] if decision.sequence_indices[0] == first else [])
+        )

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from minimaxplan.kernels.bicycle import apply_action, ego_control
@@ -361,3 +361,91 @@ def test_a_lane_keeping_reward_of_another_kind_is_rejected():
         general.with_reward(general.reward, lane_keeping_reward="a table")
     with pytest.raises(InputError, match="states\\[0\\].keep_hold must be -1, 0, 1 or 2, got 7"):
         both.fallback_values([state._replace(keep_depth=5, keep_hold=7)], 0.9)
+
+
+def _first_terminal_decision(model, state, plan, decisions):
+    """The 1-based index of the first terminal transition of ``plan`` (last action held), by `expand`; None if none."""
+    for d in range(decisions):
+        (state,), _, (terminal,) = model.expand(state, (plan[min(d, len(plan) - 1)],))
+        if terminal:
+            return d + 1
+    return None
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    boxes=st.lists(
+        st.tuples(st.floats(5.0, 60.0), st.integers(0, 2), st.floats(-8.0, 8.0), st.floats(1.0, 10.0)),
+        min_size=1,
+        max_size=3,
+    ),
+    plan=st.lists(st.integers(0, len(HIGHWAY_ACTIONS) - 1), min_size=1, max_size=4),
+    decisions=st.integers(1, 8),
+    kept=st.one_of(st.none(), st.lists(st.booleans(), min_size=3, max_size=3)),
+)
+def test_property_first_possible_collision_is_the_first_colliding_substep(boxes, plan, decisions, kept):
+    """Random moving boxes, plans and horizons, with or without a lane-keeping table.
+
+    It falls in the first terminal transition of the compiled `expand` (an independent
+    code path), and it is exactly the first colliding sub-step: with the table's rows
+    from it on emptied the plan stays clear, with only its row kept it collides there.
+    """
+    world, controller, model, state = _ego_setup("highway")
+    substeps = model.substeps
+    rows = decisions * substeps + 1
+    n = np.arange(rows) * 0.1
+    x = state.x
+    table = np.stack(
+        [
+            np.stack(
+                [
+                    x[0] + a + s * n - length / 2,
+                    np.full(rows, 4.0 * lane - 1.0),
+                    x[0] + a + s * n + length / 2,
+                    np.full(rows, 4.0 * lane + 1.0),
+                ],
+                axis=1,
+            )
+            for a, lane, s, length in boxes
+        ],
+        axis=1,
+    )
+    mask = None if kept is None else ~np.array(kept[: len(boxes)])
+
+    def with_table(t):
+        keeping = None
+        if mask is not None:
+            keep_table = t.copy()
+            keep_table[:, mask] = EMPTY
+            keeping = DrivingReward.highway(keep_table, 0, world.road)
+        return model.with_reward(DrivingReward.highway(t, 0, world.road), lane_keeping_reward=keeping)
+
+    horizon = decisions * substeps
+    found = with_table(table).first_possible_collision(state, plan, horizon)
+    terminal = _first_terminal_decision(with_table(table), state, plan, decisions)
+    assert 1 <= found <= horizon + 1
+    event("clear" if found == horizon + 1 else "collides")
+    if found == horizon + 1:
+        assert terminal is None
+        return
+    assert terminal == (found - 1) // substeps + 1
+    later = table.copy()
+    later[found + 1 :] = EMPTY
+    assert with_table(later).first_possible_collision(state, plan, horizon) == found
+    earlier = table.copy()
+    earlier[found:] = EMPTY
+    assert with_table(earlier).first_possible_collision(state, plan, horizon) == horizon + 1
+    only = np.tile(EMPTY, (rows, len(boxes), 1))
+    only[found] = table[found]
+    assert with_table(only).first_possible_collision(state, plan, horizon) == found
+
+
+def test_first_possible_collision_rejects_an_empty_plan_and_a_bad_horizon():
+    world, controller, model, state = _ego_setup("tjunction")
+    assert model.first_possible_collision(state, (0,), 20) == 21  # no traffic: clear
+    with pytest.raises(InputError, match="plan"):
+        model.first_possible_collision(state, (), 10)
+    with pytest.raises(InputError, match="horizon"):
+        model.first_possible_collision(state, (0,), 0)
+    with pytest.raises(InputError, match="action indices"):
+        model.first_possible_collision(state, (5,), 10)
