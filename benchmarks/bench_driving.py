@@ -22,7 +22,7 @@ minimum, road test). Measured in the same run, on the same roots:
 
 Model building: the robust road method's per-decision cost of the traffic learner (LP
 elimination, `TrafficLearner`) and the forecast (`forecast_traffic`) next to the
-planning itself, timed inside real episodes of both worlds (`MODEL_SEEDS`).
+planning itself and the latest-collision rule (`latest_collision_action`), timed inside real episodes of both worlds (`MODEL_SEEDS`).
 
 Median and 90th percentile over the roots (each planned 3 times, the median kept),
 after one warm-up plan (compilation, reported separately). Every figure is CPU time of
@@ -185,6 +185,7 @@ def _model_building() -> dict:
         RobustTreePlanner.plan,
         road_planning.ego_reach,
         road_planning.lane_keeping_reach,
+        road_planning.latest_collision_action,
     )
 
     def timed(key, function):
@@ -205,8 +206,9 @@ def _model_building() -> dict:
         RobustTreePlanner.plan = timed("planning", originals[3])
         road_planning.ego_reach = timed("reach", originals[4])
         road_planning.lane_keeping_reach = timed("reach", originals[5])
+        road_planning.latest_collision_action = timed("latest_collision", originals[6])
         for world in ("highway", "tjunction"):
-            per = {"forecast": [], "learner": [], "planning": [], "reach": []}
+            per = {"forecast": [], "learner": [], "planning": [], "reach": [], "latest_collision": []}
             for seed in MODEL_SEEDS:
                 timings.clear()
                 record = run_episode(world, "robust", seed)
@@ -216,7 +218,7 @@ def _model_building() -> dict:
     finally:
         road_planning.forecast_traffic = originals[0]
         TrafficLearner.observe, TrafficLearner.beliefs, RobustTreePlanner.plan = originals[1:4]
-        road_planning.ego_reach, road_planning.lane_keeping_reach = originals[4:]
+        road_planning.ego_reach, road_planning.lane_keeping_reach, road_planning.latest_collision_action = originals[4:]
     return result
 
 
@@ -316,12 +318,14 @@ def main() -> dict:
         "",
         f"Model building per decision inside robust episodes (seeds {', '.join(map(str, MODEL_SEEDS))}), ms:",
         "",
-        "| world | learner (LP elimination) | ego reach | forecast (highway: two, any ego and lane keeping) | planning |",
-        "|---|---:|---:|---:|---:|",
+        "| world | learner (LP elimination) | ego reach | forecast (highway: two, any ego and lane keeping) | planning "
+        "| latest-collision rule (T-junction only) |",
+        "|---|---:|---:|---:|---:|---:|",
     ]
     for world, row in building.items():
         lines.append(
-            f"| {world} | {row['learner']:.1f} | {row['reach']:.1f} | {row['forecast']:.1f} | {row['planning']:.1f} |"
+            f"| {world} | {row['learner']:.1f} | {row['reach']:.1f} | {row['forecast']:.1f} | {row['planning']:.1f} "
+            f"| {row['latest_collision']:.1f} |"
         )
     lines.append("")
     RESULTS.mkdir(parents=True, exist_ok=True)
