@@ -1207,25 +1207,31 @@ def forecast_traffic(
             on = met[:, q]
             if not on.any():
                 continue
-            a, b = pc_a[rows, q], pc_b[rows, q]
-            t_lo, t_hi = np.maximum(sl, a) - pc_lo[rows, q], np.minimum(sh, b) - pc_lo[rows, q]
-            pt, vec = pc_pt[rows, q], pc_vec[rows, q]
-            straight = ~pc_arc[rows, q]
-            x_s = _lin(pt[:, 0], vec[:, 0], -vec[:, 1], t_lo, t_hi, el, eh)
-            y_s = _lin(pt[:, 1], vec[:, 1], vec[:, 0], t_lo, t_hi, el, eh)
-            rad, sgn = pc_rad[rows, q], pc_sgn[rows, q]
-            ph_a, ph_b = pc_phi0[rows, q] + sgn * t_lo / rad, pc_phi0[rows, q] + sgn * t_hi / rad
-            ph_lo, ph_hi = np.minimum(ph_a, ph_b), np.maximum(ph_a, ph_b)
-            r_lo = rad - np.maximum(sgn * el, sgn * eh)
-            r_hi = rad - np.minimum(sgn * el, sgn * eh)
-            with np.errstate(invalid="ignore"):
-                xa = _mul(r_lo, r_hi, *cos_interval(ph_lo, ph_hi))
-                ya = _mul(r_lo, r_hi, *sin_interval(ph_lo, ph_hi))
-            x_a = _out(vec[:, 0] + xa[0], vec[:, 0] + xa[1])  # an arc's vec is its centre
-            y_a = _out(vec[:, 1] + ya[0], vec[:, 1] + ya[1])
-            for i, (st_, ar_) in enumerate(((x_s[0], x_a[0]), (x_s[1], x_a[1]), (y_s[0], y_a[0]), (y_s[1], y_a[1]))):
-                val = np.where(straight, st_, ar_)
-                out[i] = np.where(on, (np.minimum if i % 2 == 0 else np.maximum)(out[i], val), out[i])
+            arc = pc_arc[rows, q]
+            for part in (np.flatnonzero(on & ~arc), np.flatnonzero(on & arc)):
+                if part.size == 0:
+                    continue
+                r = rows[part]
+                a, b = pc_a[r, q], pc_b[r, q]
+                t_lo, t_hi = np.maximum(sl[part], a) - pc_lo[r, q], np.minimum(sh[part], b) - pc_lo[r, q]
+                pt, vec = pc_pt[r, q], pc_vec[r, q]
+                e_l, e_h = el[part], eh[part]
+                if not arc[part[0]]:  # a straight piece: affine in (t, e)
+                    x = _lin(pt[:, 0], vec[:, 0], -vec[:, 1], t_lo, t_hi, e_l, e_h)
+                    y = _lin(pt[:, 1], vec[:, 1], vec[:, 0], t_lo, t_hi, e_l, e_h)
+                else:  # an arc: a sector of an annulus about its centre (an arc's vec)
+                    rad, sgn = pc_rad[r, q], pc_sgn[r, q]
+                    ph_a, ph_b = pc_phi0[r, q] + sgn * t_lo / rad, pc_phi0[r, q] + sgn * t_hi / rad
+                    ph_lo, ph_hi = np.minimum(ph_a, ph_b), np.maximum(ph_a, ph_b)
+                    r_lo = rad - np.maximum(sgn * e_l, sgn * e_h)
+                    r_hi = rad - np.minimum(sgn * e_l, sgn * e_h)
+                    with np.errstate(invalid="ignore"):
+                        xa = _mul(r_lo, r_hi, *cos_interval(ph_lo, ph_hi))
+                        ya = _mul(r_lo, r_hi, *sin_interval(ph_lo, ph_hi))
+                    x = _out(vec[:, 0] + xa[0], vec[:, 0] + xa[1])
+                    y = _out(vec[:, 1] + ya[0], vec[:, 1] + ya[1])
+                for i, val in enumerate((x[0], x[1], y[0], y[1])):
+                    out[i][part] = (np.minimum if i % 2 == 0 else np.maximum)(out[i][part], val)
         return out
 
     # ------------------------------------------------------- initial boxes
@@ -1451,8 +1457,22 @@ def forecast_traffic(
                 bv_lo = vf_lo_[sel] * ratio[sel] ** (k / bins)
                 bv_hi = vf_hi_[sel] if k == bins - 1 else vf_lo_[sel] * ratio[sel] ** ((k + 1) / bins)
                 q_lo, q_hi = tb_lo[rs, 1] / bv_hi, tb_hi[rs, 1] / bv_lo
-                r_e, r_c, _, a_f = lateral_remainder(eb, cb, (bv_lo, bv_hi), b1s, (q_lo, q_hi), dt, vehicle)
-                sub = np.flatnonzero(curved_u[sel])
+                # each unit's remainder once: the straight law off the arcs, the feed-forward law on them
+                curved = curved_u[sel]
+                flat, sub = np.flatnonzero(~curved), np.flatnonzero(curved)
+                r_e, r_c, a_f = [(np.empty(sel.size), np.empty(sel.size)) for _ in range(3)]
+                if flat.size:
+                    f_e, f_c, _, f_a = lateral_remainder(
+                        (eb[0][flat], eb[1][flat]),
+                        (cb[0][flat], cb[1][flat]),
+                        (bv_lo[flat], bv_hi[flat]),
+                        (b1s[0][flat], b1s[1][flat]),
+                        (q_lo[flat], q_hi[flat]),
+                        dt,
+                        vehicle,
+                    )
+                    for tgt, src in ((r_e, f_e), (r_c, f_c), (a_f, f_a)):
+                        tgt[0][flat], tgt[1][flat] = src
                 if sub.size:  # on or near the arc: the feed-forward in the law, the frame's turn and drift
                     rsub = rs[sub]
                     ffs = (ff_row[0][rsub], ff_row[1][rsub])
@@ -1462,7 +1482,6 @@ def forecast_traffic(
                         e_s, c_s, vb, (b1s[0][sub], b1s[1][sub]), (q_lo[sub], q_hi[sub]), dt, vehicle, ff=ffs
                     )
                     e_x, c_x, ds_c, _ = curved_terms(rsub, (vb[0] * dt, vb[1] * dt), e_s, a_f2, ffs, km, end_in)
-                    r_e, r_c, a_f = [tuple(np.array(a, copy=True) for a in t) for t in (r_e, r_c, a_f)]
                     for tgt, src, extra in ((r_e, r_e2, e_x), (r_c, r_c2, c_x)):
                         lo_x, hi_x = _out(src[0] + extra[0], src[1] + extra[1])
                         tgt[0][sub], tgt[1][sub] = lo_x, hi_x
@@ -1488,15 +1507,25 @@ def forecast_traffic(
         def direct_step(vl_lo, vl_hi):
             """The bicycle's step bounded directly by intervals (no linearisation), speeds in [vl_lo, vl_hi]."""
             vh_lo, vh_hi = np.maximum(vl_lo, eps), np.maximum(vl_hi, eps)
-            _, _, d_l, a_l = lateral_remainder(
-                e_box, c_box, (vh_lo, vh_hi), b1, (tb_lo[rr, 1] / vh_hi, tb_hi[rr, 1] / vh_lo), dt, vehicle
-            )
-            de = _mul(vl_lo * dt, vl_hi * dt, *sin_interval(*a_l))
-            dc = _mul(2 * vl_lo * dt / length, 2 * vl_hi * dt / length, np.sin(_slip(d_l[0])), np.sin(_slip(d_l[1])))
-            low_e = _out(e_box[0] + de[0], e_box[1] + de[1])
-            low_c = _out(c_box[0] + dc[0], c_box[1] + dc[1])
-            ds_l = _mul(vl_lo * dt, vl_hi * dt, *cos_interval(*a_l))
-            sub = np.flatnonzero(curved_u)
+            low_e, low_c, ds_l = [(np.empty(vl_lo.shape[0]), np.empty(vl_lo.shape[0])) for _ in range(3)]
+            flat, sub = np.flatnonzero(~curved_u), np.flatnonzero(curved_u)
+            if flat.size:  # straight lanes: the law without feed-forward
+                rf = rr[flat]
+                e_f, c_f = (e_box[0][flat], e_box[1][flat]), (c_box[0][flat], c_box[1][flat])
+                vf = (vh_lo[flat], vh_hi[flat])
+                q_f = (tb_lo[rf, 1] / vf[1], tb_hi[rf, 1] / vf[0])
+                _, _, d_l, a_l = lateral_remainder(e_f, c_f, vf, (b1[0][flat], b1[1][flat]), q_f, dt, vehicle)
+                dd = (vl_lo[flat] * dt, vl_hi[flat] * dt)
+                de = _mul(*dd, *sin_interval(*a_l))
+                dc = _mul(
+                    2 * vl_lo[flat] * dt / length,
+                    2 * vl_hi[flat] * dt / length,
+                    np.sin(_slip(d_l[0])),
+                    np.sin(_slip(d_l[1])),
+                )
+                low_e[0][flat], low_e[1][flat] = _out(e_f[0] + de[0], e_f[1] + de[1])
+                low_c[0][flat], low_c[1][flat] = _out(c_f[0] + dc[0], c_f[1] + dc[1])
+                ds_l[0][flat], ds_l[1][flat] = _mul(*dd, *cos_interval(*a_l))
             if sub.size:  # on or near the arc: the feed-forward in the law (any share of it below speed_epsilon)
                 rsub = rr[sub]
                 ffd = (np.minimum(ff_row[0][rsub], 0.0), np.maximum(ff_row[1][rsub], 0.0))
@@ -1509,13 +1538,8 @@ def forecast_traffic(
                 dc_s = _mul(2 * dd[0] / length, 2 * dd[1] / length, np.sin(_slip(d_s[0])), np.sin(_slip(d_s[1])))
                 zero = np.zeros(sub.size)
                 e_x, _, ds_c, turn_c = curved_terms(rsub, dd, e_s, a_s, (zero, zero), km, end_in)
-                low_e = tuple(np.array(a, copy=True) for a in low_e)
-                low_c = tuple(np.array(a, copy=True) for a in low_c)
-                ds_l = tuple(np.array(a, copy=True) for a in ds_l)
-                le = _out(e_s[0] + de_s[0] + e_x[0], e_s[1] + de_s[1] + e_x[1])
-                lc = _out(c_s[0] + dc_s[0] - turn_c[1], c_s[1] + dc_s[1] - turn_c[0])
-                low_e[0][sub], low_e[1][sub] = le
-                low_c[0][sub], low_c[1][sub] = lc
+                low_e[0][sub], low_e[1][sub] = _out(e_s[0] + de_s[0] + e_x[0], e_s[1] + de_s[1] + e_x[1])
+                low_c[0][sub], low_c[1][sub] = _out(c_s[0] + dc_s[0] - turn_c[1], c_s[1] + dc_s[1] - turn_c[0])
                 ds_l[0][sub], ds_l[1][sub] = ds_c
             step_lo, step_hi = np.stack([low_e[0], low_c[0]], 1), np.stack([low_e[1], low_c[1]], 1)
             return step_lo, step_hi, ds_l
