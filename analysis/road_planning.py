@@ -592,6 +592,7 @@ class RoadPlanningMethod(Method[DrivingWorld]):
                 "tree_action": self.ego.actions[decision.action][0],
                 "lower": float(decision.lower),
                 "upper": float(decision.upper),
+                "executed_lower": float(decision.action_lower[action]),
                 "depth": int(decision.depth),
                 "latest_collision": latest,
             }

@@ -227,3 +227,25 @@ def test_property_the_robust_rule_executes_an_action_that_stays_clear_longest(y0
             for plan in [(first, held) for held in model.actions]
             + ([tuple(decision.sequence_indices)] if decision.sequence_indices[0] == first else [])
         )
+
+
+@pytest.mark.slow
+def test_the_robust_decisions_record_the_rule_and_the_highway_never_applies_it():
+    """A T-junction episode that collided before the rule (seed 20): every override executes an action of
+    the largest figure with its own tree lower bound recorded; on the highway the tree's action is executed."""
+    from minimaxplan.analysis.episode import run_episode
+
+    record = run_episode("tjunction", "robust", 20)
+    decisions = record.extra["decisions"]
+    overrides = [d for d in decisions if d["action"] != d["tree_action"]]
+    assert overrides and record.outcome == "goal"
+    names = [a[0] for a in TJUNCTION_ACTIONS]
+    for d in decisions:
+        if d["latest_collision"] is None:
+            assert d["action"] == d["tree_action"] and d["executed_lower"] == d["lower"]
+            continue
+        latest = d["latest_collision"]
+        assert latest[names.index(d["action"])] == max(latest)
+        assert d["executed_lower"] <= d["lower"]
+    highway = run_episode("highway", "robust", 3).extra["decisions"]
+    assert all(d["action"] == d["tree_action"] and d["latest_collision"] is None for d in highway)
