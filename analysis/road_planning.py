@@ -153,17 +153,18 @@ def latest_collision_action(
         sub-steps after the root (``horizon + 1``: some examined plan stays clear over the
         horizon); None when the tree's best sequence stays clear (nothing else examined).
     """
+    check_instance("model", model, BicycleModel)
+    check_instance("decision", decision, Decision)
     clear = horizon + 1
     tree = int(decision.action)
     sequence = tuple(int(a) for a in decision.sequence_indices)
-    if model.first_possible_collision(root, sequence, horizon) == clear:
+    along_tree = model.first_possible_collision(root, sequence, horizon)
+    if along_tree == clear:
         return tree, None
     latest = []
     for first in range(model.n_actions):
-        plans: list[tuple[int, ...]] = [(first, held) for held in range(model.n_actions)]
-        if sequence[0] == first:
-            plans.append(sequence)
-        latest.append(max(model.first_possible_collision(root, plan, horizon) for plan in plans))
+        held = max(model.first_possible_collision(root, (first, then), horizon) for then in range(model.n_actions))
+        latest.append(max(held, along_tree) if sequence[0] == first else held)
     best = max(latest)
     if latest[tree] == best:
         return tree, latest

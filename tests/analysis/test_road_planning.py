@@ -239,6 +239,8 @@ def test_the_robust_decisions_record_the_rule_and_the_highway_never_applies_it()
     decisions = record.extra["decisions"]
     overrides = [d for d in decisions if d["action"] != d["tree_action"]]
     assert overrides and record.outcome == "goal"
+    # the run-time check predicts the executed action, not the tree's: a mix-up would miss the ego's point
+    assert record.boxes_checked > 0 and record.boxes_missed == 0
     names = [a[0] for a in TJUNCTION_ACTIONS]
     for d in decisions:
         if d["latest_collision"] is None:
@@ -249,3 +251,13 @@ def test_the_robust_decisions_record_the_rule_and_the_highway_never_applies_it()
         assert d["executed_lower"] <= d["lower"]
     highway = run_episode("highway", "robust", 3).extra["decisions"]
     assert all(d["action"] == d["tree_action"] and d["latest_collision"] is None for d in highway)
+
+
+def test_the_robust_rule_rejects_what_is_not_a_tree_decision():
+    ego, model, root, decision = _sweeping_box_case(-30.0, 4.5, 20, 2.0)
+    with pytest.raises(InputError, match="decision"):
+        latest_collision_action(model, root, object(), horizon=10)
+    with pytest.raises(InputError, match="model"):
+        latest_collision_action(object(), root, decision, horizon=10)
+    with pytest.raises(InputError, match="horizon"):
+        latest_collision_action(model, root, decision, horizon=0)

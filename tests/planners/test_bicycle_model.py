@@ -232,17 +232,53 @@ class _NoFallback:
         return self._model.step(state, action)
 
 
+#: Obstacles moving along the highway's lanes: (metres ahead of the ego, lane, speed m/s, length m).
+MOVING_BOXES = st.lists(
+    st.tuples(st.floats(5.0, 60.0), st.integers(0, 2), st.floats(-8.0, 8.0), st.floats(1.0, 10.0)),
+    min_size=1,
+    max_size=3,
+)
+#: Which of them a lane-keeping table keeps (None: no lane-keeping table).
+KEPT_MASKS = st.one_of(st.none(), st.lists(st.booleans(), min_size=3, max_size=3))
+
+
+def _moving_box_table(x, boxes, rows):
+    """The obstacle table, shape (rows, len(boxes), 4), of `MOVING_BOXES` ahead of an ego at ``x`` (dt = 0.1 s)."""
+    n = np.arange(rows) * 0.1
+    return np.stack(
+        [
+            np.stack(
+                [
+                    x[0] + a + s * n - length / 2,
+                    np.full(rows, 4.0 * lane - 1.0),
+                    x[0] + a + s * n + length / 2,
+                    np.full(rows, 4.0 * lane + 1.0),
+                ],
+                axis=1,
+            )
+            for a, lane, s, length in boxes
+        ],
+        axis=1,
+    )
+
+
+def _with_tables(model, road, table, kept):
+    """``model`` on ``table``, and with ``kept`` a lane-keeping table of the obstacles it marks."""
+    keeping = None
+    if kept is not None:
+        keep_table = table.copy()
+        keep_table[:, ~np.array(kept[: table.shape[1]])] = EMPTY
+        keeping = DrivingReward.highway(keep_table, 0, road)
+    return model.with_reward(DrivingReward.highway(table, 0, road), lane_keeping_reward=keeping)
+
+
 @settings(max_examples=12, deadline=None)
 @given(
-    boxes=st.lists(
-        st.tuples(st.floats(5.0, 60.0), st.integers(0, 2), st.floats(-8.0, 8.0), st.floats(1.0, 10.0)),
-        min_size=1,
-        max_size=3,
-    ),
+    boxes=MOVING_BOXES,
     rows=st.integers(6, 21),
     budget=st.integers(1, 60),
     gamma=st.floats(0.5, 0.95),
-    kept=st.one_of(st.none(), st.lists(st.booleans(), min_size=3, max_size=3)),
+    kept=KEPT_MASKS,
 )
 def test_property_fallback_bounds_stay_below_the_robust_value(boxes, rows, budget, gamma, kept):
     """Random obstacles (moving, any lane), table lengths, budgets and discounts: L <= V* <= U, and L only rises.
@@ -250,21 +286,7 @@ def test_property_fallback_bounds_stay_below_the_robust_value(boxes, rows, budge
     With ``kept``, the paths that keep their lane see only the obstacles it marks (a
     lane-keeping table): the brute force steps the same path-dependent rewards."""
     world, controller, model, state = _ego_setup("highway")
-    x = state.x
-    n = np.arange(rows)[:, None] * 0.1
-    tables = []
-    for ahead, lane, speed, length in boxes:
-        cx = x[0] + ahead + speed * n[:, 0]
-        y = 4.0 * lane
-        tables.append(np.stack([cx - length / 2, np.full(rows, y - 1.0), cx + length / 2, np.full(rows, y + 1.0)], 1))
-    table = np.stack(tables, axis=1)
-    reward = DrivingReward.highway(table, 0, world.road)
-    keeping = None
-    if kept is not None:
-        keep_table = table.copy()
-        keep_table[:, ~np.array(kept[: len(boxes)])] = EMPTY
-        keeping = DrivingReward.highway(keep_table, 0, world.road)
-    models = [model.with_reward(reward, lane_keeping_reward=keeping)]
+    models = [_with_tables(model, world.road, _moving_box_table(state.x, boxes, rows), kept)]
     exact = _robust_value(models, state, (rows - 2) // 5 + 1, gamma)  # the table ends within the last decision
     decision = RobustTreePlanner(models, models[0].actions, gamma=gamma, budget=budget).plan(state)
     paper = RobustTreePlanner([_NoFallback(models[0])], models[0].actions, gamma=gamma, budget=budget).plan(state)
@@ -374,14 +396,10 @@ def _first_terminal_decision(model, state, plan, decisions):
 
 @settings(max_examples=20, deadline=None)
 @given(
-    boxes=st.lists(
-        st.tuples(st.floats(5.0, 60.0), st.integers(0, 2), st.floats(-8.0, 8.0), st.floats(1.0, 10.0)),
-        min_size=1,
-        max_size=3,
-    ),
+    boxes=MOVING_BOXES,
     plan=st.lists(st.integers(0, len(HIGHWAY_ACTIONS) - 1), min_size=1, max_size=4),
     decisions=st.integers(1, 8),
-    kept=st.one_of(st.none(), st.lists(st.booleans(), min_size=3, max_size=3)),
+    kept=KEPT_MASKS,
 )
 def test_property_first_possible_collision_is_the_first_colliding_substep(boxes, plan, decisions, kept):
     """Random moving boxes, plans and horizons, with or without a lane-keeping table.
@@ -393,32 +411,10 @@ def test_property_first_possible_collision_is_the_first_colliding_substep(boxes,
     world, controller, model, state = _ego_setup("highway")
     substeps = model.substeps
     rows = decisions * substeps + 1
-    n = np.arange(rows) * 0.1
-    x = state.x
-    table = np.stack(
-        [
-            np.stack(
-                [
-                    x[0] + a + s * n - length / 2,
-                    np.full(rows, 4.0 * lane - 1.0),
-                    x[0] + a + s * n + length / 2,
-                    np.full(rows, 4.0 * lane + 1.0),
-                ],
-                axis=1,
-            )
-            for a, lane, s, length in boxes
-        ],
-        axis=1,
-    )
-    mask = None if kept is None else ~np.array(kept[: len(boxes)])
+    table = _moving_box_table(state.x, boxes, rows)
 
     def with_table(t):
-        keeping = None
-        if mask is not None:
-            keep_table = t.copy()
-            keep_table[:, mask] = EMPTY
-            keeping = DrivingReward.highway(keep_table, 0, world.road)
-        return model.with_reward(DrivingReward.highway(t, 0, world.road), lane_keeping_reward=keeping)
+        return _with_tables(model, world.road, t, kept)
 
     horizon = decisions * substeps
     found = with_table(table).first_possible_collision(state, plan, horizon)
