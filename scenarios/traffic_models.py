@@ -55,6 +55,13 @@ from minimaxplan.models.sets import Box
 from minimaxplan.models.system import UncertainLinearSystem
 from minimaxplan.models.validation import as_finite_array, frozen_copy
 
+from .lateral_contraction import (
+    CONTRACTION_MARGIN,
+    contraction_factor,
+    contraction_metrics,
+    ellipse_hull,
+    metric_radius,
+)
 from .road import ARC, STRAIGHT, Road, wrap_to_pi
 from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters
 
@@ -1305,6 +1312,12 @@ def forecast_traffic(
     ualive[:R] = alive
     for arr, val in ((ui_lo, np.inf), (ui_hi, -np.inf), (uz_lo, np.inf), (uz_hi, -np.inf)):
         arr[:R][~alive] = val
+    # each unit's contraction radius (`lateral_contraction`): its states satisfy ||x||_P <= rho in the
+    # metric P of index umet (inf: no radius yet)
+    c_speeds, c_metrics, c_conv = contraction_metrics(float(dt), vehicle, beh)
+    log_nodes = np.log(c_speeds)
+    urho = np.full(U, np.inf)
+    umet = np.zeros(U, dtype=int)
 
     H1 = steps + 1
     boxes = np.empty((H1, m, 4))
@@ -1544,6 +1557,46 @@ def forecast_traffic(
             step_lo, step_hi = np.stack([low_e[0], low_c[0]], 1), np.stack([low_e[1], low_c[1]], 1)
             return step_lo, step_hi, ds_l
 
+        def contract(nz_lo, nz_hi, ni_lo, ni_hi):
+            """The boxes intersected with the hull of the units' contraction ellipse (straight lanes, v >= V_MIN)."""
+            ok = ~curved_u & (vlo >= V_MIN) & np.all(np.isfinite(e_lo) & np.isfinite(e_hi), axis=1)
+            rho = np.full(len(idx), np.inf)
+            k_new = np.argmin(np.abs(log_nodes[None, :] - 0.5 * np.log(vf_lo_ * vf_hi_)[:, None]), axis=1)
+            sel = np.flatnonzero(ok)
+            if sel.size:
+                us, rs, ks = idx[sel], rr[sel], k_new[sel]
+                met = c_metrics[ks]
+                rho_cur = np.minimum(urho[us] * c_conv[umet[us], ks], metric_radius(met, e_lo[sel], e_hi[sel]))
+                # the speed box in geometric bins, as the vertex bound: lambda the largest over the bins
+                nb_ = SPEED_BINS
+                rep = np.tile(sel, nb_)
+                j = np.repeat(np.arange(nb_), sel.size)
+                vs_lo, vs_hi = vlo[rep], vhi[rep]
+                ratio_s = vs_hi / vs_lo
+                bv_lo = vs_lo * ratio_s ** (j / nb_)
+                bv_hi = np.where(j == nb_ - 1, vs_hi, vs_lo * ratio_s ** ((j + 1) / nb_))
+                q = (tb_lo[rr[rep], 1] / bv_hi, tb_hi[rr[rep], 1] / bv_lo)
+                lam = contraction_factor(
+                    np.tile(met, (nb_, 1, 1)),
+                    (e_lo[rep, 0], e_hi[rep, 0]),
+                    (e_lo[rep, 1], e_hi[rep, 1]),
+                    (bv_lo, bv_hi),
+                    (b1[0][rep], b1[1][rep]),
+                    q,
+                    dt,
+                    vehicle,
+                )
+                lam = lam.reshape(nb_, sel.size).max(axis=0)
+                # lam is inf outside the bound's validity (no radius then, even for a point box)
+                rho[sel] = np.where(np.isfinite(lam), np.sqrt(lam) * rho_cur * (1.0 + CONTRACTION_MARGIN), np.inf)
+                h_i = ellipse_hull(met, rho[sel])
+                h_z = ellipse_hull(met, rho[sel], basis=T[rs])
+                ni_lo, ni_hi, nz_lo, nz_hi = ni_lo.copy(), ni_hi.copy(), nz_lo.copy(), nz_hi.copy()
+                ni_lo[sel], ni_hi[sel] = np.maximum(ni_lo[sel], -h_i), np.minimum(ni_hi[sel], h_i)
+                nz_lo[sel], nz_hi[sel] = np.maximum(nz_lo[sel], -h_z), np.minimum(nz_hi[sel], h_z)
+            urho[idx], umet[idx] = rho, k_new
+            return nz_lo, nz_hi, ni_lo, ni_hi
+
         # The direct step over the whole speed box contains the fine step's set too: intersect them (both
         # sound). Where the speed box is wide and reaches low speeds, the linearised law's stiff gains
         # (q = theta_b2 / v) make the vertex bound grow faster than the bicycle can turn.
@@ -1555,14 +1608,13 @@ def forecast_traffic(
         if not l_ok.any():
             back_lo, back_hi = _matvec(T[rr], zf_lo, zf_hi)
             into_lo, into_hi = _matvec(Tinv[rr], if_lo, if_hi)
-            return (
+            boxes_ = contract(
                 np.maximum(zf_lo, into_lo),
                 np.minimum(zf_hi, into_hi),
                 np.maximum(if_lo, back_lo),
                 np.minimum(if_hi, back_hi),
-                sf[0],
-                sf[1],
             )
+            return (*boxes_, sf[0], sf[1])
         # low speeds: the direct step alone
         il_lo, il_hi, sl = direct_step(vlo, np.minimum(vhi, V_MIN))
         zl_lo, zl_hi = _matvec(Tinv[rr], il_lo, il_hi)
@@ -1577,7 +1629,7 @@ def forecast_traffic(
         ni_lo, ni_hi = np.maximum(ni_lo, back_lo), np.minimum(ni_hi, back_hi)
         ds_lo = np.minimum(np.where(f_ok, sf[0], np.inf), np.where(l_ok, sl[0], np.inf))
         ds_hi = np.maximum(np.where(f_ok, sf[1], -np.inf), np.where(l_ok, sl[1], -np.inf))
-        return nz_lo, nz_hi, ni_lo, ni_hi, ds_lo, ds_hi
+        return (*contract(nz_lo, nz_hi, ni_lo, ni_hi), ds_lo, ds_hi)
 
     # dead units hold empty boxes (inf, -inf): their arithmetic is masked, never output
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
@@ -1687,6 +1739,12 @@ def forecast_traffic(
                     for d in range(2):
                         k = cohort[:, d]
                         old = ualive[k]
+                        # the merged states satisfy either ellipse: the larger radius in the row's metric
+                        from_k = np.minimum(
+                            urho[k] * c_conv[umet[k], umet[:R]], metric_radius(c_metrics[umet[:R]], eu_lo[k], eu_hi[k])
+                        )
+                        urho[:R] = np.where(old, np.where(ualive[:R], np.maximum(urho[:R], from_k), from_k), urho[:R])
+                        urho[k] = np.inf
                         for lo_a, hi_a in ((ui_lo, ui_hi), (uz_lo, uz_hi)):
                             lo_a[:R] = np.where(old[:, None], np.minimum(lo_a[:R], lo_a[k]), lo_a[:R])
                             hi_a[:R] = np.where(old[:, None], np.maximum(hi_a[:R], hi_a[k]), hi_a[:R])
@@ -1732,6 +1790,9 @@ def forecast_traffic(
                     for lo_a, hi_a, a_lo, a_hi in ((ui_lo, ui_hi, ii_lo, ii_hi), (uz_lo, uz_hi, zi_lo, zi_hi)):
                         lo_a[k] = np.where(both[:, None], np.minimum(lo_a[k], a_lo), lo_a[k])
                         hi_a[k] = np.where(both[:, None], np.maximum(hi_a[k], a_hi), hi_a[k])
+                    # the cohort's new states: the radius of their box joins the cohort's
+                    entry = metric_radius(c_metrics[umet[k]], ii_lo, ii_hi)
+                    urho[k] = np.where(both, np.where(ualive[k], np.maximum(urho[k], entry), entry), urho[k])
                     ualive[k] |= both
                     grow = both | coarse_in
                     for q, (arr, op) in enumerate(

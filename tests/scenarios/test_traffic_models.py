@@ -146,6 +146,33 @@ def test_forecast_contains_every_vehicle(kind, seed, dt, when):
     assert forecast.boxes.shape == (steps + 1, len(observations[t0].ids), 4)
 
 
+@pytest.mark.parametrize("kind", ["highway", "tjunction"])
+def test_the_contraction_radius_keeps_forecasts_guaranteed_longer(kind, monkeypatch):
+    """The lateral contraction ellipse (`lateral_contraction`) keeps more vehicle-steps on the fine model
+    than the interval boxes alone (`contraction_factor` replaced by inf: no radius), and both contain the
+    world (prior beliefs, disturbances at their extremes)."""
+    import minimaxplan.scenarios.traffic_models as traffic_models
+
+    def guaranteed_steps():
+        total = missed = 0
+        for seed in range(3):
+            world, run, observations, _ = _episode(kind, seed, 0.1, 71)
+            for t0 in (20, 40):
+                if t0 + 30 < len(run[0]):
+                    misses, _, forecast = _check(world, run, observations, t0, 30)
+                    total += int(np.sum(forecast.guaranteed))
+                    missed += misses
+        return total, missed
+
+    with_radius, missed_with = guaranteed_steps()
+    original = traffic_models.contraction_factor
+    monkeypatch.setattr(traffic_models, "contraction_factor", lambda *a, **k: np.full(len(a[0]), np.inf))
+    without_radius, missed_without = guaranteed_steps()
+    monkeypatch.setattr(traffic_models, "contraction_factor", original)
+    assert missed_with == 0 and missed_without == 0
+    assert with_radius > without_radius, (with_radius, without_radius)
+
+
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_forecast_contains_lane_changes(seed):
     """Highway episodes with frequent lane changes (every vehicle tries when its 2-3 s timer fires)."""

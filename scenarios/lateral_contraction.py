@@ -1,0 +1,265 @@
+"""A quadratic contraction bound of the lateral closed loop on a straight lane.
+
+One concept: the LinearVehicle's lateral state ``x = (e, chi)`` (offset from the lane it
+steers to, heading error) under its own steering law shrinks, step by step, in a fixed
+quadratic norm ``||x||_P = sqrt(x' P x)``, by a factor that `contraction_factor` bounds
+over a box of states, speeds and gains. `forecast_traffic` carries one radius per lateral
+box and intersects the box with the ellipse's hull: where the interval iteration wraps
+(its box grows with its own remainder), the ellipse does not.
+
+The step (`minimaxplan.scenarios.vehicles.bicycle_step` with the law
+``delta = clip(-(L / v)(b1 chi + q e))``, ``q = theta_b2 / v``, on a straight lane) is,
+exactly, with ``beta = arctan(tan(delta) / 2)``::
+
+    e+   = e   + v dt sin(chi + beta)
+    chi+ = chi + (2 v dt / L) sin(beta)
+
+Write ``beta = g delta_r`` (``g = beta(clip(delta_r)) / delta_r``), ``sin(chi + beta) =
+s1 (chi + beta)``, ``sin(beta) = s2 beta``: then ``x+ = A x`` with::
+
+    A = [[1 - dt s1 g L q,   dt s1 (v - g L b1)],
+         [  - 2 dt s2 g q,   1 - 2 dt s2 g b1  ]]
+
+multi-affine in ``(s1, s2, g, v, b1, q)``, each in an interval computed from the box (the
+sector factors from the largest ``|delta_r|``, ``|beta|`` and ``|chi + beta|`` over it).
+A multi-affine map of a box lies in the convex hull of its 64 vertex values, and
+``A -> ||A x||_P`` is convex, so ``||x+||_P <= sqrt(lambda) ||x||_P`` with ``lambda`` the
+largest ``||C A_k C^-1||_2^2`` over the vertices (``P = C' C``). The bound needs no
+disturbance term: the lateral law has none (its only uncertainty is in the gains, the
+speed and the initial state), and it is valid for every state of the box, whichever
+speed in the box and whichever gains in theirs the step has.
+
+The metric ``P`` is one of a table per speed (`contraction_metrics`), each tuned once by
+a grid search over the prior's gains, so that ``lambda < 1`` over a moderate box; the
+bound is sound for any ``P``, the tuning only makes it tight.
+
+Layer: numpy only.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from minimaxplan.models.errors import DimensionError, InputError
+
+from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters
+
+__all__ = ["CONTRACTION_MARGIN", "contraction_factor", "contraction_metrics", "ellipse_hull", "metric_radius"]
+
+#: Relative outward rounding of a contraction factor (orders of magnitude above the
+#: floating-point error of the few operations of one vertex).
+CONTRACTION_MARGIN = 1e-9
+_DEFAULT_BEHAVIOUR = BehaviourParameters()
+#: The 64 corners of the box of (s1, s2, g, v, b1, q): 0 the lower end, 1 the upper.
+_CORNERS = np.array(np.meshgrid(*[[0, 1]] * 6, indexing="ij")).reshape(6, -1).T
+#: Speed ratio between neighbouring metrics of the table.
+_TABLE_RATIO = 1.25
+#: The box a metric is tuned on: speeds within this ratio of its node, |e| and |chi| up to these.
+_TUNE_SPEED_RATIO, _TUNE_OFFSET, _TUNE_HEADING = 1.12, 0.5, 0.1
+
+
+def _slip(delta):
+    return np.arctan(0.5 * np.tan(delta))
+
+
+def _sinc_lower(a):
+    """``min sin(x) / x`` over ``|x| <= a`` (a <= pi): sin(x) / x decreases on [0, pi]."""
+    a = np.minimum(a, np.pi)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(a > 0.0, np.sin(a) / np.where(a > 0.0, a, 1.0), 1.0)
+
+
+def _vertex_matrices(dt, length, max_steering, e, chi, v, b1, q):
+    """The 64 vertex matrices of ``A`` over the box, shape (n, 64, 2, 2)."""
+    e_m = np.maximum(np.abs(e[0]), np.abs(e[1]))
+    c_m = np.maximum(np.abs(chi[0]), np.abs(chi[1]))
+    # |delta_r| <= (L / v_lo)(b1_hi |chi| + q_hi |e|)
+    dr = length / v[0] * (np.maximum(np.abs(b1[0]), np.abs(b1[1])) * c_m + np.maximum(np.abs(q[0]), np.abs(q[1])) * e_m)
+    dm = np.minimum(dr, max_steering)
+    beta_m = _slip(dm)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # subnormal |delta_r|: g_lo = 1/2
+        # g(x) = beta(clip(x)) / x: 1/2 at 0, increasing in |x| up to max_steering, then beta_max / |x|
+        g_hi = np.where(dm > 0.0, beta_m / np.where(dm > 0.0, dm, 1.0), 0.5)
+        g_lo = np.where(dr > 0.0, np.minimum(0.5, _slip(max_steering) / np.where(dr > 0.0, dr, 1.0)), 0.5)
+    s1 = (_sinc_lower(c_m + beta_m), np.ones_like(c_m))
+    s2 = (_sinc_lower(beta_m), np.ones_like(c_m))
+    g = (g_lo, g_hi)
+    pick = [np.stack(r, axis=-1)[:, _CORNERS[:, i]] for i, r in enumerate((s1, s2, g, v, b1, q))]  # (n, 64) each
+    S1, S2, G, V, B1, Q = pick
+    a = np.empty(S1.shape + (2, 2))
+    a[..., 0, 0] = 1.0 - dt * S1 * G * length * Q
+    a[..., 0, 1] = dt * S1 * (V - G * length * B1)
+    a[..., 1, 0] = -2.0 * dt * S2 * G * Q
+    a[..., 1, 1] = 1.0 - 2.0 * dt * S2 * G * B1
+    return a
+
+
+def _upper_factor(metric):
+    """``C`` upper triangular with ``P = C' C``, shape (..., 2, 2)."""
+    p11, p12, p22 = metric[..., 0, 0], metric[..., 0, 1], metric[..., 1, 1]
+    c = np.zeros(metric.shape)
+    c[..., 0, 0] = np.sqrt(p11)
+    c[..., 0, 1] = p12 / np.sqrt(p11)
+    c[..., 1, 1] = np.sqrt(p22 - p12**2 / p11)
+    return c
+
+
+def _squared_norm(m):
+    """Largest squared singular value of each 2 x 2 matrix, closed form."""
+    f = np.sum(m**2, axis=(-2, -1))
+    det = m[..., 0, 0] * m[..., 1, 1] - m[..., 0, 1] * m[..., 1, 0]
+    return 0.5 * (f + np.sqrt(np.maximum(f**2 - 4.0 * det**2, 0.0)))
+
+
+def _factor(metric, a):
+    """``max_k ||C A_k C^-1||_2^2`` per box, elementwise (C upper triangular: C^-1 in closed form)."""
+    c = _upper_factor(metric)
+    c11, c12, c22 = (c[:, None, 0, 0], c[:, None, 0, 1], c[:, None, 1, 1])
+    a11, a12, a21, a22 = a[..., 0, 0], a[..., 0, 1], a[..., 1, 0], a[..., 1, 1]
+    # C A = [[c11 a11 + c12 a21, c11 a12 + c12 a22], [c22 a21, c22 a22]]; C^-1 = [[1/c11, -c12/(c11 c22)], [0, 1/c22]]
+    u11, u12, u21, u22 = c11 * a11 + c12 * a21, c11 * a12 + c12 * a22, c22 * a21, c22 * a22
+    m = np.empty(a.shape)
+    m[..., 0, 0] = u11 / c11
+    m[..., 0, 1] = (u12 - u11 * c12 / c11) / c22
+    m[..., 1, 0] = u21 / c11
+    m[..., 1, 1] = (u22 - u21 * c12 / c11) / c22
+    return _squared_norm(m).max(axis=-1)
+
+
+def contraction_factor(metric, e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = DEFAULT_VEHICLE) -> np.ndarray:
+    """``lambda`` with ``||x+||_P^2 <= lambda ||x||_P^2`` for every state of the box (module docstring).
+
+    Parameters
+    ----------
+    metric : array_like, shape (n, 2, 2)
+        Symmetric positive definite ``P`` per box.
+    e, chi, v, b1, q : tuple of 2 array_like, shape (n,)
+        ``(lo, hi)`` of the offset (m), heading error (rad), speed (m/s, ``v_lo > 0``),
+        theta_b1 and ``q = theta_b2 / v`` over the step.
+    dt : float
+        Step, s.
+    vehicle : VehicleParameters
+        L and the steering bound.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The factor, rounded up by `CONTRACTION_MARGIN`; inf where the box is outside the
+        bound's validity (``|chi| + |beta| > pi``).
+    """
+    p = np.asarray(metric, dtype=float)
+    if p.ndim != 3 or p.shape[1:] != (2, 2):
+        raise DimensionError(f"metric must have shape (n, 2, 2), got shape {p.shape}")
+    ranges = [
+        tuple(np.broadcast_to(np.asarray(r, dtype=float), (p.shape[0],)) for r in pair) for pair in (e, chi, v, b1, q)
+    ]
+    if np.any(ranges[2][0] <= 0.0):
+        raise InputError("v must have a positive lower bound")
+    a = _vertex_matrices(float(dt), vehicle.length, vehicle.max_steering, *ranges)
+    lam = _factor(p, a) * (1.0 + CONTRACTION_MARGIN)
+    beta_max = _slip(vehicle.max_steering)
+    c_m = np.maximum(np.abs(ranges[1][0]), np.abs(ranges[1][1]))
+    return np.where(c_m + beta_max <= np.pi, lam, np.inf)
+
+
+def metric_radius(metric, lo, hi) -> np.ndarray:
+    """The smallest ``rho`` with the box ``[lo, hi]`` inside ``{x : x' P x <= rho^2}``: its largest corner norm.
+
+    Parameters
+    ----------
+    metric : array_like, shape (n, 2, 2)
+    lo, hi : array_like, shape (n, 2)
+        The boxes' corners; an empty box (``lo > hi``) gives inf.
+    """
+    p = np.asarray(metric, dtype=float)
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    best = np.zeros(p.shape[0])
+    for x0 in (lo[:, 0], hi[:, 0]):
+        for x1 in (lo[:, 1], hi[:, 1]):
+            best = np.maximum(best, p[:, 0, 0] * x0**2 + 2 * p[:, 0, 1] * x0 * x1 + p[:, 1, 1] * x1**2)
+    with np.errstate(invalid="ignore"):
+        empty = ~np.all(lo <= hi, axis=1)
+    return np.where(empty, np.inf, np.sqrt(best) * (1.0 + CONTRACTION_MARGIN))
+
+
+def ellipse_hull(metric, radius, basis=None) -> np.ndarray:
+    """Half-widths of the box hull of ``{x : x' P x <= rho^2}``, in the basis ``z = basis^-1 x`` if given.
+
+    Parameters
+    ----------
+    metric : array_like, shape (n, 2, 2)
+    radius : array_like, shape (n,)
+    basis : array_like, shape (n, 2, 2), optional
+        ``T`` with ``x = T z``; the hull of ``z`` is then returned.
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        ``rho sqrt(diag(M^-1 P^-1 M^-T))``, ``M`` the basis (identity by default).
+    """
+    p_inv = np.linalg.inv(np.asarray(metric, dtype=float))
+    if basis is not None:
+        t_inv = np.linalg.inv(np.asarray(basis, dtype=float))
+        p_inv = t_inv @ p_inv @ np.swapaxes(t_inv, -1, -2)
+    diag = np.stack([p_inv[:, 0, 0], p_inv[:, 1, 1]], axis=1)
+    return np.asarray(radius, dtype=float)[:, None] * np.sqrt(diag) * (1.0 + CONTRACTION_MARGIN)
+
+
+@lru_cache(maxsize=16)
+def contraction_metrics(
+    dt: float, vehicle: VehicleParameters = DEFAULT_VEHICLE, behaviour: BehaviourParameters = _DEFAULT_BEHAVIOUR
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The table of metrics: speed nodes, one ``P`` per node, and the conversions between them.
+
+    Each ``P = [[1, c sqrt(r)], [c sqrt(r), r]]`` minimises `contraction_factor` over a grid
+    of ``(r, c)``, on the box of the prior's gains, speeds within a ratio of 1.12 of its
+    node, ``|e| <= 0.5`` m and ``|chi| <= 0.1`` rad. Deterministic; computed once per
+    ``(dt, vehicle, behaviour)``.
+
+    Returns
+    -------
+    speeds : ndarray, shape (K,)
+        Geometric nodes from 1 m/s to the vehicle's top speed.
+    metrics : ndarray, shape (K, 2, 2)
+        Read-only.
+    conversion : ndarray, shape (K, K)
+        ``||x||_{P_j} <= conversion[i, j] ||x||_{P_i}`` (rounded up).
+    """
+    if not (np.isfinite(dt) and dt > 0):
+        raise InputError(f"dt must be finite and > 0, got {dt!r}")
+    count = max(2, int(np.ceil(np.log(vehicle.max_speed) / np.log(_TABLE_RATIO))) + 1)
+    speeds = np.geomspace(1.0, max(vehicle.max_speed, 1.0 * _TABLE_RATIO), count)
+    r = np.geomspace(1e-2, 1e2, 41)
+    c = np.linspace(-0.95, 0.95, 39)
+    rr, cc = np.meshgrid(r, c, indexing="ij")
+    cand = np.empty((rr.size, 2, 2))
+    cand[:, 0, 0], cand[:, 1, 1] = 1.0, rr.ravel()
+    cand[:, 0, 1] = cand[:, 1, 0] = cc.ravel() * np.sqrt(rr.ravel())
+    b_lo, b_hi = behaviour.theta_b_prior
+    metrics = np.empty((count, 2, 2))
+    for k, node in enumerate(speeds):
+        v = (np.array([node / _TUNE_SPEED_RATIO]), np.array([node * _TUNE_SPEED_RATIO]))
+        q = (np.array([b_lo[1] / v[1][0]]), np.array([b_hi[1] / v[0][0]]))
+        a = _vertex_matrices(
+            float(dt),
+            vehicle.length,
+            vehicle.max_steering,
+            (np.array([-_TUNE_OFFSET]), np.array([_TUNE_OFFSET])),
+            (np.array([-_TUNE_HEADING]), np.array([_TUNE_HEADING])),
+            v,
+            (np.array([b_lo[0]]), np.array([b_hi[0]])),
+            q,
+        )
+        scores = _factor(cand, np.broadcast_to(a, (cand.shape[0],) + a.shape[1:]))
+        metrics[k] = cand[int(np.argmin(scores))]
+    # ||x||_{P_j}^2 <= mu ||x||_{P_i}^2, mu the largest eigenvalue of C_i^-T P_j C_i^-1
+    ci_inv = np.linalg.inv(_upper_factor(metrics))
+    rel = np.swapaxes(ci_inv, -1, -2)[:, None] @ metrics[None, :] @ ci_inv[:, None]
+    conversion = np.sqrt(np.linalg.eigvalsh(0.5 * (rel + np.swapaxes(rel, -1, -2)))[..., -1]) * (
+        1.0 + CONTRACTION_MARGIN
+    )
+    for arr in (speeds, metrics, conversion):
+        arr.setflags(write=False)
+    return speeds, metrics, conversion
