@@ -44,7 +44,7 @@ import numpy as np
 
 from minimaxplan.models.errors import DimensionError, InputError
 
-from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters
+from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters, slip_angle
 
 __all__ = ["CONTRACTION_MARGIN", "contraction_factor", "contraction_metrics", "ellipse_hull", "metric_radius"]
 
@@ -58,10 +58,6 @@ _CORNERS = np.array(np.meshgrid(*[[0, 1]] * 6, indexing="ij")).reshape(6, -1).T
 _TABLE_RATIO = 1.25
 #: The box a metric is tuned on: speeds within this ratio of its node, |e| and |chi| up to these.
 _TUNE_SPEED_RATIO, _TUNE_OFFSET, _TUNE_HEADING = 1.12, 0.5, 0.1
-
-
-def _slip(delta):
-    return np.arctan(0.5 * np.tan(delta))
 
 
 def _sinc_lower(a):
@@ -78,11 +74,11 @@ def _vertex_matrices(dt, length, max_steering, e, chi, v, b1, q):
     # |delta_r| <= (L / v_lo)(b1_hi |chi| + q_hi |e|)
     dr = length / v[0] * (np.maximum(np.abs(b1[0]), np.abs(b1[1])) * c_m + np.maximum(np.abs(q[0]), np.abs(q[1])) * e_m)
     dm = np.minimum(dr, max_steering)
-    beta_m = _slip(dm)
+    beta_m = slip_angle(dm)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # subnormal |delta_r|: g_lo = 1/2
         # g(x) = beta(clip(x)) / x: 1/2 at 0, increasing in |x| up to max_steering, then beta_max / |x|
         g_hi = np.where(dm > 0.0, beta_m / np.where(dm > 0.0, dm, 1.0), 0.5)
-        g_lo = np.where(dr > 0.0, np.minimum(0.5, _slip(max_steering) / np.where(dr > 0.0, dr, 1.0)), 0.5)
+        g_lo = np.where(dr > 0.0, np.minimum(0.5, slip_angle(max_steering) / np.where(dr > 0.0, dr, 1.0)), 0.5)
     s1 = (_sinc_lower(c_m + beta_m), np.ones_like(c_m))
     s2 = (_sinc_lower(beta_m), np.ones_like(c_m))
     g = (g_lo, g_hi)
@@ -94,6 +90,34 @@ def _vertex_matrices(dt, length, max_steering, e, chi, v, b1, q):
     a[..., 1, 0] = -2.0 * dt * S2 * G * Q
     a[..., 1, 1] = 1.0 - 2.0 * dt * S2 * G * B1
     return a
+
+
+def _metrics(metric) -> np.ndarray:
+    """``metric`` as a float array of shape (n, 2, 2), each symmetric positive definite, or a typed error."""
+    p = np.asarray(metric, dtype=float)
+    if p.ndim != 3 or p.shape[1:] != (2, 2):
+        raise DimensionError(f"metric must have shape (n, 2, 2), got shape {p.shape}")
+    det = p[:, 0, 0] * p[:, 1, 1] - p[:, 0, 1] * p[:, 1, 0]
+    if not (np.all(np.isfinite(p)) and np.all(p[:, 0, 1] == p[:, 1, 0]) and np.all(p[:, 0, 0] > 0) and np.all(det > 0)):
+        raise InputError("metric must hold finite symmetric positive definite matrices")
+    return p
+
+
+def _boxes(name: str, lo, hi, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(lo, hi)`` as float arrays of shape (n, 2), or a typed error."""
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    if lo.shape != (n, 2) or hi.shape != (n, 2):
+        raise DimensionError(f"{name} must have shape ({n}, 2) each, got shapes {lo.shape} and {hi.shape}")
+    return lo, hi
+
+
+def _inverse(m):
+    """Closed-form inverse of each 2 x 2 matrix, shape (..., 2, 2)."""
+    det = m[..., 0, 0] * m[..., 1, 1] - m[..., 0, 1] * m[..., 1, 0]
+    out = np.empty(m.shape)
+    out[..., 0, 0], out[..., 1, 1] = m[..., 1, 1] / det, m[..., 0, 0] / det
+    out[..., 0, 1], out[..., 1, 0] = -m[..., 0, 1] / det, -m[..., 1, 0] / det
+    return out
 
 
 def _upper_factor(metric):
@@ -149,17 +173,25 @@ def contraction_factor(metric, e, chi, v, b1, q, dt: float, vehicle: VehiclePara
         The factor, rounded up by `CONTRACTION_MARGIN`; inf where the box is outside the
         bound's validity (``|chi| + |beta| > pi``).
     """
-    p = np.asarray(metric, dtype=float)
-    if p.ndim != 3 or p.shape[1:] != (2, 2):
-        raise DimensionError(f"metric must have shape (n, 2, 2), got shape {p.shape}")
-    ranges = [
-        tuple(np.broadcast_to(np.asarray(r, dtype=float), (p.shape[0],)) for r in pair) for pair in (e, chi, v, b1, q)
-    ]
+    p = _metrics(metric)
+    if not (np.isfinite(dt) and dt > 0):
+        raise InputError(f"dt must be finite and > 0, got {dt!r}")
+    ranges = []
+    for name, pair in zip(("e", "chi", "v", "b1", "q"), (e, chi, v, b1, q)):
+        lo, hi = (np.asarray(r, dtype=float) for r in pair)
+        if lo.shape not in ((), (p.shape[0],)) or hi.shape not in ((), (p.shape[0],)):
+            raise DimensionError(
+                f"{name} must be (lo, hi) of shape ({p.shape[0]},) or scalars, got shapes {lo.shape} and {hi.shape}"
+            )
+        lo, hi = np.broadcast_to(lo, (p.shape[0],)), np.broadcast_to(hi, (p.shape[0],))
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo <= hi)):
+            raise InputError(f"{name} must hold finite intervals with lo <= hi")
+        ranges.append((lo, hi))
     if np.any(ranges[2][0] <= 0.0):
         raise InputError("v must have a positive lower bound")
     a = _vertex_matrices(float(dt), vehicle.length, vehicle.max_steering, *ranges)
     lam = _factor(p, a) * (1.0 + CONTRACTION_MARGIN)
-    beta_max = _slip(vehicle.max_steering)
+    beta_max = slip_angle(vehicle.max_steering)
     c_m = np.maximum(np.abs(ranges[1][0]), np.abs(ranges[1][1]))
     return np.where(c_m + beta_max <= np.pi, lam, np.inf)
 
@@ -173,8 +205,8 @@ def metric_radius(metric, lo, hi) -> np.ndarray:
     lo, hi : array_like, shape (n, 2)
         The boxes' corners; an empty box (``lo > hi``) gives inf.
     """
-    p = np.asarray(metric, dtype=float)
-    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    p = _metrics(metric)
+    lo, hi = _boxes("lo, hi", lo, hi, p.shape[0])
     best = np.zeros(p.shape[0])
     for x0 in (lo[:, 0], hi[:, 0]):
         for x1 in (lo[:, 1], hi[:, 1]):
@@ -184,27 +216,37 @@ def metric_radius(metric, lo, hi) -> np.ndarray:
     return np.where(empty, np.inf, np.sqrt(best) * (1.0 + CONTRACTION_MARGIN))
 
 
-def ellipse_hull(metric, radius, basis=None) -> np.ndarray:
-    """Half-widths of the box hull of ``{x : x' P x <= rho^2}``, in the basis ``z = basis^-1 x`` if given.
+def ellipse_hull(metric, radius, to_basis=None) -> np.ndarray:
+    """Half-widths of the box hull of ``{x : x' P x <= rho^2}``, or of its image ``z = to_basis x``.
 
     Parameters
     ----------
     metric : array_like, shape (n, 2, 2)
     radius : array_like, shape (n,)
-    basis : array_like, shape (n, 2, 2), optional
-        ``T`` with ``x = T z``; the hull of ``z`` is then returned.
+        ``rho >= 0`` (inf: no bound).
+    to_basis : array_like, shape (n, 2, 2), optional
+        ``T^-1`` with ``z = T^-1 x`` (the forecast's basis coordinates); the hull of ``z`` is
+        then returned.
 
     Returns
     -------
     ndarray, shape (n, 2)
-        ``rho sqrt(diag(M^-1 P^-1 M^-T))``, ``M`` the basis (identity by default).
+        ``rho sqrt(diag(M P^-1 M'))``, ``M`` = ``to_basis`` (identity by default).
     """
-    p_inv = np.linalg.inv(np.asarray(metric, dtype=float))
-    if basis is not None:
-        t_inv = np.linalg.inv(np.asarray(basis, dtype=float))
-        p_inv = t_inv @ p_inv @ np.swapaxes(t_inv, -1, -2)
+    p = _metrics(metric)
+    rho = np.asarray(radius, dtype=float)
+    if rho.shape != (p.shape[0],):
+        raise DimensionError(f"radius must have shape ({p.shape[0]},), got shape {rho.shape}")
+    if np.any(np.isnan(rho)) or np.any(rho < 0):
+        raise InputError("radius must be >= 0 (or inf)")
+    p_inv = _inverse(p)
+    if to_basis is not None:
+        m = np.asarray(to_basis, dtype=float)
+        if m.shape != p.shape:
+            raise DimensionError(f"to_basis must have shape {p.shape}, got shape {m.shape}")
+        p_inv = m @ p_inv @ np.swapaxes(m, -1, -2)
     diag = np.stack([p_inv[:, 0, 0], p_inv[:, 1, 1]], axis=1)
-    return np.asarray(radius, dtype=float)[:, None] * np.sqrt(diag) * (1.0 + CONTRACTION_MARGIN)
+    return rho[:, None] * np.sqrt(diag) * (1.0 + CONTRACTION_MARGIN)
 
 
 @lru_cache(maxsize=16)
@@ -255,7 +297,7 @@ def contraction_metrics(
         scores = _factor(cand, np.broadcast_to(a, (cand.shape[0],) + a.shape[1:]))
         metrics[k] = cand[int(np.argmin(scores))]
     # ||x||_{P_j}^2 <= mu ||x||_{P_i}^2, mu the largest eigenvalue of C_i^-T P_j C_i^-1
-    ci_inv = np.linalg.inv(_upper_factor(metrics))
+    ci_inv = _inverse(_upper_factor(metrics))
     rel = np.swapaxes(ci_inv, -1, -2)[:, None] @ metrics[None, :] @ ci_inv[:, None]
     conversion = np.sqrt(np.linalg.eigvalsh(0.5 * (rel + np.swapaxes(rel, -1, -2)))[..., -1]) * (
         1.0 + CONTRACTION_MARGIN

@@ -63,7 +63,7 @@ from .lateral_contraction import (
     metric_radius,
 )
 from .road import ARC, STRAIGHT, Road, wrap_to_pi
-from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters
+from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters, slip_angle
 
 __all__ = [
     "CHI_MAX",
@@ -421,10 +421,6 @@ def lateral_system(dt: float, theta_b: Box, speed: tuple, vehicle: VehicleParame
     return UncertainLinearSystem(np.eye(2), phi, np.zeros((2, 1)), w=Box(-np.ones(2), np.ones(2)), theta=theta)
 
 
-def _slip(delta):
-    return np.arctan(0.5 * np.tan(delta))
-
-
 def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = DEFAULT_VEHICLE, *, ff=None):
     """Per-step disturbance boxes: the true bicycle step minus `lateral_system`'s, over a box.
 
@@ -476,8 +472,8 @@ def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = 
         d_lo, d_hi = _out(d_lo + ff[0], d_hi + ff[1])
     dc_lo, dc_hi = np.clip(d_lo, -dmax, dmax), np.clip(d_hi, -dmax, dmax)
     c_lo, c_hi = dc_hi - d_hi, dc_lo - d_lo  # clip(x) - x, nonincreasing
-    g_lo, g_hi = _slip(dc_lo) - dc_lo / 2, _slip(dc_hi) - dc_hi / 2
-    b_lo, b_hi = _slip(dc_lo), _slip(dc_hi)
+    g_lo, g_hi = slip_angle(dc_lo) - dc_lo / 2, slip_angle(dc_hi) - dc_hi / 2
+    b_lo, b_hi = slip_angle(dc_lo), slip_angle(dc_hi)
     a_lo, a_hi = chi[0] + b_lo, chi[1] + b_hi
     ra_lo, ra_hi = a_lo - np.sin(a_lo), a_hi - np.sin(a_hi)
     rb_lo, rb_hi = b_lo - np.sin(b_lo), b_hi - np.sin(b_hi)
@@ -1327,7 +1323,7 @@ def forecast_traffic(
     half_w = widths / 2
     tau, settle = beh.pursuit_time, rules.lane_change_settled
     vmax = vehicle.max_speed
-    beta_max = float(_slip(vehicle.max_steering))
+    beta_max = float(slip_angle(vehicle.max_steering))
     eps = beh.speed_epsilon
     if isinstance(ego_route, np.ndarray) and ego_route.ndim == 2:
         if ego_route.shape != (steps + 1, n_lanes):
@@ -1533,8 +1529,8 @@ def forecast_traffic(
                 dc = _mul(
                     2 * vl_lo[flat] * dt / length,
                     2 * vl_hi[flat] * dt / length,
-                    np.sin(_slip(d_l[0])),
-                    np.sin(_slip(d_l[1])),
+                    np.sin(slip_angle(d_l[0])),
+                    np.sin(slip_angle(d_l[1])),
                 )
                 low_e[0][flat], low_e[1][flat] = _out(e_f[0] + de[0], e_f[1] + de[1])
                 low_c[0][flat], low_c[1][flat] = _out(c_f[0] + dc[0], c_f[1] + dc[1])
@@ -1548,7 +1544,9 @@ def forecast_traffic(
                 _, _, d_s, a_s = lateral_remainder(e_s, c_s, vs, (b1[0][sub], b1[1][sub]), q_s, dt, vehicle, ff=ffd)
                 dd = (vl_lo[sub] * dt, vl_hi[sub] * dt)
                 de_s = _mul(*dd, *sin_interval(*a_s))
-                dc_s = _mul(2 * dd[0] / length, 2 * dd[1] / length, np.sin(_slip(d_s[0])), np.sin(_slip(d_s[1])))
+                dc_s = _mul(
+                    2 * dd[0] / length, 2 * dd[1] / length, np.sin(slip_angle(d_s[0])), np.sin(slip_angle(d_s[1]))
+                )
                 zero = np.zeros(sub.size)
                 e_x, _, ds_c, turn_c = curved_terms(rsub, dd, e_s, a_s, (zero, zero), km, end_in)
                 low_e[0][sub], low_e[1][sub] = _out(e_s[0] + de_s[0] + e_x[0], e_s[1] + de_s[1] + e_x[1])
@@ -1567,7 +1565,8 @@ def forecast_traffic(
                 us, rs, ks = idx[sel], rr[sel], k_new[sel]
                 met = c_metrics[ks]
                 rho_cur = np.minimum(urho[us] * c_conv[umet[us], ks], metric_radius(met, e_lo[sel], e_hi[sel]))
-                # the speed box in geometric bins, as the vertex bound: lambda the largest over the bins
+                # the speed box in SPEED_BINS geometric bins (narrow boxes too: cheap and tighter), lambda the
+                # largest over the bins
                 nb_ = SPEED_BINS
                 rep = np.tile(sel, nb_)
                 j = np.repeat(np.arange(nb_), sel.size)
@@ -1590,7 +1589,7 @@ def forecast_traffic(
                 # lam is inf outside the bound's validity (no radius then, even for a point box)
                 rho[sel] = np.where(np.isfinite(lam), np.sqrt(lam) * rho_cur * (1.0 + CONTRACTION_MARGIN), np.inf)
                 h_i = ellipse_hull(met, rho[sel])
-                h_z = ellipse_hull(met, rho[sel], basis=T[rs])
+                h_z = ellipse_hull(met, rho[sel], to_basis=Tinv[rs])
                 ni_lo, ni_hi, nz_lo, nz_hi = ni_lo.copy(), ni_hi.copy(), nz_lo.copy(), nz_hi.copy()
                 ni_lo[sel], ni_hi[sel] = np.maximum(ni_lo[sel], -h_i), np.minimum(ni_hi[sel], h_i)
                 nz_lo[sel], nz_hi[sel] = np.maximum(nz_lo[sel], -h_z), np.minimum(nz_hi[sel], h_z)

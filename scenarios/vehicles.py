@@ -59,6 +59,7 @@ __all__ = [
     "StepRecord",
     "draw_parameters",
     "bicycle_step",
+    "slip_angle",
     "acceleration_features",
     "linear_acceleration",
     "steering_features",
@@ -551,6 +552,17 @@ def linear_steering(theta_b, features, max_steering: float):
     """
     raw = np.einsum("ij,ij->i", np.asarray(theta_b, dtype=float), np.asarray(features, dtype=float))
     return np.clip(raw, -max_steering, max_steering)
+
+
+def slip_angle(steering):
+    """The bicycle's slip angle ``beta = arctan(tan(delta) / 2)`` (rad) of a steering angle (rad).
+
+    Parameters
+    ----------
+    steering : array_like
+        delta, rad, in ``(-pi/2, pi/2)``.
+    """
+    return np.arctan(0.5 * np.tan(steering))
 
 
 def bicycle_step(states, acceleration, steering, dt: float, vehicle: VehicleParameters = VehicleParameters()):

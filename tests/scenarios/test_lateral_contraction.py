@@ -132,7 +132,7 @@ def test_radius_hull_and_conversion_are_sound(lo, width, seed):
     half = ellipse_hull(metric, rho)[0]
     assert np.all(np.abs(ring) <= half)
     basis = rng.normal(size=(2, 2)) + 2 * np.eye(2)
-    half_z = ellipse_hull(metric, rho, basis=basis[None])[0]
+    half_z = ellipse_hull(metric, rho, to_basis=np.linalg.inv(basis)[None])[0]
     assert np.all(np.abs(np.linalg.solve(basis, ring.T).T) <= half_z)
     unit = np.linalg.solve(c.T, np.stack([np.cos(ang), np.sin(ang)])).T  # ||x||_{P_i} = 1
     ratio = np.sqrt(_norm2(metrics[j], unit[:, 0], unit[:, 1]))
@@ -142,9 +142,79 @@ def test_radius_hull_and_conversion_are_sound(lo, width, seed):
 
 def test_bad_input_is_a_typed_error():
     box = (np.zeros(1), np.ones(1))
+    speed = (np.ones(1), np.ones(1))
+    eye = np.eye(2)[None]
     with pytest.raises(DimensionError, match="metric"):
-        contraction_factor(np.eye(2), box, box, (np.ones(1), np.ones(1)), box, box, 0.1)
-    with pytest.raises(InputError, match="v"):
-        contraction_factor(np.eye(2)[None], box, box, (np.zeros(1), np.ones(1)), box, box, 0.1)
+        contraction_factor(np.eye(2), box, box, speed, box, box, 0.1)
+    with pytest.raises(InputError, match="v must"):
+        contraction_factor(eye, box, box, (np.zeros(1), np.ones(1)), box, box, 0.1)
+    with pytest.raises(InputError, match="dt"):
+        contraction_factor(eye, box, box, speed, box, box, 0.0)
+    with pytest.raises(DimensionError, match="chi"):
+        contraction_factor(eye, box, (np.zeros(3), np.ones(3)), speed, box, box, 0.1)
+    with pytest.raises(InputError, match="e must"):
+        contraction_factor(eye, (np.ones(1), np.zeros(1)), box, speed, box, box, 0.1)
+    with pytest.raises(InputError, match="positive definite"):
+        contraction_factor(np.array([[[1.0, 2.0], [2.0, 1.0]]]), box, box, speed, box, box, 0.1)
+    with pytest.raises(InputError, match="symmetric"):
+        metric_radius(np.array([[[1.0, 0.1], [0.0, 1.0]]]), np.zeros((1, 2)), np.ones((1, 2)))
+    with pytest.raises(DimensionError, match="lo, hi"):
+        metric_radius(eye, np.zeros(2), np.ones(2))
+    with pytest.raises(DimensionError, match="radius"):
+        ellipse_hull(eye, np.ones(2))
+    with pytest.raises(InputError, match="radius"):
+        ellipse_hull(eye, np.array([np.nan]))
+    with pytest.raises(DimensionError, match="to_basis"):
+        ellipse_hull(eye, np.ones(1), to_basis=np.eye(2))
     with pytest.raises(InputError, match="dt"):
         contraction_metrics(-0.1)
+
+
+@given(
+    speeds=st.lists(st.tuples(st.floats(3.0, 35.0), st.floats(1.0, 1.6)), min_size=5, max_size=25),
+    e0=st.floats(-1.5, 1.5),
+    chi0=st.floats(-0.3, 0.3),
+    dt=st.floats(0.03, 0.25),
+    seed=st.integers(0, 2**31),
+)
+def test_a_radius_carried_over_switching_speeds_contains_the_world(speeds, e0, chi0, dt, seed):
+    """The forecast's recursion over many steps: the radius contracted by the factor over the ellipse's
+    hull, converted whenever the speed box moves to another metric, holds every state of the world's
+    law and bicycle, each vehicle's speed switching inside each step's box and its gains fixed."""
+    rng = np.random.default_rng(seed)
+    nodes, metrics, conversion = contraction_metrics(dt, VEHICLE, BEHAVIOUR)
+    lo_b, hi_b = np.asarray(BEHAVIOUR.theta_b_prior[0]), np.asarray(BEHAVIOUR.theta_b_prior[1])
+    k = 200
+    gains = rng.uniform(lo_b, hi_b, (k, 2))
+    e = e0 + rng.uniform(-0.05, 0.05, k)
+    chi = chi0 + rng.uniform(-0.02, 0.02, k)
+    e[:2], chi[:2] = e0 - 0.05, chi0 + 0.02  # box corners
+    box_lo, box_hi = np.array([[e0 - 0.05, chi0 - 0.02]]), np.array([[e0 + 0.05, chi0 + 0.02]])
+    index, rho = 0, None
+    for v_lo, ratio in speeds:
+        v_hi = min(v_lo * ratio, VEHICLE.max_speed)
+        node = int(np.argmin(np.abs(np.log(nodes) - 0.5 * np.log(v_lo * v_hi))))
+        metric = metrics[node][None]
+        if rho is None:
+            rho = metric_radius(metric, box_lo, box_hi)[0]
+        else:
+            rho = rho * conversion[index, node]
+            half = ellipse_hull(metric, np.array([rho]))[0]
+            box_lo, box_hi = -half[None], half[None]
+        index = node
+        lam = contraction_factor(
+            metric,
+            (box_lo[:, 0], box_hi[:, 0]),
+            (box_lo[:, 1], box_hi[:, 1]),
+            (np.array([v_lo]), np.array([v_hi])),
+            (np.array([lo_b[0]]), np.array([hi_b[0]])),
+            (np.array([lo_b[1] / v_hi]), np.array([hi_b[1] / v_lo])),
+            dt,
+            VEHICLE,
+        )[0]
+        assert np.all(np.sqrt(_norm2(metric[0], e, chi)) <= rho * (1 + 1e-12))
+        if not np.isfinite(lam):
+            return
+        e, chi = _world_step(e, chi, rng.uniform(v_lo, v_hi, k), gains, dt)
+        rho = np.sqrt(lam) * rho
+    assert np.all(np.sqrt(_norm2(metrics[index], e, chi)) <= rho * (1 + 1e-12))
