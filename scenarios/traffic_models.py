@@ -958,6 +958,7 @@ def forecast_traffic(
     road_edges: bool = True,
     ego_speed=None,
     ego_heading=None,
+    lateral_contraction: bool = True,
 ) -> TrafficForecast:
     """Sound boxes of every other vehicle of an observation over ``steps`` sub-steps.
 
@@ -995,6 +996,11 @@ def forecast_traffic(
         conservative: the planner knows the ego's route position and can pass the
         lanes it may reach); on the highway the ego's route lane is the side lane
         nearest to its centre, which its rectangle always touches, so nothing is needed.
+    lateral_contraction : bool
+        Whether the fine units on straight lanes carry the contraction radius of
+        `lateral_contraction` (their boxes intersected with its ellipse's hull). Both
+        settings are sound; False gives the interval boxes alone (for comparison: the
+        benchmark's and the tests' reference).
 
     Returns
     -------
@@ -1557,6 +1563,8 @@ def forecast_traffic(
 
         def contract(nz_lo, nz_hi, ni_lo, ni_hi):
             """The boxes intersected with the hull of the units' contraction ellipse (straight lanes, v >= V_MIN)."""
+            if not lateral_contraction:
+                return nz_lo, nz_hi, ni_lo, ni_hi
             ok = ~curved_u & (vlo >= V_MIN) & np.all(np.isfinite(e_lo) & np.isfinite(e_hi), axis=1)
             rho = np.full(len(idx), np.inf)
             k_new = np.argmin(np.abs(log_nodes[None, :] - 0.5 * np.log(vf_lo_ * vf_hi_)[:, None]), axis=1)

@@ -84,7 +84,7 @@ def _episode(kind, seed, dt, length, rules=None, extreme=True):
     return world, (states, ego_lanes), observations, changes
 
 
-def _check(world, run, observations, t0, steps, intentions=None):
+def _check(world, run, observations, t0, steps, intentions=None, *, lateral_contraction=True):
     """Forecast at t0 with prior beliefs (or the true intention lanes at t0) and the exact ego.
 
     Returns (misses, checked vehicle-steps, forecast).
@@ -111,6 +111,7 @@ def _check(world, run, observations, t0, steps, intentions=None):
         ego_speed=speed,
         ego_heading=heading,
         ego_route=route,
+        lateral_contraction=lateral_contraction,
     )
     misses = checked = 0
     for n in range(steps + 1):
@@ -147,28 +148,24 @@ def test_forecast_contains_every_vehicle(kind, seed, dt, when):
 
 
 @pytest.mark.parametrize("kind", ["highway", "tjunction"])
-def test_the_contraction_radius_keeps_forecasts_guaranteed_longer(kind, monkeypatch):
+def test_the_contraction_radius_keeps_forecasts_guaranteed_longer(kind):
     """The lateral contraction ellipse (`lateral_contraction`) keeps more vehicle-steps on the fine model
-    than the interval boxes alone (`contraction_factor` replaced by inf: no radius), and both contain the
-    world (prior beliefs, disturbances at their extremes)."""
-    import minimaxplan.scenarios.traffic_models as traffic_models
+    than the interval boxes alone (``lateral_contraction=False``), and both contain the world (prior
+    beliefs, disturbances at their extremes)."""
 
-    def guaranteed_steps():
+    def guaranteed_steps(contraction):
         total = missed = 0
         for seed in range(3):
             world, run, observations, _ = _episode(kind, seed, 0.1, 71)
             for t0 in (20, 40):
                 if t0 + 30 < len(run[0]):
-                    misses, _, forecast = _check(world, run, observations, t0, 30)
+                    misses, _, forecast = _check(world, run, observations, t0, 30, lateral_contraction=contraction)
                     total += int(np.sum(forecast.guaranteed))
                     missed += misses
         return total, missed
 
-    with_radius, missed_with = guaranteed_steps()
-    original = traffic_models.contraction_factor
-    monkeypatch.setattr(traffic_models, "contraction_factor", lambda *a, **k: np.full(len(a[0]), np.inf))
-    without_radius, missed_without = guaranteed_steps()
-    monkeypatch.setattr(traffic_models, "contraction_factor", original)
+    with_radius, missed_with = guaranteed_steps(True)
+    without_radius, missed_without = guaranteed_steps(False)
     assert missed_with == 0 and missed_without == 0
     assert with_radius > without_radius, (with_radius, without_radius)
 
