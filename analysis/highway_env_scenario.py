@@ -37,7 +37,10 @@ robust
     lane-keeping sequences (SLOWER/IDLE/FASTER, `LANE_KEEPING_NAMES`), which a sequence
     reads up to its last lane-keeping sub-step (`kept_substeps`), the general one after:
     sound because a forecast's boxes up to sub-step n read the ego's reach only up to n
-    (as the road worlds' lane-keeping forecast). A `PredictingPolicy`: the ego's
+    (as the road worlds' lane-keeping forecast). When the best-valued sequence may
+    collide within the horizon, the executed one is the best-valued of those whose
+    first possible collision is the latest (`latest_clear_sequence`, the road worlds'
+    latest-collision rule). A `PredictingPolicy`: the ego's
     predicted state and the state boxes of the forecast that valued the executed
     decision are checked after each sub-step (``boxes_checked``, ``boxes_missed``).
 nominal
@@ -90,6 +93,7 @@ __all__ = [
     "lane_keeping_sequences",
     "kept_substeps",
     "box_overlaps",
+    "latest_clear_sequence",
     "learner_scenario",
     "LEARNER_NOISE",
     "LANE_KEEPING_NAMES",
@@ -467,12 +471,48 @@ def box_overlaps(boxes: np.ndarray, other: np.ndarray) -> np.ndarray:
     return np.any(overlap, axis=2)
 
 
+def latest_clear_sequence(alive: np.ndarray, values: np.ndarray) -> int:
+    """The best-valued sequence, unless it may collide sooner than another: then the best of those clear longest.
+
+    The road worlds' rule (`minimaxplan.analysis.road_planning.latest_collision_action`)
+    for an exhaustive search: when the best-valued sequence may collide within the
+    forecast, its value is the reward collected before that possible collision, and a
+    sequence that takes speed first may collect more of it for a collision a few
+    sub-steps earlier, giving up the time in which new measurements shrink the boxes.
+
+    Parameters
+    ----------
+    alive : numpy.ndarray of bool, shape (sequences, steps + 1)
+        Whether each sequence is still clear of every box up to each sub-step
+        (nonincreasing along a row).
+    values : numpy.ndarray, shape (sequences,)
+        The sequences' discounted values.
+
+    Returns
+    -------
+    int
+        The index of the best-valued sequence among those whose first possible collision
+        is the latest (the first on ties; every clear sequence qualifies when one is).
+    """
+    alive = np.asarray(alive, dtype=bool)
+    values = np.asarray(values, dtype=float)
+    if alive.ndim != 2 or values.shape != (alive.shape[0],) or alive.shape[0] == 0:
+        raise DimensionError(
+            f"alive must have shape (sequences, steps + 1) and values (sequences,), got {alive.shape} and {values.shape}"
+        )
+    clear = alive.sum(axis=1)
+    candidates = np.flatnonzero(clear == clear.max())
+    return int(candidates[np.argmax(values[candidates])])
+
+
 class _SearchMethod(Method[HighwayEnvWorld]):
     """The exhaustive search over `SEARCH_DECISIONS` meta-actions shared by robust and nominal."""
 
     predicting = False
     #: Value the paths that keep their lane against a second forecast from the lane-keeping reach.
     lane_keeping = False
+    #: When every sequence may collide, take the one clear longest (`latest_clear_sequence`).
+    latest_collision = False
 
     def __init__(self, scenario: Any, config: LoopConfig) -> None:
         if not isinstance(scenario, HighwayEnvScenario):
@@ -566,6 +606,8 @@ class _SearchMethod(Method[HighwayEnvWorld]):
         discount = self.config.gamma ** (np.arange(steps + 1) / S)
         values = (rewards[:, 1:] * discount[1:]).sum(axis=1)
         best = int(np.argmax(values))  # ties: the first sequence (SLOWER first at the intersection)
+        if self.latest_collision and not alive[best, -1]:
+            best = latest_clear_sequence(alive, values)
         first = int(self.sequences[best, 0])
         predicted: dict[int, dict[str, tuple]] = {}
         if self.predicting:
@@ -634,6 +676,7 @@ class HighwayEnvRobustMethod(_SearchMethod):
 
     predicting = True
     lane_keeping = True
+    latest_collision = True
 
     def start(self, world: HighwayEnvWorld) -> None:
         """Enumerate the sequences; on the highway, a `TrafficLearner` of the episode.

@@ -168,6 +168,27 @@ def test_lane_keeping_sequences_and_the_substeps_they_keep():
     np.testing.assert_array_equal(kept_substeps(sequences, names, 5, 25), [25, 25, 5, 0, 0, 5])
 
 
+def test_latest_clear_sequence_keeps_the_best_clear_plan_else_delays_the_first_possible_collision():
+    from minimaxplan.analysis.highway_env_scenario import latest_clear_sequence
+    from minimaxplan.models import DimensionError
+
+    def alive(*clear, steps=6):
+        return np.arange(steps)[None, :] < np.array(clear)[:, None]
+
+    values = np.array([0.9, 0.5, 0.7, 0.2])
+    # some sequences clear over the whole horizon: the best-valued of them (not the best overall)
+    assert latest_clear_sequence(alive(3, 6, 6, 2), values) == 2
+    # none clear: the longest clear wins over a higher value that may collide sooner
+    assert latest_clear_sequence(alive(3, 4, 2, 4), values) == 1
+    # ties in the first possible collision: the value decides, then the first index
+    assert latest_clear_sequence(alive(4, 4, 4, 1), values) == 0
+    assert latest_clear_sequence(alive(2, 2), np.array([0.3, 0.3])) == 0
+    with pytest.raises(DimensionError, match="values"):
+        latest_clear_sequence(alive(3, 4), values)
+    with pytest.raises(DimensionError, match="alive"):
+        latest_clear_sequence(np.ones(4, dtype=bool), values)
+
+
 def test_sequence_reach_is_the_union_of_the_rectangles_rounded_outward():
     from minimaxplan.analysis.highway_env_scenario import sequence_reach
     from minimaxplan.models import DimensionError
