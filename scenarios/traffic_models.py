@@ -53,7 +53,7 @@ import numpy as np
 from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.models.sets import Box
 from minimaxplan.models.system import UncertainLinearSystem
-from minimaxplan.models.validation import as_finite_array, frozen_copy
+from minimaxplan.models.validation import as_finite_array, check_instance, frozen_copy
 
 from .lateral_contraction import (
     CONTRACTION_MARGIN,
@@ -1056,6 +1056,8 @@ def forecast_traffic(
     steps = int(steps)
     if steps < 0:
         raise InputError(f"steps must be >= 0, got {steps}")
+    check_instance("road_edges", road_edges, (bool, np.bool_), "a bool")
+    check_instance("lateral_contraction", lateral_contraction, (bool, np.bool_), "a bool")
     ids = np.asarray(observation.ids, dtype=int)
     meas = np.asarray(observation.vehicles, dtype=float).reshape(-1, 4)
     m = len(ids)

@@ -517,6 +517,9 @@ def test_prior_belief_and_forecast_shapes():
     assert set(data) == {"boxes", "state_lower", "state_upper", "guaranteed", "ids", "dt"}
     with pytest.raises(DimensionError):
         forecast_traffic(obs, world.road, world.scenario, {}, steps=5, ego_reach=empty[:3])
+    for flag in ("road_edges", "lateral_contraction"):
+        with pytest.raises(InputError, match=f"{flag} must be a bool, got str"):
+            forecast_traffic(obs, world.road, world.scenario, {}, steps=5, ego_reach=empty, **{flag: "no"})
     with pytest.raises(DimensionError):
         VehicleBelief(1, Box(np.zeros(2), np.ones(2)), belief.theta_b, (0,), ((0,),))
     with pytest.raises(InputError):
