@@ -1318,6 +1318,7 @@ def forecast_traffic(
         arr[:R][~alive] = val
     # each unit's contraction radius (`lateral_contraction`): its states satisfy ||x||_P <= rho in the
     # metric P of index umet (inf: no radius yet)
+    # (without the radius: never read, so never kept up to date)
     c_speeds, c_metrics, c_conv = contraction_metrics(float(dt), vehicle, beh)
     log_nodes = np.log(c_speeds)
     urho = np.full(U, np.inf)
@@ -1748,12 +1749,16 @@ def forecast_traffic(
                     for d in range(2):
                         k = cohort[:, d]
                         old = ualive[k]
-                        # the merged states satisfy either ellipse: the larger radius in the row's metric
-                        from_k = np.minimum(
-                            urho[k] * c_conv[umet[k], umet[:R]], metric_radius(c_metrics[umet[:R]], eu_lo[k], eu_hi[k])
-                        )
-                        urho[:R] = np.where(old, np.where(ualive[:R], np.maximum(urho[:R], from_k), from_k), urho[:R])
-                        urho[k] = np.inf
+                        if lateral_contraction:
+                            # the merged states satisfy either ellipse: the larger radius in the row's metric
+                            from_k = np.minimum(
+                                urho[k] * c_conv[umet[k], umet[:R]],
+                                metric_radius(c_metrics[umet[:R]], eu_lo[k], eu_hi[k]),
+                            )
+                            urho[:R] = np.where(
+                                old, np.where(ualive[:R], np.maximum(urho[:R], from_k), from_k), urho[:R]
+                            )
+                            urho[k] = np.inf
                         for lo_a, hi_a in ((ui_lo, ui_hi), (uz_lo, uz_hi)):
                             lo_a[:R] = np.where(old[:, None], np.minimum(lo_a[:R], lo_a[k]), lo_a[:R])
                             hi_a[:R] = np.where(old[:, None], np.maximum(hi_a[:R], hi_a[k]), hi_a[:R])
@@ -1799,9 +1804,10 @@ def forecast_traffic(
                     for lo_a, hi_a, a_lo, a_hi in ((ui_lo, ui_hi, ii_lo, ii_hi), (uz_lo, uz_hi, zi_lo, zi_hi)):
                         lo_a[k] = np.where(both[:, None], np.minimum(lo_a[k], a_lo), lo_a[k])
                         hi_a[k] = np.where(both[:, None], np.maximum(hi_a[k], a_hi), hi_a[k])
-                    # the cohort's new states: the radius of their box joins the cohort's
-                    entry = metric_radius(c_metrics[umet[k]], ii_lo, ii_hi)
-                    urho[k] = np.where(both, np.where(ualive[k], np.maximum(urho[k], entry), entry), urho[k])
+                    if lateral_contraction:
+                        # the cohort's new states: the radius of their box joins the cohort's
+                        entry = metric_radius(c_metrics[umet[k]], ii_lo, ii_hi)
+                        urho[k] = np.where(both, np.where(ualive[k], np.maximum(urho[k], entry), entry), urho[k])
                     ualive[k] |= both
                     grow = both | coarse_in
                     for q, (arr, op) in enumerate(
