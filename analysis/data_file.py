@@ -26,7 +26,17 @@ class DataFileError(InputError):
 
 @dataclass(frozen=True, eq=False)
 class TransitionData:
-    """One observed trajectory: ``states`` (N+1, p) and ``controls`` (N, q)."""
+    """One observed trajectory: ``states`` (N+1, p) and ``controls`` (N, q).
+
+    Attributes
+    ----------
+    states : numpy.ndarray
+        Shape (N+1, p): the states ``x_0 .. x_N`` (state units).
+    controls : numpy.ndarray
+        Shape (N, q): the controls ``u_0 .. u_{N-1}``, ``u_n`` applied after ``x_n``.
+    source : str
+        Where the data came from: the file's path, or ``"<arrays>"``.
+    """
 
     states: np.ndarray
     controls: np.ndarray
@@ -34,9 +44,11 @@ class TransitionData:
 
     @property
     def ntransitions(self) -> int:
+        """N, the number of transitions (rows of ``controls``)."""
         return self.controls.shape[0]
 
     def to_dict(self) -> dict:
+        """The trajectory as a dict of plain Python values (``source``, ``states``, ``controls``), for JSON."""
         return {"source": self.source, "states": self.states.tolist(), "controls": self.controls.tolist()}
 
 
@@ -51,6 +63,16 @@ def load_data_file(path) -> TransitionData:
     applied after it. The last row's controls are not used (there is no next state):
     leave them empty or give any finite number. NPZ: arrays ``states`` (N+1, p) and
     ``controls`` (N, q); other arrays in the file are ignored.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The data file, ending in ``.csv`` or ``.npz`` (any case).
+
+    Returns
+    -------
+    TransitionData
+        The trajectory, read-only float arrays; ``source`` is the path.
 
     Raises
     ------

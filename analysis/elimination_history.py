@@ -78,6 +78,7 @@ class EliminationHistory:
         return out
 
     def to_dict(self) -> dict:
+        """The history as a dict of plain Python values (nested lists for the arrays), for JSON."""
         return {
             "names": list(self.names),
             "sample_sizes": self.sample_sizes.tolist(),
@@ -112,6 +113,7 @@ class ParameterSetHistory:
     prior: Box
 
     def to_dict(self) -> dict:
+        """The history as a dict of plain Python values (nested lists, the prior as `Box.to_dict`), for JSON."""
         return {
             "sample_sizes": self.sample_sizes.tolist(),
             "feasible_low": self.feasible_low.tolist(),

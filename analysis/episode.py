@@ -148,6 +148,33 @@ class EpisodeRecord:
     worlds) after every sub-step, and the sub-step index of every decision
     (``decision_steps``). Neither ``trajectory``, ``trace`` nor ``extra`` (but its
     Assumption 4 report) enters `row`.
+
+    Attributes
+    ----------
+    scenario, method : str
+        The registered names of the scenario and of the method.
+    seed : int
+        The episode's seed.
+    outcome : str
+        How the episode ended (see above).
+    time_s : float
+        Simulated time at the end of the episode, s.
+    discounted_return : float
+        ``sum_i gamma^i r_i`` over the decisions, ``r_i`` the smallest true reward over
+        the sub-steps of decision i.
+    decisions : int
+        Decisions taken.
+    wall_time_s : float
+        Wall-clock time of the whole job (building the scenario and method included), s.
+    boxes_checked, boxes_missed : int
+        Predicted boxes checked against the true states, and the misses among them.
+    trajectory : tuple of tuple of float
+        The agent's true position (`World.position`) at the start and after every
+        sub-step, rounded to 4 decimals.
+    extra : dict
+        The method's report, the world's setup and the run-time check (see above).
+    trace : dict
+        ``dt``, ``states``, ``pedestrians`` and ``decision_steps`` (see above).
     """
 
     scenario: str
@@ -166,6 +193,7 @@ class EpisodeRecord:
 
     @property
     def success(self) -> bool:
+        """True iff the outcome is "goal"."""
         return self.outcome == "goal"
 
     def row(self) -> dict:
@@ -184,6 +212,20 @@ class EpisodeJob:
     """One episode to run, with the factories that build its scenario and method.
 
     Picklable: it is what a worker process of the pool or of Dask receives.
+
+    Attributes
+    ----------
+    scenario, method : str
+        The registered names of the scenario and of the method.
+    seed : int
+        The episode's seed (>= 0).
+    config : LoopConfig
+        The loop settings.
+    scenario_factory : Factory
+        ``factory() -> Scenario``, as registered (`scenario_factory`).
+    method_factory : Factory
+        ``factory(scenario, config) -> Method``: the one registered under ``method`` that
+        supports the scenario (`method_factory`).
     """
 
     scenario: str
@@ -346,7 +388,18 @@ class _Trace:
 
 
 def run_job(job: EpisodeJob) -> EpisodeRecord:
-    """Run ``job`` (in whichever process receives it); see `run_episode`."""
+    """Run ``job`` (in whichever process receives it); see `run_episode`.
+
+    Parameters
+    ----------
+    job : EpisodeJob
+        The episode to run: its factories build the scenario and the method here.
+
+    Returns
+    -------
+    EpisodeRecord
+        The outcome of the episode.
+    """
     started = wallclock.perf_counter()
     scenario = resolve(job.scenario_factory)()
     world = scenario.make_world(job.seed, job.config)
@@ -425,6 +478,18 @@ def make_job(
 
     ``built`` may pass the scenario instance already made from its factory.
 
+    Parameters
+    ----------
+    scenario, method : str
+        Registered names of the scenario and of the method.
+    seed : int
+        The episode's seed (>= 0).
+    config : LoopConfig
+        The loop settings.
+    built : Scenario, optional
+        The scenario already made from its factory (default: make it here, to find the
+        method's factory that supports it).
+
     Raises
     ------
     UnknownScenario, UnknownMethod, UnsupportedScenario
@@ -444,6 +509,20 @@ def run_episode(scenario: str, method: str, seed: int, config: LoopConfig = DEFA
 
     The discounted return is ``sum_i gamma^i r_i`` over the decisions, ``r_i`` the
     smallest true reward over the sub-steps of decision i.
+
+    Parameters
+    ----------
+    scenario, method : str
+        Registered names of the scenario and of the method.
+    seed : int
+        The episode's seed (>= 0).
+    config : LoopConfig
+        The loop settings.
+
+    Returns
+    -------
+    EpisodeRecord
+        The outcome of the episode.
 
     Raises
     ------

@@ -302,7 +302,20 @@ def markdown_table(summary: Sequence[dict]) -> str:
 
 
 def write_outputs(result: ExperimentResult, out_dir: str | os.PathLike) -> pathlib.Path:
-    """Write summary.json, episodes.csv and table.md (and table4.md for driving runs) into ``out_dir``; returns its path."""
+    """Write summary.json, episodes.csv and table.md (and table4.md for driving runs) into ``out_dir``.
+
+    Parameters
+    ----------
+    result : ExperimentResult
+        The run to write (at least one record).
+    out_dir : str or os.PathLike
+        The output directory, created (with its parents) if missing.
+
+    Returns
+    -------
+    pathlib.Path
+        The output directory.
+    """
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.json").write_text(json.dumps(list(result.summary), indent=2, allow_nan=True) + "\n")

@@ -703,7 +703,14 @@ class HighwayEnvRobustMethod(_SearchMethod):
             self._learned = observation.time
 
     def observe(self, transition) -> None:
-        """Feed the learner the sub-step's observation (the highway)."""
+        """Feed the learner the sub-step's observation (the highway).
+
+        Parameters
+        ----------
+        transition : Transition
+            The sub-step; its ``next_measured`` `Observation` goes to the learner (none
+            off the highway).
+        """
         self._learn(transition.next_measured)
 
     def forecast(self, observation: Observation, reach, speed, heading) -> TrafficForecast:

@@ -116,6 +116,13 @@ class ModelHypothesis:
         vertices of the prior box ``theta``, whose convex hull contains every
         ``A(theta)`` because ``A`` is affine in theta (eq. (2)).
 
+        Parameters
+        ----------
+        form : {"discrete", "continuous"}
+            The LMI's form (`system_for`).
+        vertices : bool
+            The matrices at the vertices of ``theta`` (True) or at its centre (False).
+
         Raises
         ------
         ModelFileError
@@ -126,6 +133,7 @@ class ModelHypothesis:
         return system.A(points), np.array(system.D)
 
     def to_dict(self) -> dict:
+        """The model as a dict of plain Python values (systems as `UncertainLinearSystem.to_dict`), for JSON."""
         out = {"name": self.name, "time": self.time, "dt": self.dt, "system": self.system.to_dict()}
         if self.continuous_system is not None:
             out["continuous_system"] = self.continuous_system.to_dict()
@@ -140,6 +148,17 @@ class ModelFile:
     measurement noise of every state coordinate (DESIGN errata). ``state_names`` and
     ``state_units`` are None or p strings (the reports label states and margins with
     them).
+
+    Attributes
+    ----------
+    hypotheses : tuple of ModelHypothesis
+        The file's models, in file order (unique names, same numbers of states and inputs).
+    measurement_noise : numpy.ndarray or None
+        Shape (p,), state units: the bound ``v_bar``, or None (no measurement noise).
+    source : str
+        Where the text came from: the file's path, or ``"<string>"``.
+    state_names, state_units : tuple of str or None
+        p labels and p units of the states, or None.
     """
 
     hypotheses: tuple[ModelHypothesis, ...]
@@ -150,20 +169,34 @@ class ModelFile:
 
     @property
     def names(self) -> list[str]:
+        """The models' names, in file order."""
         return [h.name for h in self.hypotheses]
 
     @property
     def systems(self) -> list[UncertainLinearSystem]:
+        """The models' discrete-time systems (`ModelHypothesis.system`), in file order."""
         return [h.system for h in self.hypotheses]
 
     def select(self, name: str) -> ModelFile:
-        """The same file restricted to the model called ``name``."""
+        """The same file restricted to the model called ``name``.
+
+        Parameters
+        ----------
+        name : str
+            The name of one of the file's models (`names`).
+
+        Raises
+        ------
+        ModelFileError
+            If no model has that name.
+        """
         chosen = tuple(h for h in self.hypotheses if h.name == name)
         if not chosen:
             raise ModelFileError(f"{self.source}: no model named {name!r}; the file holds {self.names}")
         return ModelFile(chosen, self.measurement_noise, self.source, self.state_names, self.state_units)
 
     def to_dict(self) -> dict:
+        """The file's contents as a dict of plain Python values (`ModelHypothesis.to_dict` per model), for JSON."""
         return {
             "source": self.source,
             "hypotheses": [h.to_dict() for h in self.hypotheses],
@@ -176,6 +209,11 @@ class ModelFile:
 # ----------------------------------------------------------------- reading models
 def load_model_file(path) -> ModelFile:
     """Read a TOML model file (format: ``docs/model-format.md``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The model file (UTF-8 TOML).
 
     Raises
     ------
@@ -197,7 +235,16 @@ def load_model_file(path) -> ModelFile:
 
 
 def parse_model_file(text: str, *, source: str = "<string>") -> ModelFile:
-    """Parse the text of a TOML model file; see `load_model_file`."""
+    """Parse the text of a TOML model file; see `load_model_file`.
+
+    Parameters
+    ----------
+    text : str
+        The TOML text.
+    source : str
+        Where the text came from, used in error messages and as `ModelFile.source`
+        (and, for a single-model file without ``name``, its stem names the model).
+    """
     try:
         document = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -400,6 +447,15 @@ def format_model_file(
 
     Numbers are written with ``repr``, which round-trips float64 exactly. A
     continuous-time hypothesis is written with its continuous-time matrices and ``dt``.
+
+    Parameters
+    ----------
+    hypotheses : sequence of ModelHypothesis
+        The models, written as ``[[hypothesis]]`` tables in this order.
+    measurement_noise : float or array_like, optional
+        The bound ``v_bar`` (a number, or shape (p,), state units); omitted if None.
+    header : str, optional
+        Text written first, each line as a TOML comment (``# ...``).
     """
     lines = [f"# {line}" for line in (header or "").splitlines()]
     if measurement_noise is not None:

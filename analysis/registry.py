@@ -509,7 +509,18 @@ def method_names() -> list[str]:
 
 
 def resolve(factory: Factory) -> Callable[..., Any]:
-    """The callable a factory names (``"module:qualname"`` imported, a callable as is)."""
+    """The callable a factory names (``"module:qualname"`` imported, a callable as is).
+
+    Parameters
+    ----------
+    factory : Factory
+        A callable, or a ``"package.module:qualname"`` string.
+
+    Raises
+    ------
+    InputError
+        If the string's module or name cannot be imported.
+    """
     if not isinstance(factory, str):
         return factory
     module_name, qualname = factory.split(":")
@@ -524,6 +535,11 @@ def resolve(factory: Factory) -> Callable[..., Any]:
 
 def scenario_factory(name: str) -> Factory:
     """The factory registered for scenario ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A registered scenario name (`scenario_names`).
 
     Raises
     ------
@@ -540,6 +556,15 @@ def method_factory(name: str, scenario: Scenario, config: Any) -> Factory:
     """The newest factory registered for method ``name`` that supports ``scenario``.
 
     Each candidate is called once, ``factory(scenario, config)``, to find out.
+
+    Parameters
+    ----------
+    name : str
+        A registered method name (`method_names`).
+    scenario : Scenario
+        The scenario instance the method must drive.
+    config : LoopConfig
+        The loop settings passed to each candidate factory.
 
     Raises
     ------

@@ -39,7 +39,14 @@ REPORT_FORMAT_VERSION = 1
 
 # ------------------------------------------------------------------- helpers
 def to_json(document: dict) -> str:
-    """``document`` as indented JSON; numpy scalars and arrays become numbers and lists."""
+    """``document`` as indented JSON; numpy scalars and arrays become numbers and lists.
+
+    Parameters
+    ----------
+    document : dict
+        The document; values with a ``to_dict`` method are written as its result, NaN as
+        null and infinities as the strings ``"inf"`` and ``"-inf"``.
+    """
     return json.dumps(_plain(document), indent=2, allow_nan=False) + "\n"
 
 
@@ -170,6 +177,7 @@ class LMIReport:
 
     @property
     def verdict(self) -> str:
+        """The verdict in one sentence: Assumption 4 holds, fails (proven), or is inconclusive (and why)."""
         status = self.result.status
         if self.result.holds:
             return "Assumption 4 holds: feasible, certificate re-checked exactly"
@@ -184,6 +192,7 @@ class LMIReport:
         return f"inconclusive: {reason}" if reason else f"inconclusive (status {status.value!r})"
 
     def state_eigenvalues(self) -> list[np.ndarray]:
+        """Per matrix, the eigenvalues of A, shape (p,) complex, sorted by real then imaginary part."""
         return [_sorted_eigenvalues(a) for a in self.matrices]
 
     def stability_margins(self) -> np.ndarray:
@@ -201,6 +210,7 @@ class LMIReport:
         return np.array([np.linalg.eigvalsh(lmi_matrix(a, P, Q0, rho, self.D, self.form))[-1] for a in self.matrices])
 
     def to_dict(self) -> dict:
+        """The report as a dict of plain Python values, for JSON (per matrix its eigenvalues and margins)."""
         margins = self.lmi_max_eigenvalues()
         P = getattr(self.result, "P", None)
         Q0 = getattr(self.result, "Q0", None)
@@ -235,6 +245,11 @@ class LMIReport:
         }
 
     def to_markdown(self) -> str:
+        """The model's Markdown section: verdict and solver, the margins per matrix, the certificate, the region map.
+
+        The certificate's table gives the eigenvalues of P and Q0, and Theorem 2's bound
+        constants when Assumption 4 holds; the region map appears when it was computed.
+        """
         result = self.result
         what = (
             f"{len(self.matrices)} vertices of A(theta) over the parameter box, one common P"
@@ -400,7 +415,17 @@ def _regions_markdown(regions: RegionMap) -> list[str]:
 
 
 def lmi_reports_to_dict(reports: Sequence[LMIReport], *, source: str, exit_code: int) -> dict:
-    """The JSON document of ``minimaxplan lmi``."""
+    """The JSON document of ``minimaxplan lmi``.
+
+    Parameters
+    ----------
+    reports : sequence of LMIReport
+        One per model checked, in file order.
+    source : str
+        The model file's path.
+    exit_code : int
+        The command's exit status (`EXIT_HOLDS` or `EXIT_FAILS`), recorded in the document.
+    """
     return {
         "command": "lmi",
         "format_version": REPORT_FORMAT_VERSION,
@@ -412,7 +437,15 @@ def lmi_reports_to_dict(reports: Sequence[LMIReport], *, source: str, exit_code:
 
 
 def render_lmi_reports(reports: Sequence[LMIReport], *, source: str) -> str:
-    """The Markdown document of ``minimaxplan lmi``: a summary table, then one section per model."""
+    """The Markdown document of ``minimaxplan lmi``: a summary table, then one section per model.
+
+    Parameters
+    ----------
+    reports : sequence of LMIReport
+        One per model checked, in file order.
+    source : str
+        The model file's path, named in the title.
+    """
     lines = [f"# Assumption 4 (LMI) report: `{source}`", ""]
     rows = [
         (
@@ -516,17 +549,31 @@ class SelectionReport:
 
     @property
     def survivors(self) -> list[int]:
+        """The indices of the surviving hypotheses (`SelectionResult.survivors`)."""
         return list(self.result.survivors)
 
     def state_label(self, j: int) -> str:
-        """The name of state ``j`` (``x<j>`` when the model file names none)."""
+        """The name of state ``j`` (``x<j>`` when the model file names none).
+
+        Parameters
+        ----------
+        j : int
+            A state index, 0 <= j < p.
+        """
         return self.state_names[j] if self.state_names is not None else f"x{j}"
 
     def state_unit(self, j: int) -> str:
-        """The unit of state ``j`` ("state units" when the model file gives none)."""
+        """The unit of state ``j`` ("state units" when the model file gives none).
+
+        Parameters
+        ----------
+        j : int
+            A state index, 0 <= j < p.
+        """
         return self.state_units[j] if self.state_units is not None else "state units"
 
     def to_dict(self) -> dict:
+        """The report as a dict of plain Python values, for JSON (``select --json`` less its ``exit_code``)."""
         return {
             "command": "select",
             "format_version": REPORT_FORMAT_VERSION,
@@ -598,6 +645,12 @@ class SelectionReport:
         )
 
     def to_markdown(self) -> str:
+        """The Markdown document of ``minimaxplan select``: verdicts and margins, explanations, feasible boxes.
+
+        A table of every hypothesis's verdict and margin, why each eliminated one fails,
+        the survivors' feasible parameter boxes, Assumption 4 on them (``--lmi``) and the
+        timings.
+        """
         lines = [
             f"# Model selection report: `{self.model_source}`",
             "",

@@ -109,6 +109,12 @@ def conservative_first(actions: tuple) -> tuple:
     `RobustTreePlanner` breaks ties between root actions by their index. When every
     action may collide within the forecast (all lower bounds 0), that tie is broken
     towards braking instead of towards the paper's first action (LANE_LEFT).
+
+    Parameters
+    ----------
+    actions : tuple of (str, int, int)
+        ``(name, speed change, lane change)`` per action (`HIGHWAY_ACTIONS`,
+        `TJUNCTION_ACTIONS`).
     """
     rank = {"SLOWER": 0, "IDLE": 1}
     return tuple(sorted(actions, key=lambda a: rank.get(a[0], 2)))
@@ -549,7 +555,13 @@ class RoadPlanningMethod(Method[DrivingWorld]):
         self.decisions: list[dict] = []
 
     def obstacles(self, observation: Observation) -> ObstacleTables:
-        """The obstacle tables of this decision and the state boxes to check (abstract)."""
+        """The obstacle tables of this decision and the state boxes to check (abstract).
+
+        Parameters
+        ----------
+        observation : Observation
+            This decision's measurement: the ego's state exact, the other vehicles' noisy.
+        """
         raise NotImplementedError
 
     def decide(self, measurement: Observation) -> Policy:
@@ -605,7 +617,13 @@ class RoadPlanningMethod(Method[DrivingWorld]):
         return int(decision.action), None
 
     def observe(self, transition: Transition) -> None:
-        """Nothing to learn (the robust method learns)."""
+        """Nothing to learn (the robust method learns).
+
+        Parameters
+        ----------
+        transition : Transition
+            The sub-step (ignored).
+        """
 
     def report(self) -> dict:
         """The decisions' actions."""
@@ -634,7 +652,13 @@ class _LearningMethod(RoadPlanningMethod):
             self._learned_time = observation.time
 
     def observe(self, transition: Transition) -> None:
-        """Feed the learner the sub-step's measurement."""
+        """Feed the learner the sub-step's measurement.
+
+        Parameters
+        ----------
+        transition : Transition
+            The sub-step; its ``next_measured`` `Observation` goes to the learner.
+        """
         self._learn(transition.next_measured)
 
 
@@ -661,6 +685,11 @@ class RoadRobustMethod(_LearningMethod):
         into the ego's lane while the gap rule fails against the ego, which a reach that
         may leave the lane cannot show. On the highway a second forecast from the reach
         of the lane-keeping actions gives the table of paths that keep their lane.
+
+        Parameters
+        ----------
+        observation : Observation
+            This decision's measurement: the ego's state exact, the other vehicles' noisy.
         """
         self._learn(observation)
         road_world = self.world.world
@@ -751,7 +780,13 @@ class RoadOracleMethod(RoadPlanningMethod):
     """Tree search on the true traffic (true states, parameters, target speeds, intentions; no disturbance)."""
 
     def obstacles(self, observation: Observation) -> ObstacleTables:
-        """`point_forecast` from the world's true traffic."""
+        """`point_forecast` from the world's true traffic.
+
+        Parameters
+        ----------
+        observation : Observation
+            This decision's measurement (unused: the oracle reads the true traffic).
+        """
         world = self.world.world
         return ObstacleTables(point_forecast(world, world.traffic, self.ego, self.level, self.lane, FORECAST_STEPS), {})
 
@@ -760,7 +795,13 @@ class RoadNominalMethod(_LearningMethod):
     """Certainty equivalence: the least-squares parameters and minimum-error routes of the learner."""
 
     def obstacles(self, observation: Observation) -> ObstacleTables:
-        """`point_forecast` from the measured states with the learner's estimates."""
+        """`point_forecast` from the measured states with the learner's estimates.
+
+        Parameters
+        ----------
+        observation : Observation
+            This decision's measurement: the ego's state exact, the other vehicles' noisy.
+        """
         self._learn(observation)
         world = self.world.world
         truth = world.traffic

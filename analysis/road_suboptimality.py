@@ -295,6 +295,11 @@ class FrozenLearner:
     def observe(self, observation: Observation) -> None:
         """Refuse: a frozen learner takes no more data to learn from (`see` is for the lanes in force).
 
+        Parameters
+        ----------
+        observation : Observation
+            A measurement (refused).
+
         Raises
         ------
         InputError

@@ -74,7 +74,20 @@ __all__ = [
 
 
 def velocity_controllers(config: LoopConfig, control_bound: float = 1.0) -> list[LinearFeedback]:
-    """One saturated velocity-tracking controller per direction: ``v_ref = speed * direction``."""
+    """One saturated velocity-tracking controller per direction: ``v_ref = speed * direction``.
+
+    Parameters
+    ----------
+    config : LoopConfig
+        Its ``directions`` (one controller each), ``speed`` (m/s) and ``gain`` k (1/s).
+    control_bound : float
+        Each control is saturated to ``[-control_bound, control_bound]`` per axis.
+
+    Returns
+    -------
+    list of LinearFeedback
+        ``u = sat(k (v_ref - v))``, one per direction, in the order of ``directions``.
+    """
     K = np.zeros((2, 4))
     K[0, 2] = K[1, 3] = config.gain
     controllers = []
@@ -90,6 +103,14 @@ def planning_system(system: UncertainLinearSystem, control_error: float) -> Unce
     """``system`` with the control error ``|e| <= control_error`` added as a disturbance through B.
 
     ``x+ = A(theta) x + B (u + e) + D w = A(theta) x + B u + [D B] (w, e)``.
+
+    Parameters
+    ----------
+    system : UncertainLinearSystem
+        The hypothesis.
+    control_error : float
+        Bound on the error of each control input, in the units of u (the robot: ``k *
+        v_bar``, the gain times the measurement-noise bound).
     """
     D = np.hstack([system.D, system.B])
     w = Box(
@@ -105,6 +126,18 @@ def measurement_box(measured: np.ndarray, noise: float) -> tuple[np.ndarray, np.
     The measurement itself was rounded (``fl(x + v)``, error up to half an ulp of
     ``|measured|``) and so is ``measured -+ noise``: a margin of ``2 eps (|measured| +
     noise)`` covers both, whatever the magnitudes of x and v.
+
+    Parameters
+    ----------
+    measured : numpy.ndarray
+        The measured state, shape (p,).
+    noise : float
+        The bound on the measurement noise of every coordinate, state units.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(lower, upper)``, each of shape (p,).
     """
     margin = 2 * np.finfo(float).eps * (np.abs(measured) + noise)
     return np.nextafter(measured - noise - margin, -np.inf), np.nextafter(measured + noise + margin, np.inf)
@@ -270,19 +303,39 @@ class RobotMethod(Method[RobotWorld]):
         self.config = config
 
     def start(self, world: RobotWorld) -> None:
-        """Keep the world; build the velocity controllers and the global path of its map."""
+        """Keep the world; build the velocity controllers and the global path of its map.
+
+        Parameters
+        ----------
+        world : RobotWorld
+            The episode's world.
+        """
         self.world = world
         self.params = world.params
         self.controllers = velocity_controllers(self.config, self.params.control_bound)
         self.global_path = self.scenario.global_path(world, self.params.robot_radius + self.config.path_clearance)
 
     def decide(self, measurement: np.ndarray) -> Policy:
-        """`plan` towards the waypoint ``lookahead`` m along the global path, saturated."""
+        """`plan` towards the waypoint ``lookahead`` m along the global path, saturated.
+
+        Parameters
+        ----------
+        measurement : numpy.ndarray
+            The measured state ``(px, py, vx, vy)``, shape (4,), m and m/s.
+        """
         waypoint = self.global_path.waypoint(measurement[:2], self.config.lookahead)
         return _Saturated(self.plan(measurement, waypoint), self.params.control_bound)
 
     def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:  # pragma: no cover - abstract
-        """The policy for this decision, towards ``waypoint``."""
+        """The policy for this decision, towards ``waypoint`` (unsaturated: `decide` saturates it).
+
+        Parameters
+        ----------
+        measurement : numpy.ndarray
+            The measured state ``(px, py, vx, vy)``, shape (4,), m and m/s.
+        waypoint : numpy.ndarray
+            Shape (2,), m: the point ``lookahead`` m along the global path.
+        """
         raise NotImplementedError
 
     def report(self) -> dict:
@@ -303,6 +356,13 @@ class RobustMethod(RobotMethod):
     """
 
     def start(self, world: RobotWorld) -> None:
+        """`RobotMethod.start`, then the learner (fitted on excitation data if ``prior_samples``) and planning systems.
+
+        Parameters
+        ----------
+        world : RobotWorld
+            The episode's world.
+        """
         super().start(world)
         self.noise = self.params.measurement_noise
         hypotheses = self.scenario.hypotheses(world)
@@ -314,6 +374,18 @@ class RobustMethod(RobotMethod):
         self.decisions: list[dict] = []
 
     def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:
+        """The robust tree search's action over the survivors' parameter boxes, from the measurement box.
+
+        See `RobotMethod.plan`. Raises `EpisodeFailure` ("no_consistent_model") once the
+        data contradicts every hypothesis.
+
+        Parameters
+        ----------
+        measurement : numpy.ndarray
+            The measured state ``(px, py, vx, vy)``, shape (4,), m and m/s.
+        waypoint : numpy.ndarray
+            Shape (2,), m: the point ``lookahead`` m along the global path.
+        """
         world, config = self.world, self.config
         t = world.step_index
         try:
@@ -342,7 +414,13 @@ class RobustMethod(RobotMethod):
         return self.controllers[decision.action]
 
     def decide(self, measurement: np.ndarray) -> PredictingPolicy:
-        """`RobotMethod.decide`, with the boxes predicted for the executed action's sub-steps."""
+        """`RobotMethod.decide`, with the boxes predicted for the executed action's sub-steps.
+
+        Parameters
+        ----------
+        measurement : numpy.ndarray
+            The measured state ``(px, py, vx, vy)``, shape (4,), m and m/s.
+        """
         policy = super().decide(measurement)
         return _Predicted(policy, self._predicted)
 
@@ -406,6 +484,14 @@ class RobustMethod(RobotMethod):
         }
 
     def observe(self, transition: Transition) -> None:
+        """Feed the learner the measured transition (ignored when it was fitted on prior data).
+
+        Parameters
+        ----------
+        transition : Transition
+            The measured state before the sub-step, the control applied and the
+            measured state after it.
+        """
         self.learner.add(*transition)
 
     def report(self) -> dict:
@@ -427,6 +513,15 @@ class OracleMethod(RobotMethod):
         return self.world.true_theta
 
     def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:
+        """OPD's action on the nominal model at `theta` (w = 0), from the measured state.
+
+        Parameters
+        ----------
+        measurement : numpy.ndarray
+            The measured state ``(px, py, vx, vy)``, shape (4,), m and m/s.
+        waypoint : numpy.ndarray
+            Shape (2,), m: the point ``lookahead`` m along the global path.
+        """
         world, config = self.world, self.config
         planner = nominal_planner(
             world.system,
@@ -445,6 +540,13 @@ class NominalMethod(OracleMethod):
     pedestrians at their announced velocities."""
 
     def start(self, world: RobotWorld) -> None:
+        """`RobotMethod.start`, then the least-squares estimator (fed the excitation data if ``prior_samples``).
+
+        Parameters
+        ----------
+        world : RobotWorld
+            The episode's world.
+        """
         super().start(world)
         self.lsq = _LeastSquares(world.system, self.config.lsq_regularisation)
         prior_samples = self.config.prior_samples
@@ -455,9 +557,18 @@ class NominalMethod(OracleMethod):
                 self.lsq.add(X[n], U[n], X[n + 1])
 
     def theta(self) -> np.ndarray:
+        """The least-squares friction estimate, clipped to the prior box (its centre before any data)."""
         return self.lsq.estimate()
 
     def observe(self, transition: Transition) -> None:
+        """Add the measured transition to the least-squares estimate (not when learning from prior data only).
+
+        Parameters
+        ----------
+        transition : Transition
+            The measured state before the sub-step, the control applied and the
+            measured state after it.
+        """
         if self.learning:
             self.lsq.add(*transition)
 
@@ -472,6 +583,13 @@ class DWAMethod(RobotMethod):
     baseline: type[DynamicWindowPlanner] | type[TimedElasticBand] = DynamicWindowPlanner
 
     def start(self, world: RobotWorld) -> None:
+        """`RobotMethod.start`, then the baseline planner on the nominal model at the prior box's centre.
+
+        Parameters
+        ----------
+        world : RobotWorld
+            The episode's world.
+        """
         super().start(world)
         self.planner = self.baseline(
             world.system,
@@ -482,6 +600,15 @@ class DWAMethod(RobotMethod):
         )
 
     def plan(self, measurement: np.ndarray, waypoint: np.ndarray) -> Policy:
+        """The baseline's control on the scene towards ``waypoint``, held for the decision.
+
+        Parameters
+        ----------
+        measurement : numpy.ndarray
+            The measured state ``(px, py, vx, vy)``, shape (4,), m and m/s.
+        waypoint : numpy.ndarray
+            Shape (2,), m: the point ``lookahead`` m along the global path.
+        """
         return _HeldControl(self.planner.plan(measurement, self.scenario.scene(self.world, waypoint)))
 
 

@@ -44,17 +44,39 @@ class RobotScenario(Scenario[RobotWorld]):
         return f"RobotScenario({self.kind!r})"
 
     def make_world(self, seed: int, config: LoopConfig) -> RobotWorld:
-        """`make_world` of ``kind`` and ``seed``, with the measurement model of ``config``."""
+        """`make_world` of ``kind`` and ``seed``, with the measurement model of ``config``.
+
+        Parameters
+        ----------
+        seed : int
+            The episode's world seed (>= 0).
+        config : LoopConfig
+            The loop settings; only ``measurement`` is read.
+        """
         return make_world(self.kind, seed, measurement=config.measurement)
 
     @staticmethod
     def hypotheses(world: RobotWorld) -> list[Hypothesis]:
-        """The competing structural hypotheses of the robot (the truth first)."""
+        """The competing structural hypotheses of the robot (the truth first).
+
+        Parameters
+        ----------
+        world : RobotWorld
+            The episode's world (its ``params``: the sampling time and the robot's bounds).
+        """
         return robot_hypotheses(world.params.dt, world.params)
 
     @staticmethod
     def global_path(world: RobotWorld, clearance: float) -> NavigationFunction:
-        """The static map's cost-to-go to the goal, on a grid covering the whole arena."""
+        """The static map's cost-to-go to the goal, on a grid covering the whole arena.
+
+        Parameters
+        ----------
+        world : RobotWorld
+            The episode's world.
+        clearance : float
+            Grid cells whose centre is closer than this to a disc's edge are blocked, m.
+        """
         size = world.params.arena_size
         region = np.array([world.start, [0.0, 0.0], [size, size]])
         return NavigationFunction(
@@ -65,7 +87,18 @@ class RobotScenario(Scenario[RobotWorld]):
     def objective(world: RobotWorld, waypoint, *, uncertain: bool) -> GoalReward:
         """The reward a planner maximises at this decision: reach ``waypoint`` without touching
         the static discs or the pedestrians (predicted boxes if ``uncertain``, else points
-        moving at their announced velocities)."""
+        moving at their announced velocities).
+
+        Parameters
+        ----------
+        world : RobotWorld
+            The episode's world.
+        waypoint : array_like
+            Shape (2,), m: the point chased at this decision.
+        uncertain : bool
+            Whether the pedestrians are the boxes of their velocity uncertainty (robust)
+            or points at their announced velocities (nominal, oracle).
+        """
         return GoalReward(
             waypoint,
             obstacles=world.obstacles,
@@ -76,7 +109,15 @@ class RobotScenario(Scenario[RobotWorld]):
     @staticmethod
     def scene(world: RobotWorld, waypoint) -> NavigationScene:
         """What the baselines are told: the waypoint, the discs, the pedestrians' current
-        positions and announced velocities."""
+        positions and announced velocities.
+
+        Parameters
+        ----------
+        world : RobotWorld
+            The episode's world.
+        waypoint : array_like
+            Shape (2,), m: the point chased at this decision.
+        """
         peds = world.pedestrians
         return NavigationScene(
             goal=waypoint,
@@ -102,6 +143,19 @@ def assumption4_report(system: UncertainLinearSystem, parameters: Box) -> dict:
     the discrete LMI is infeasible there and Theorem 2's bound does not apply; the
     velocity block ``I - dt diag(theta)`` is Schur for every friction in the box, and
     a common certificate over the box's vertices is sought.
+
+    Parameters
+    ----------
+    system : UncertainLinearSystem
+        The robot's system, states ``(px, py, vx, vy)``.
+    parameters : Box
+        The friction box whose vertices are checked (a survivor's feasible parameter box).
+
+    Returns
+    -------
+    dict
+        ``full_model`` and ``velocity_subsystem``: the `LMIStatus` of each check, with
+        ``full_model_note`` and ``velocity_certified`` (the velocity LMI re-checked exactly).
     """
     from minimaxplan.verify.lmi import check_assumption4  # cvxpy: imported when an episode checks Assumption 4
 
@@ -121,6 +175,13 @@ def excitation_data(world: RobotWorld, n: int) -> tuple[np.ndarray, np.ndarray]:
     recorded before the episode (seeded by the world's seed; same noise model).
 
     Returns measured states (n + 1, 4) and controls (n, 2).
+
+    Parameters
+    ----------
+    world : RobotWorld
+        The episode's world: its seed, robot, true friction and bounds.
+    n : int
+        The number of transitions.
     """
     rng = np.random.default_rng(np.random.SeedSequence([world.seed, 0x5EED]))
     params = world.params

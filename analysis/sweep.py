@@ -218,7 +218,13 @@ class SweepAxis:
         return checked
 
     def format(self, value: float) -> str:
-        """A value as the table shows it (``5``, ``0.3``)."""
+        """A value as the table shows it (``5``, ``0.3``).
+
+        Parameters
+        ----------
+        value : float
+            A value of the axis, in its unit.
+        """
         return str(int(value)) if self.integer else f"{value:g}"
 
 

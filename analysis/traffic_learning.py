@@ -944,6 +944,11 @@ class TrafficLearner:
         On the highway a side lane that can only be chosen now (see
         `_in_force_before_now`) is left out: the forecast's switching covers it. The
         vehicle's own lane always stays.
+
+        Parameters
+        ----------
+        agent : int
+            A tracked vehicle's id (as in `Observation.ids`).
         """
         track = self.tracks[agent]
         state = track.states[max(track.states)]

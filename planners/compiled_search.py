@@ -57,7 +57,21 @@ class BoxArrays(NamedTuple):
 
 
 def allocate_boxes(capacity: int, n_models: int, n_actions: int, n_box: int, substeps: int) -> BoxArrays:
-    """`BoxArrays` for ``capacity`` nodes (root, actions and time filled in per search with ``_replace``)."""
+    """`BoxArrays` for ``capacity`` nodes (root, actions and time filled in per search with ``_replace``).
+
+    Parameters
+    ----------
+    capacity : int
+        The number of node rows of ``z``.
+    n_models : int
+        The number of linked models M.
+    n_actions : int
+        The number of planner actions.
+    n_box : int
+        The width 2p of one box ``[-lower | upper]``.
+    substeps : int
+        The number of sub-steps S per action (the rows of ``stack``).
+    """
     return BoxArrays(
         z=np.empty((capacity, n_models, n_box)),
         stack=np.empty((substeps, n_models, n_actions, n_box)),
@@ -68,7 +82,17 @@ def allocate_boxes(capacity: int, n_models: int, n_actions: int, n_box: int, sub
 
 
 def grow_boxes(boxes: BoxArrays, capacity: int, size: int) -> BoxArrays:
-    """``boxes`` with ``capacity`` node rows (the first ``size`` copied)."""
+    """``boxes`` with ``capacity`` node rows (the first ``size`` copied).
+
+    Parameters
+    ----------
+    boxes : BoxArrays
+        The arrays to grow (not modified).
+    capacity : int
+        The number of node rows of the new ``z``.
+    size : int
+        The number of nodes in use, whose rows are copied.
+    """
     z = np.empty((capacity,) + boxes.z.shape[1:])
     z[:size] = boxes.z[:size]
     return boxes._replace(z=z)

@@ -252,6 +252,15 @@ class ControllerBank:
     `OpenLoop` has ``K_a = 0``, ``c_a = u`` and no limits; `LinearFeedback` has
     ``c_a = K x_ref + u_ff``.
 
+    Parameters
+    ----------
+    controllers : sequence of OpenLoop or LinearFeedback
+        One controller per action, non-empty.
+    nstates : int
+        The number of plant states p.
+    ninputs : int
+        The number of plant inputs q.
+
     Attributes
     ----------
     gains : ndarray (a, q, p)
@@ -303,6 +312,14 @@ class ControllerBank:
         return len(self.controllers)
 
     def controls(self, x: np.ndarray, index=slice(None)) -> np.ndarray:
-        """The controls of the selected controllers at states x (a, p) -> (a, q) (raw arrays)."""
+        """The controls of the selected controllers at states x (a, p) -> (a, q) (raw arrays).
+
+        Parameters
+        ----------
+        x : ndarray, shape (a, p)
+            One plant state per selected controller.
+        index : slice or array of int, optional
+            The controllers to apply; default all.
+        """
         v = self.offsets[index] - np.einsum("aqp,ap->aq", self.gains[index], x)
         return np.clip(v, self.low[index], self.high[index])

@@ -115,6 +115,15 @@ def planar_robot_model(system: UncertainLinearSystem, theta, substeps) -> tuple[
     The baselines plan for a planar point mass: 4 states (position, velocity), 2 inputs,
     positions integrating velocities with weight dt; ``theta`` defaults to the centre of
     the prior box; ``substeps`` (a control is held that long) must be a positive integer.
+
+    Parameters
+    ----------
+    system : UncertainLinearSystem
+        The robot's discrete model (4 states: position, velocity; 2 inputs).
+    theta : array_like, shape (nparams,), or None
+        The parameter value to plan with; None for the centre of ``system.theta``.
+    substeps : int
+        Sub-steps of ``system`` per decision period.
     """
     check_instance("system", system, UncertainLinearSystem)
     if system.nstates != 4 or system.ninputs != 2:
@@ -250,7 +259,23 @@ class DWAEvaluation:
     not admissible), ``admissible`` (k,), ``min_clearance`` (k,) over the scored rollout,
     and the chosen ``control`` (when no sample is admissible, ``fallback`` is set and the
     control is the sample whose stopping path violates the clearance least, summed over
-    its points)."""
+    its points).
+
+    Attributes
+    ----------
+    controls : ndarray (k, 2)
+        The sampled controls of the window (accelerations, or ``(acceleration, steering)`` on a road).
+    scores : ndarray (k,)
+        Each sample's objective, ``-inf`` where not admissible.
+    admissible : ndarray (k,) of bool
+        Whether each sample is admissible.
+    min_clearance : ndarray (k,)
+        The smallest clearance along each sample's held rollout, m (inf with nothing to avoid).
+    control : ndarray (2,)
+        The chosen control.
+    fallback : bool
+        Whether no sample was admissible (``control`` is then the least violating one).
+    """
 
     controls: np.ndarray
     scores: np.ndarray
@@ -260,6 +285,7 @@ class DWAEvaluation:
     fallback: bool
 
     def to_dict(self) -> dict:
+        """The evaluation as a dict of plain Python values (lists for arrays), for JSON."""
         return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in self.__dict__.items()}
 
 

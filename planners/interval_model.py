@@ -290,7 +290,13 @@ class IntervalGroup:
         return len(self.systems)
 
     def state_z(self, state: BoxState) -> np.ndarray:
-        """The boxes of a state as z of shape (M or 1, 2p): a writable contiguous copy (one compiled signature)."""
+        """The boxes of a state as z of shape (M or 1, 2p): a writable contiguous copy (one compiled signature).
+
+        Parameters
+        ----------
+        state : BoxState
+            A state of the group's models: one box, or one per hypothesis.
+        """
         if type(state) is not BoxState:  # the hot path tests the exact type; the validator words the error
             check_instance("state", state, BoxState, "a BoxState (see IntervalModel.initial_state)")
         z = state.z
@@ -306,6 +312,15 @@ class IntervalGroup:
         Returns the boxes after every sub-step, ``stack`` (S, M, n, 2p), the
         pessimistic rewards (M, n) (minimum over the sub-steps) and the collision
         flags (any over the sub-steps).
+
+        Parameters
+        ----------
+        z : ndarray, shape (M or 1, 2p)
+            The boxes ``[-lower | upper]`` at the decision (as `state_z` gives them).
+        time : int
+            Their absolute sub-step index t (the sub-steps are t + 1 .. t + S).
+        index : ndarray (n,) of int64
+            The controller indices of the actions.
         """
         p, S = self.p, self.substeps
         stack = np.empty((S, self.size, index.shape[0], 2 * p))
@@ -334,6 +349,13 @@ class IntervalGroup:
         Returns ``(next_states, rewards, terminals)``: a list of `BoxState` holding
         one box per hypothesis (one box when M = 1), the pessimistic rewards and the
         collision flags, each of shape (M, len(actions)).
+
+        Parameters
+        ----------
+        state : BoxState
+            The state shared by every hypothesis.
+        actions : sequence of int
+            Controller indices in ``[0, len(bank))``.
         """
         if self._result is not None and state is self._key_state and actions is self._key_actions:
             return self._result
@@ -363,7 +385,15 @@ class IntervalGroup:
         return self.kernel_params is not None
 
     def compiled_problem(self, state: BoxState, actions) -> CompiledProblem:
-        """The compiled search's inputs: the root boxes (M, 2p), time, action indices, kernel, params, substeps."""
+        """The compiled search's inputs: the root boxes (M, 2p), time, action indices, kernel, params, substeps.
+
+        Parameters
+        ----------
+        state : BoxState
+            The root state (one box is repeated for every hypothesis).
+        actions : sequence of int
+            Controller indices in ``[0, len(bank))``.
+        """
         root = self.state_z(state)
         if root.shape[0] != self.size:
             root = np.repeat(root, self.size, axis=0)
@@ -375,6 +405,15 @@ class IntervalGroup:
         The same objects, up to identity, that `expand_all` creates on the Python
         engine: ``lower``, ``upper`` and ``z`` views of one batch, a (M, 2p) box per
         node (2p, for M = 1), at sub-step ``time + depth * substeps``.
+
+        Parameters
+        ----------
+        z : ndarray (nodes, M, 2p)
+            The boxes the compiled search left, one row per node; made read-only and viewed by the states.
+        depth : sequence of int
+            Each node's depth in the tree.
+        time : int
+            The root's sub-step index.
         """
         p = self.p
         z.flags.writeable = False

@@ -49,7 +49,15 @@ class TransitionModel(Protocol):
     """
 
     def step(self, state: Any, action: Any) -> tuple:
-        """``(next_state, reward)`` or ``(next_state, reward, terminal)``."""
+        """``(next_state, reward)`` or ``(next_state, reward, terminal)``.
+
+        Parameters
+        ----------
+        state : Any
+            The current state (opaque to the planner; not modified).
+        action : Any
+            One of the planner's actions.
+        """
 
 
 @runtime_checkable
@@ -66,7 +74,15 @@ class VectorisedModel(TransitionModel, Protocol):
     """
 
     def expand(self, state: Any, actions: Sequence) -> tuple[Sequence, np.ndarray, np.ndarray]:
-        """``(next_states, rewards, terminals)`` for every action of ``actions``."""
+        """``(next_states, rewards, terminals)`` for every action of ``actions``.
+
+        Parameters
+        ----------
+        state : Any
+            The current state (not modified).
+        actions : sequence
+            The planner's actions, in order.
+        """
 
 
 @runtime_checkable
@@ -87,7 +103,15 @@ class FallbackModel(TransitionModel, Protocol):
     """
 
     def fallback_values(self, states: Sequence, gamma: float) -> np.ndarray:
-        """F for each state of ``states``, shape ``(len(states),)``."""
+        """F for each state of ``states``, shape ``(len(states),)``.
+
+        Parameters
+        ----------
+        states : sequence
+            States of this model (not modified).
+        gamma : float
+            The planner's discount factor in (0, 1).
+        """
 
 
 @runtime_checkable
@@ -113,7 +137,15 @@ class BatchedTransitions(Protocol):
         """The number of models M."""
 
     def expand_all(self, state: Any, actions: Sequence) -> tuple[Sequence, np.ndarray, np.ndarray]:
-        """``(next_states, rewards (M, n), terminals (M, n))`` from ``state`` under every action."""
+        """``(next_states, rewards (M, n), terminals (M, n))`` from ``state`` under every action.
+
+        Parameters
+        ----------
+        state : Any
+            The state shared by every member (not modified).
+        actions : sequence
+            The planner's n actions, in order.
+        """
 
 
 @runtime_checkable
@@ -180,7 +212,25 @@ class CompiledTransitions(BatchedTransitions, Protocol):
         """Whether the compiled search can run on this group."""
 
     def compiled_problem(self, state: Any, actions: Sequence) -> CompiledProblem:
-        """The compiled search's inputs for root ``state`` and the planner's ``actions``."""
+        """The compiled search's inputs for root ``state`` and the planner's ``actions``.
+
+        Parameters
+        ----------
+        state : Any
+            The root state shared by every member.
+        actions : sequence
+            The planner's actions, in order.
+        """
 
     def node_states(self, z: np.ndarray, depth: Sequence[int], time: int) -> list:
-        """The joint state of each node ``i >= 1`` of a compiled search."""
+        """The joint state of each node ``i >= 1`` of a compiled search.
+
+        Parameters
+        ----------
+        z : ndarray (nodes, M, 2p)
+            The boxes ``[-lower | upper]`` the compiled search left, one row per node (owned by the group).
+        depth : sequence of int
+            Each node's depth in the tree.
+        time : int
+            The root's sub-step index.
+        """

@@ -172,7 +172,25 @@ class TEBPlan:
     """One TEB call: the optimised band ``positions`` (n + 1, 2), ``intervals`` (n,),
     its ``cost``, the worst clearance shortfall ``violation`` (m, 0 if none), the
     optimiser's ``iterations`` and ``status`` (a value of `LBFGSB_STATUS`) and the
-    ``control`` (2,) for the next period."""
+    ``control`` (2,) for the next period.
+
+    Attributes
+    ----------
+    positions : ndarray (n + 1, 2)
+        The band's poses ``X_0..X_n``, m.
+    intervals : ndarray (n,)
+        The time intervals ``dT_0..dT_{n-1}`` between consecutive poses, s.
+    cost : float
+        The optimised `band_cost`.
+    violation : float
+        The band's worst clearance shortfall over its poses and segment midpoints, m (0 if none).
+    iterations : int
+        The L-BFGS-B iterations of the optimisation that gave the band.
+    status : str
+        How L-BFGS-B stopped, a value of `LBFGSB_STATUS`.
+    control : ndarray (2,)
+        The control to hold for the next period (an acceleration, or ``(a, delta)`` on a road).
+    """
 
     positions: np.ndarray
     intervals: np.ndarray
@@ -183,6 +201,7 @@ class TEBPlan:
     control: np.ndarray
 
     def to_dict(self) -> dict:
+        """The plan as a dict of plain Python values (lists for arrays), for JSON."""
         return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in self.__dict__.items()}
 
 

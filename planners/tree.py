@@ -154,7 +154,13 @@ class SearchTree:
 
     # ---------------------------------------------------------------- queries
     def path(self, node: int) -> tuple[int, ...]:
-        """The action indices from the root to ``node``."""
+        """The action indices from the root to ``node``.
+
+        Parameters
+        ----------
+        node : int
+            A node id in ``[0, size)``.
+        """
         action, parent = self._arrays.action, self._arrays.parent
         actions = []
         while node > 0:
@@ -163,16 +169,34 @@ class SearchTree:
         return tuple(reversed(actions))
 
     def is_leaf(self, node: int) -> bool:
-        """Whether ``node`` has not been expanded."""
+        """Whether ``node`` has not been expanded.
+
+        Parameters
+        ----------
+        node : int
+            A node id in ``[0, size)``.
+        """
         return bool(self._arrays.first_child[node] < 0)
 
     def children(self, node: int) -> range:
-        """The ids of the children of ``node`` (empty for a leaf)."""
+        """The ids of the children of ``node`` (empty for a leaf).
+
+        Parameters
+        ----------
+        node : int
+            A node id in ``[0, size)``.
+        """
         first = int(self._arrays.first_child[node])
         return range(0) if first < 0 else range(first, first + self.n_actions)
 
     def all_terminated(self, node: int) -> bool:
-        """Whether every model has terminated on the path to ``node``."""
+        """Whether every model has terminated on the path to ``node``.
+
+        Parameters
+        ----------
+        node : int
+            A node id in ``[0, size)``.
+        """
         return bool(self._arrays.terminal[node].all())
 
     def best_path(self) -> tuple[int, ...]:

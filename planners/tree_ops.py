@@ -150,7 +150,15 @@ class TreeArrays(NamedTuple):
 
 
 def discount_table(gamma: float, n: int) -> np.ndarray:
-    """``[gamma ** d for d < n]``, each power computed by Python (the values both engines use)."""
+    """``[gamma ** d for d < n]``, each power computed by Python (the values both engines use).
+
+    Parameters
+    ----------
+    gamma : float
+        The discount factor in (0, 1).
+    n : int
+        The number of powers.
+    """
     return np.array([gamma**d for d in range(n)], dtype=float)
 
 
@@ -159,6 +167,24 @@ def allocate(capacity: int, n_models: int, n_actions: int, gamma: float, discoun
 
     ``discounts`` must hold at least ``(capacity - 1) // n_actions + 2`` powers (the
     deepest child's depth plus one).
+
+    Parameters
+    ----------
+    capacity : int
+        The number of node rows.
+    n_models : int
+        The number of models M.
+    n_actions : int
+        The number of actions.
+    gamma : float
+        The discount factor in (0, 1).
+    discounts : ndarray (D,)
+        ``discounts[d] = gamma ** d`` (`discount_table`), stored as given.
+
+    Raises
+    ------
+    ValueError
+        If ``discounts`` holds too few powers for ``capacity`` nodes.
     """
     if discounts.shape[0] < (capacity - 1) // n_actions + 2:
         raise ValueError(f"discounts holds {discounts.shape[0]} powers, too few for {capacity} nodes")
@@ -186,7 +212,17 @@ def allocate(capacity: int, n_models: int, n_actions: int, gamma: float, discoun
 
 
 def grow(tree: TreeArrays, capacity: int, discounts: np.ndarray) -> TreeArrays:
-    """A copy of ``tree`` with ``capacity`` rows (the same nodes, heap and counts)."""
+    """A copy of ``tree`` with ``capacity`` rows (the same nodes, heap and counts).
+
+    Parameters
+    ----------
+    tree : TreeArrays
+        The tree to copy (not modified).
+    capacity : int
+        The number of node rows of the copy, at least the tree's size.
+    discounts : ndarray (D,)
+        The powers of gamma for the copy, enough for ``capacity`` nodes (see `allocate`).
+    """
     n_models, n_actions = tree.rewards.shape
     grown = allocate(capacity, n_models, n_actions, tree.gamma, discounts)
     size = int(tree.counts[SIZE])

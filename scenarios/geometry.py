@@ -157,6 +157,8 @@ def boxes_meet_boxes(
         Shape (..., n, 2) (broadcastable against ``lower[..., None, :]``).
     radii
         Shape (n,).
+    margin
+        The robot's footprint radius, >= 0.
 
     Returns
     -------
@@ -436,7 +438,17 @@ def _fcl_distance(a, b) -> float:
 
 
 def fcl_box_circle_distance(lower, upper, center, radius) -> float:
-    """Distance between the planar box [lower, upper] and the disc (center, radius), by fcl (0 if they meet)."""
+    """Distance between the planar box [lower, upper] and the disc (center, radius), by fcl (0 if they meet).
+
+    Parameters
+    ----------
+    lower, upper : array_like, shape (2,)
+        The box's corners, m.
+    center : array_like, shape (2,)
+        The disc's centre, m.
+    radius : float
+        The disc's radius (> 0), m.
+    """
     return _fcl_distance(_fcl_box(lower, upper), _fcl_disc(center, radius))
 
 
@@ -445,6 +457,21 @@ def fcl_boxes_meet_circles(lower, upper, centers, radii, margin: float = 0.0, *,
 
     ``tol`` widens the test to ``distance <= margin + tol`` (for tangent cases, where
     fcl's rounding may differ from numpy's).
+
+    Parameters
+    ----------
+    lower, upper : array_like, shape (..., 2)
+        Box corners, m.
+    centers, radii : array_like, shapes (n, 2) and (n,)
+        The discs, m.
+    margin : float, optional
+        The robot's footprint radius, >= 0 (default 0).
+    tol : float, optional
+        Slack added to ``margin`` (default 0).
+
+    Returns
+    -------
+    ndarray of bool, shape (...)
     """
     lower = np.asarray(lower, dtype=float)
     upper = np.asarray(upper, dtype=float)
@@ -468,6 +495,15 @@ def fcl_box_meets_grown_box(lower, upper, other_lower, other_upper, reach: float
     Exact decomposition of the grown box (a rounded rectangle) into the box grown by
     ``reach`` along x, along y, and the four discs at its corners; each part is tested
     with fcl's exact box-box or box-sphere collision (touching counts).
+
+    Parameters
+    ----------
+    lower, upper : array_like, shape (2,)
+        The box that is grown, m.
+    other_lower, other_upper : array_like, shape (2,)
+        The other box, m.
+    reach : float
+        The radius of the growing disc, >= 0, m.
     """
     lower = np.asarray(lower, dtype=float)
     upper = np.asarray(upper, dtype=float)
@@ -486,6 +522,23 @@ def fcl_boxes_meet_boxes(
     """`boxes_meet_boxes` computed with fcl for boxes (k, 2) against other boxes (n, 2) (slow, authoritative).
 
     Uses `fcl_box_meets_grown_box` with ``reach = radii[j] + margin + tol``.
+
+    Parameters
+    ----------
+    lower, upper : array_like, shape (k, 2)
+        Box corners, m (any leading shape is flattened to k rows).
+    other_lower, other_upper : array_like, shape (n, 2)
+        The other boxes, m.
+    radii : array_like, shape (n,)
+        The other boxes' disc radii, m.
+    margin : float, optional
+        The robot's footprint radius, >= 0 (default 0).
+    tol : float, optional
+        Slack added to every reach (default 0).
+
+    Returns
+    -------
+    ndarray of bool, shape (k,)
     """
     lower = np.asarray(lower, dtype=float).reshape(-1, 2)
     upper = np.asarray(upper, dtype=float).reshape(-1, 2)

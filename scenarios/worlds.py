@@ -92,13 +92,22 @@ class EpisodeOver(MinimaxplanError, RuntimeError):
 
 @dataclass(frozen=True, eq=False)
 class WorldLayout:
-    """The static part of an episode: start, goal and circular obstacles."""
+    """The static part of an episode: start, goal and circular obstacles.
+
+    Attributes
+    ----------
+    start, goal : ndarray, shape (2,)
+        The robot's start and goal positions, m.
+    obstacles : CircularObstacles
+        The static discs.
+    """
 
     start: np.ndarray
     goal: np.ndarray
     obstacles: CircularObstacles
 
     def to_dict(self) -> dict:
+        """The layout as plain lists (JSON-ready): ``start``, ``goal`` and ``obstacles.to_dict()``."""
         return {"start": self.start.tolist(), "goal": self.goal.tolist(), "obstacles": self.obstacles.to_dict()}
 
 
@@ -120,6 +129,21 @@ def layout_has_path(
     cells lies within ``resolution / sqrt(2)`` of one of them, so with the default
     ``margin >= resolution / sqrt(2)`` the polyline through the found cells keeps the
     robot's whole footprint off the obstacles.
+
+    Parameters
+    ----------
+    start, goal : array_like, shape (2,)
+        The positions to join, m.
+    obstacles : CircularObstacles
+        The static discs.
+    robot_radius : float
+        The robot's footprint radius, m.
+    arena_size : float
+        The grid covers the square ``[0, arena_size]^2``, m.
+    resolution : float, optional
+        The grid's cell size, m (default `GRID_RESOLUTION`).
+    margin : float, optional
+        Free margin kept beyond the footprint, m (default `CORRIDOR_MARGIN`).
     """
     n = int(np.ceil(arena_size / resolution)) + 1
     axis = np.linspace(0.0, arena_size, n)
@@ -174,6 +198,15 @@ def generate_layout(kind: str, rng: np.random.Generator, params: RobotParameters
 
     ``kind="static"``: 10-15 obstacles; ``"pedestrian"``: 3-5. Radii 0.4-1.2 m. Layouts
     without a path are redrawn from the same stream.
+
+    Parameters
+    ----------
+    kind : str
+        One of `WORLD_KINDS`: ``"static"`` or ``"pedestrian"``.
+    rng : numpy.random.Generator
+        The stream the layout is drawn from.
+    params : RobotParameters, optional
+        The arena size, robot radius and start-goal distance range (default `DEFAULT_ROBOT`).
     """
     as_choice("kind", kind, WORLD_KINDS)
     low, high = STATIC_OBSTACLE_COUNT if kind == "static" else PEDESTRIAN_WORLD_OBSTACLE_COUNT
@@ -196,6 +229,23 @@ class PedestrianCrowd:
     stays within ``announced +- PEDESTRIAN_VELOCITY_UNCERTAINTY`` per axis at all
     times, so the growing boxes of `MovingObstacles` built from any current position
     are sound. Pedestrians ignore the robot and the obstacles.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (m, 2)
+        The pedestrians' current positions, m.
+    announced : ndarray, shape (m, 2)
+        The announced constant velocities, m/s.
+    speeds : ndarray, shape (m,)
+        The true (constant) speeds, m/s.
+    headings : ndarray, shape (m,)
+        The announced headings, rad.
+    deviations : ndarray, shape (m,)
+        The true headings' current deviations from ``headings``, rad.
+    radii : ndarray, shape (m,)
+        The pedestrians' radii, m.
+    rng : numpy.random.Generator
+        The stream of the heading random walk.
     """
 
     positions: np.ndarray
@@ -213,7 +263,13 @@ class PedestrianCrowd:
         return self.speeds[:, None] * np.stack([np.cos(h), np.sin(h)], axis=-1)
 
     def advance(self, dt: float) -> None:
-        """Move every pedestrian for ``dt`` at its current velocity, then perturb its heading."""
+        """Move every pedestrian for ``dt`` at its current velocity, then perturb its heading.
+
+        Parameters
+        ----------
+        dt : float
+            The time step, s.
+        """
         self.positions = self.positions + self.velocities * dt
         step = self.rng.uniform(-PEDESTRIAN_HEADING_STEP, PEDESTRIAN_HEADING_STEP, size=self.deviations.shape)
         self.deviations = np.clip(self.deviations + step, -PEDESTRIAN_HEADING_DEVIATION, PEDESTRIAN_HEADING_DEVIATION)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import inspect
+import pkgutil
 import re
 
 import pytest
@@ -41,11 +42,29 @@ def _optional_exports(module) -> list[str]:
     return names
 
 
+def _public_modules(package: str):
+    # The subpackage and every public module in it: a module's __all__ is public API too,
+    # whether or not the subpackage re-exports it.
+    root = importlib.import_module(package)
+    yield root
+    for info in pkgutil.iter_modules(root.__path__, package + "."):
+        if info.name.rsplit(".", 1)[1].startswith("_"):
+            continue
+        try:
+            yield importlib.import_module(info.name)
+        except ImportError:  # a module that needs an optional extra not installed here
+            continue
+
+
 def _public_objects(package: str):
-    module = importlib.import_module(package)
-    assert hasattr(module, "__all__"), f"{package} defines no __all__"
-    for name in _optional_exports(module):
-        yield f"{package}.{name}", getattr(module, name)
+    for module in _public_modules(package):
+        assert hasattr(module, "__all__"), f"{module.__name__} defines no __all__"
+        for name in _optional_exports(module):
+            obj = getattr(module, name)
+            home = getattr(obj, "__module__", module.__name__)
+            if home != module.__name__ and module.__name__ != package:
+                continue  # re-exported from where it is defined: checked there
+            yield f"{module.__name__}.{name}", obj
 
 
 def _sections(doc: str) -> dict[str, list[str]]:
