@@ -172,7 +172,11 @@ def assumption4_report(system: UncertainLinearSystem, parameters: Box) -> dict:
 
 def excitation_data(world: RobotWorld, n: int) -> tuple[np.ndarray, np.ndarray]:
     """``n`` measured transitions of the episode's robot under random controls from rest,
-    recorded before the episode (seeded by the world's seed; same noise model).
+    recorded before the episode (seeded by the world's seed).
+
+    The measurement noise is the bounded uniform noise of ``world.params.measurement_noise``
+    whatever the world's measurement model (a world with ``measurement="gaussian"`` still
+    gets bounded prior data: the data the estimator's guarantee covers).
 
     Returns measured states (n + 1, 4) and controls (n, 2).
 
