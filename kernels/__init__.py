@@ -10,8 +10,8 @@ that neither imports the other:
   (Theorem 1) is written once, as a compiled kernel on one box, and reaches the
   planners' compiled engine (`box_reward_minimum`, `register_reward_params`,
   `has_compiled_minimum`) and numpy callers (`box_minima`); the cache keys of the
-  kernels that call it (`sources_digest`, `minimum_sources`, `compile_per_params_type`); the `BoxReward` and
-  `CompiledBoxReward` protocols a planner model reads.
+  kernels that call it (`sources_digest`, `minimum_sources`, `compile_per_params_type`); the `BoxReward`,
+  `UncheckedBoxReward`, `StateIndexedReward` and `CompiledBoxReward` protocols a planner model reads.
 
 * `minimaxplan.kernels.bicycle`: the kinematic bicycle and the driving ego's
   controllers, compiled once for the world and the planner (`LaneGeometry`,
@@ -30,6 +30,8 @@ from .driving_reward import DrivingParams
 from .reward_protocol import (
     BoxReward,
     CompiledBoxReward,
+    StateIndexedReward,
+    UncheckedBoxReward,
     box_minima,
     box_minima_kernel,
     box_reward_minimum,
@@ -47,6 +49,8 @@ __all__ = [
     "LaneGeometry",
     "ego_control",
     "CompiledBoxReward",
+    "StateIndexedReward",
+    "UncheckedBoxReward",
     "box_gap_sq",
     "box_gaps_sq",
     "box_minima",

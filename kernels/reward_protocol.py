@@ -19,8 +19,9 @@ The planners never import the family: `minimaxplan.planners.IntervalModel` reads
 ``reward.kernel_params``, checks it with `has_compiled_minimum`, and passes it
 through to its kernels, where numba picks the implementation from its type. A reward
 without ``kernel_params`` (None) is evaluated through its ``box_minimum`` alone, on
-the Python engine. See `BoxReward` and `CompiledBoxReward` for the attributes read,
-and ``docs/rewards.md`` for a worked example.
+the Python engine. See `BoxReward`, `UncheckedBoxReward`, `StateIndexedReward` and
+`CompiledBoxReward` for the attributes read, and ``docs/rewards.md`` for a worked
+example.
 
 Cache keys: numba's on-disk cache checks only the source file of the compiled
 function itself, not the files of the functions it inlines. Kernels that call
@@ -49,6 +50,8 @@ from . import box_primitives
 __all__ = [
     "BoxReward",
     "CompiledBoxReward",
+    "StateIndexedReward",
+    "UncheckedBoxReward",
     "box_minima",
     "box_minima_kernel",
     "box_reward_minimum",
@@ -71,9 +74,11 @@ class BoxReward(Protocol):
     collides (a collision is terminal; the minimum is then 0). A point is the
     degenerate box ``[x, x]``.
 
-    Optional attributes, read when present: ``box_minimum_raw`` (the same without
-    argument checks, for hot loops), ``min_state_dim`` (the number of state
-    coordinates the reward reads) and ``kernel_params`` (see `CompiledBoxReward`).
+    Optional capabilities, each declared by a protocol of its own and checked with
+    ``isinstance``: `UncheckedBoxReward` (``box_minimum_raw``, the same without
+    argument checks, for hot loops), `StateIndexedReward` (``min_state_dim``, the
+    number of state coordinates the reward reads) and `CompiledBoxReward`
+    (``kernel_params``).
     """
 
     def box_minimum(self, lower: np.ndarray, upper: np.ndarray, t: Any = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -101,6 +106,42 @@ class BoxReward(Protocol):
         Each term of the pessimistic surrogate objective (11) is such a minimum; that it
         is the exact minimum (not an estimate at the box centre) is what Theorem 1 needs.
         """
+
+
+@runtime_checkable
+class UncheckedBoxReward(BoxReward, Protocol):
+    """A `BoxReward` that also offers its minimum without argument checks.
+
+    The planner models call ``box_minimum_raw`` in their hot loops instead of
+    ``box_minimum``; it must return exactly what ``box_minimum`` returns for valid
+    arguments.
+    """
+
+    def box_minimum_raw(self, lower: np.ndarray, upper: np.ndarray, t: Any = 0) -> tuple[np.ndarray, np.ndarray]:
+        """`BoxReward.box_minimum` without its argument checks.
+
+        Parameters
+        ----------
+        lower, upper : numpy.ndarray
+            Boxes of states, float arrays of shape (..., p), ``lower <= upper``
+            (not checked).
+        t : int or array_like
+            Absolute sub-step indices, broadcasting against the leading shape.
+        """
+
+
+@runtime_checkable
+class StateIndexedReward(BoxReward, Protocol):
+    """A `BoxReward` that declares how many state coordinates it reads.
+
+    A planner model checks ``min_state_dim`` against its system's number of states at
+    construction and raises a `DimensionError` when the reward reads a coordinate the
+    state does not have.
+    """
+
+    @property
+    def min_state_dim(self) -> int:
+        """One more than the largest state index the reward reads."""
 
 
 @runtime_checkable

@@ -43,6 +43,8 @@ from ..kernels import bicycle as bicycle_kernels
 from ..kernels.bicycle import EgoController, LaneGeometry, apply_action, bicycle_step_one, ego_control_one
 from ..kernels.box_primitives import minimum
 from ..kernels.reward_protocol import (
+    CompiledBoxReward,
+    StateIndexedReward,
     box_reward_minimum,
     has_compiled_minimum,
     minimum_sources,
@@ -307,13 +309,13 @@ def _fallback_kernel(params_type: type):
 
 def _reward_params(name: str, reward: Any):
     """The compiled params of a reward argument, checked (`BicycleModel`)."""
-    params = getattr(reward, "kernel_params", None)
+    params = reward.kernel_params if isinstance(reward, CompiledBoxReward) else None
     if params is None or not has_compiled_minimum(params):
         raise InputError(
             f"{name} must expose kernel_params with a registered compiled box minimum "
             f"(minimaxplan.kernels.register_reward_params), got {type(reward).__name__}"
         )
-    needed = getattr(reward, "min_state_dim", 4)
+    needed = reward.min_state_dim if isinstance(reward, StateIndexedReward) else None
     if needed is not None and needed > 4:
         raise DimensionError(f"{name} reads state coordinates up to index {needed - 1}, but the ego has 4 states")
     return params

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from ..kernels import has_compiled_minimum
+from ..kernels import BoxReward, CompiledBoxReward, StateIndexedReward, UncheckedBoxReward, has_compiled_minimum
 from ..models.errors import DimensionError, EmptySetError, InputError
 from ..models.prediction import IntervalPredictor
 from ..models.sets import Box
@@ -137,18 +137,24 @@ class BoxState:
 
 
 def _check_reward(reward, nstates: int):
-    minimum = getattr(reward, "box_minimum", None)
-    if not callable(minimum):
+    """The box minimum a model calls on ``reward`` (`BoxReward`), checked against ``nstates``."""
+    if not isinstance(reward, BoxReward) or not callable(reward.box_minimum):
         raise InputError(
             f"reward must have a callable box_minimum(lower, upper, t) -> (reward, collided), got {type(reward).__name__}"
         )
-    needed = getattr(reward, "min_state_dim", None)
+    needed = reward.min_state_dim if isinstance(reward, StateIndexedReward) else None
     if needed is not None and needed > nstates:
         raise DimensionError(
             f"reward reads state coordinates up to index {needed - 1}, but the system has {nstates} states"
         )
-    raw = getattr(reward, "box_minimum_raw", None)
-    return raw if callable(raw) else minimum
+    if isinstance(reward, UncheckedBoxReward) and callable(reward.box_minimum_raw):
+        return reward.box_minimum_raw
+    return reward.box_minimum
+
+
+def _kernel_params(reward):
+    """``reward.kernel_params`` of a `CompiledBoxReward`; None for any other reward."""
+    return reward.kernel_params if isinstance(reward, CompiledBoxReward) else None
 
 
 def _as_result_array(name: str, what: str, value, shape: tuple[int, ...]) -> np.ndarray:
@@ -259,7 +265,7 @@ class IntervalGroup:
         self.reward_minimum = _check_reward(reward, p)
         self.substeps = as_count("substeps", substeps)
         self.bank = ControllerBank(controllers, p, q)
-        self.kernel_params = getattr(reward, "kernel_params", None)
+        self.kernel_params = _kernel_params(reward)
         if self.kernel_params is not None and not has_compiled_minimum(self.kernel_params):
             raise InputError(
                 f"reward.kernel_params has type {type(self.kernel_params).__name__}, for which no compiled box minimum "

@@ -9,6 +9,8 @@ import pytest
 from minimaxplan.kernels import (
     BoxReward,
     CompiledBoxReward,
+    StateIndexedReward,
+    UncheckedBoxReward,
     box_minima,
     box_minima_kernel,
     box_primitives,
@@ -103,4 +105,37 @@ def test_the_families_implement_the_compiled_protocol():
 
     for reward in (GoalReward([0.0, 0.0]), SpeedLaneReward(1.0, 2.0)):
         assert isinstance(reward, CompiledBoxReward) and has_compiled_minimum(reward.kernel_params)
-    assert isinstance(NumpyOnly(), BoxReward) and not isinstance(NumpyOnly(), CompiledBoxReward)
+        assert isinstance(reward, UncheckedBoxReward) and isinstance(reward, StateIndexedReward)
+    for protocol in (CompiledBoxReward, UncheckedBoxReward, StateIndexedReward):
+        assert isinstance(NumpyOnly(), BoxReward) and not isinstance(NumpyOnly(), protocol)
+
+
+def test_the_planner_models_read_a_reward_only_through_its_declared_protocols():
+    """A reward declaring only `BoxReward` is evaluated through box_minimum on the Python engine; one declaring
+    `StateIndexedReward` is checked against the system's states; an `UncheckedBoxReward`'s raw minimum is the
+    one the model calls."""
+    from minimaxplan.models.errors import DimensionError, InputError
+    from minimaxplan.planners.interval_model import _check_reward, _kernel_params
+
+    class NumpyOnly:
+        def box_minimum(self, lower, upper, t=0):
+            return np.ones(np.shape(lower)[:-1]), np.zeros(np.shape(lower)[:-1], dtype=bool)
+
+    class ReadsFive(NumpyOnly):
+        min_state_dim = 5
+
+    class WithRaw(NumpyOnly):
+        def box_minimum_raw(self, lower, upper, t=0):
+            return self.box_minimum(lower, upper, t)
+
+    plain = NumpyOnly()
+    assert _check_reward(plain, 4) == plain.box_minimum and _kernel_params(plain) is None
+    raw = WithRaw()
+    assert _check_reward(raw, 4) == raw.box_minimum_raw
+    with pytest.raises(DimensionError, match="up to index 4, but the system has 4 states"):
+        _check_reward(ReadsFive(), 4)
+    assert _check_reward(ReadsFive(), 5) is not None
+    goal = GoalReward([0.0, 0.0])
+    assert _check_reward(goal, 4) == goal.box_minimum_raw and _kernel_params(goal) is goal.kernel_params
+    with pytest.raises(InputError, match="callable box_minimum"):
+        _check_reward(object(), 4)
