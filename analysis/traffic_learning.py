@@ -324,13 +324,11 @@ class TrafficLearner:
         self.kind = "highway" if isinstance(scenario, HighwayScenario) else "tjunction"
         self.dt = float(scenario.dt)
         self.noise = np.asarray(scenario.measurement_noise, dtype=float)
-        self.ego_noise = np.asarray(getattr(scenario, "ego_measurement_noise", scenario.measurement_noise), dtype=float)
+        self.ego_noise = np.asarray(scenario.ego_measurement_noise, dtype=float)
         b, v, rules = scenario.behaviour, scenario.vehicle, scenario.rules
         self.behaviour, self.vehicle, self.rules = b, v, rules
         lo, hi = b.theta_a_prior
-        self.speed_range = tuple(
-            scenario.vehicle_speed if isinstance(scenario, HighwayScenario) else scenario.main_speed
-        )
+        self.speed_range = scenario.target_speeds
         self.prior_a = Box(lo, hi)
         self.prior_lon = Box(np.append(lo, lo[0] * self.speed_range[0]), np.append(hi, hi[0] * self.speed_range[1]))
         self.prior_b = Box(*b.theta_b_prior)

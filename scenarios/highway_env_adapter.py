@@ -591,7 +591,7 @@ class HighwayEnvAdapter:
     def target_speed(self) -> tuple[float, float]:
         """Bounds of the other vehicles' hidden target speed, m/s (``vehicle_speed`` or `INTERSECTION_TARGET_SPEED`)."""
         if isinstance(self.scenario, HighwayScenario):
-            return (float(self.scenario.vehicle_speed[0]), float(self.scenario.vehicle_speed[1]))
+            return self.scenario.target_speeds
         return INTERSECTION_TARGET_SPEED
 
     def prior(self, agent: int, measured) -> VehicleBelief:

@@ -173,6 +173,11 @@ class HighwayScenario:
         """Sub-steps in the time limit."""
         return int(round(self.time_limit / self.dt))
 
+    @property
+    def target_speeds(self) -> tuple[float, float]:
+        """Bounds of the other vehicles' target speeds, m/s (``vehicle_speed``)."""
+        return (float(self.vehicle_speed[0]), float(self.vehicle_speed[1]))
+
     def to_dict(self) -> dict:
         """The scenario as plain data."""
         return asdict(self)
@@ -278,6 +283,11 @@ class TJunctionScenario:
     def max_steps(self) -> int:
         """Sub-steps in the time limit."""
         return int(round(self.time_limit / self.dt))
+
+    @property
+    def target_speeds(self) -> tuple[float, float]:
+        """Bounds of the main-road vehicles' target speeds, m/s (``main_speed``)."""
+        return (float(self.main_speed[0]), float(self.main_speed[1]))
 
     def to_dict(self) -> dict:
         """The scenario as plain data."""

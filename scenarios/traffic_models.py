@@ -939,13 +939,6 @@ def _vertex_step(base, z_lo, z_hi, p_lo, p_hi):
     return lo.min(axis=1), hi.max(axis=1)
 
 
-def _target_range(scenario) -> tuple[float, float]:
-    speeds = getattr(scenario, "vehicle_speed", None)
-    if speeds is None:
-        speeds = scenario.main_speed
-    return float(speeds[0]), float(speeds[1])
-
-
 def forecast_traffic(
     observation,
     road: Road,
@@ -970,7 +963,7 @@ def forecast_traffic(
         The lanes.
     scenario : HighwayScenario or TJunctionScenario
         ``dt``, ``vehicle``, ``behaviour``, ``rules``, ``measurement_noise`` and the
-        target-speed range (``vehicle_speed`` or ``main_speed``).
+        target-speed range ``target_speeds`` (``vehicle_speed`` or ``main_speed``).
     beliefs : mapping of int to VehicleBelief
         Per agent index; a vehicle without a belief gets `prior_belief`.
     steps : int
@@ -1081,7 +1074,7 @@ def forecast_traffic(
     n_lanes = len(road)
     length = vehicle.length
     noise = np.array(scenario.measurement_noise, dtype=float)
-    t_range = _target_range(scenario)
+    t_range = scenario.target_speeds
     strips = _strip_boxes(road)
     road_boxes = np.vstack([strips] + [np.array([[a[0][0], a[0][1], a[1][0], a[1][1]]]) for a in road.areas])
 

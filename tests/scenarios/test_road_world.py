@@ -276,3 +276,10 @@ def test_world_rejects_bad_input():
         HighwayScenario(measurement_noise=(0.1, 0.1))
     with pytest.raises(InputError, match="goal lies beyond"):
         HighwayScenario(goal_distance=5000.0)
+
+
+def test_target_speeds_are_the_scenarios_draw_range_as_floats():
+    """The forecast and the learner read the other vehicles' target-speed range from `target_speeds` alone."""
+    assert HighwayScenario(vehicle_speed=(21, 24)).target_speeds == (21.0, 24.0)
+    assert TJunctionScenario(main_speed=(6, 8.5)).target_speeds == (6.0, 8.5)
+    assert all(type(v) is float for v in HighwayScenario(vehicle_speed=(21, 24)).target_speeds)
