@@ -23,12 +23,14 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from .registry import (
+        CrowdedWorld,
         EpisodeFailure,
         GroundTruthWorld,
         Method,
         Policy,
         PredictingPolicy,
         Scenario,
+        TracedWorld,
         Transition,
         UnknownMethod,
         UnknownScenario,
@@ -54,6 +56,8 @@ __all__ = [
     "Policy",
     "PredictingPolicy",
     "GroundTruthWorld",
+    "TracedWorld",
+    "CrowdedWorld",
     "box_kind",
     "Transition",
     "EpisodeFailure",

@@ -29,10 +29,12 @@ from minimaxplan.models import DimensionError, InputError
 from minimaxplan.models.validation import as_choice, as_count, as_discount, as_positive_scalar, check_instance
 
 from .registry import (
+    CrowdedWorld,
     EpisodeFailure,
     Factory,
     GroundTruthWorld,
     PredictingPolicy,
+    TracedWorld,
     Transition,
     box_kind,
     method_factory,
@@ -364,23 +366,22 @@ class _Trace:
         self.states: list[list[float]] = []
         self.pedestrians: list[list[list[float]]] = []
         self.decision_steps: list[int] = []
+        self._traced = isinstance(world, TracedWorld)
+        self._crowded = isinstance(world, CrowdedWorld)
         self.stepped(world)
 
     def decided(self, world: Any) -> None:
-        self.decision_steps.append(int(getattr(world, "step_index", len(self.decision_steps))))
+        self.decision_steps.append(int(world.step_index) if self._traced else len(self.decision_steps))
 
     def stepped(self, world: Any) -> None:
-        state = getattr(world, "state", None)
-        if state is not None:
-            self.states.append(np.round(np.asarray(state, dtype=float), 4).tolist())
-        crowd = getattr(world, "crowd", None)
-        if crowd is not None:
-            self.pedestrians.append(np.round(np.asarray(crowd.positions, dtype=float), 4).tolist())
+        if self._traced:
+            self.states.append(np.round(np.asarray(world.state, dtype=float), 4).tolist())
+        if self._crowded:
+            self.pedestrians.append(np.round(np.asarray(world.crowd.positions, dtype=float), 4).tolist())
 
     def to_dict(self, world: Any) -> dict:
-        params = getattr(world, "params", None)
         return {
-            "dt": float(getattr(params, "dt", 1.0)),
+            "dt": float(world.params.dt) if self._traced else 1.0,
             "states": self.states,
             "pedestrians": self.pedestrians,
             "decision_steps": self.decision_steps,

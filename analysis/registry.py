@@ -49,6 +49,8 @@ __all__ = [
     "Policy",
     "PredictingPolicy",
     "GroundTruthWorld",
+    "TracedWorld",
+    "CrowdedWorld",
     "box_kind",
     "Transition",
     "UnknownScenario",
@@ -265,6 +267,36 @@ class GroundTruthWorld(World, Protocol):
             (e.g. ``"robot"``: the robot's state, ``"pedestrian 0"``: a pedestrian's
             position).
         """
+
+
+@runtime_checkable
+class TracedWorld(World, Protocol):
+    """A `World` whose true state the episode's trace records, for plots and animations.
+
+    Read by the loop only (`EpisodeRecord.trace`); reading it must draw no random number
+    and change nothing. A world that is not one leaves the trace's states empty.
+    """
+
+    @property
+    def step_index(self) -> int:
+        """Sub-steps applied so far."""
+
+    @property
+    def state(self) -> np.ndarray:
+        """The agent's true state, a 1-D array."""
+
+    @property
+    def params(self) -> Any:
+        """The episode's constants; ``params.dt`` is the sub-step, s."""
+
+
+@runtime_checkable
+class CrowdedWorld(World, Protocol):
+    """A `World` with pedestrians, whose true positions the episode's trace records."""
+
+    @property
+    def crowd(self) -> Any:
+        """The pedestrians; ``crowd.positions`` is their true positions (n, 2), m."""
 
 
 def box_kind(name: str) -> str:

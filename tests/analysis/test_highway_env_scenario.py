@@ -475,3 +475,11 @@ def test_miss_classifier_on_a_small_case():
     )["s"]
     assert summary["kinds"] == {"crash": {"misses": 2, "episodes": 1}, "unexplained": {"misses": 1, "episodes": 1}}
     assert summary["unexplained"] == [{"seed": 0, "kind": "unexplained", "name": "vehicle 1"}]
+
+
+def test_highway_env_worlds_declare_the_trace_protocol():
+    from minimaxplan.analysis.registry import CrowdedWorld, TracedWorld
+
+    world = HighwayEnvScenario("highway-fast-v0").make_world(0, LoopConfig())
+    assert isinstance(world, TracedWorld) and not isinstance(world, CrowdedWorld)
+    assert world.state.shape == (4,) and world.params.dt == world.adapter.dt

@@ -272,3 +272,42 @@ def test_draw_png_writes_the_drawing_and_closes_the_figure_even_when_drawing_fai
         draw_png(broken, tmp_path / "broken.png", figsize=(2, 1))
     assert not (tmp_path / "broken.png").exists()
     assert set(plt.get_fignums()) == before
+
+
+def test_the_trace_reads_only_what_a_world_declares():
+    """Robot and road worlds declare `TracedWorld` (robot worlds `CrowdedWorld` too); a world that declares
+    neither gets a trace without states or pedestrians, its decisions counted, dt 1."""
+    from minimaxplan.analysis.episode import _Trace
+    from minimaxplan.analysis.registry import CrowdedWorld, TracedWorld, World, scenario_factory
+
+    config = LoopConfig()
+    robot = scenario_factory("pedestrian")().make_world(3, config)
+    road = scenario_factory("highway")().make_world(3, config)
+    assert isinstance(robot, TracedWorld) and isinstance(robot, CrowdedWorld)
+    assert isinstance(road, TracedWorld) and not isinstance(road, CrowdedWorld)
+
+    class Bare:  # a World with nothing more
+        substeps, done, outcome, time, position = 1, False, "running", 0.0, np.zeros(2)
+
+        def measure(self):
+            return np.zeros(2)
+
+        def apply(self, u):
+            return "running"
+
+        def reward(self):
+            return 1.0
+
+        def to_dict(self):
+            return {}
+
+    bare = Bare()
+    assert isinstance(bare, World) and not isinstance(bare, TracedWorld) and not isinstance(bare, CrowdedWorld)
+    trace = _Trace(bare)
+    trace.decided(bare)
+    trace.decided(bare)
+    trace.stepped(bare)
+    assert trace.to_dict(bare) == {"dt": 1.0, "states": [], "pedestrians": [], "decision_steps": [0, 1]}
+    traced = _Trace(road)
+    traced.decided(road)
+    assert traced.to_dict(road)["dt"] == road.params.dt and len(traced.states) == 1 and not traced.pedestrians
