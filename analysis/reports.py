@@ -13,7 +13,7 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -50,6 +50,14 @@ def to_json(document: dict) -> str:
     return json.dumps(_plain(document), indent=2, allow_nan=False) + "\n"
 
 
+@runtime_checkable
+class _PlainData(Protocol):
+    """A result object that serialises itself (the library's results and reports)."""
+
+    def to_dict(self) -> dict:
+        """The object as a dict."""
+
+
 def _plain(value: Any) -> Any:
     if isinstance(value, dict):
         return {str(k): _plain(v) for k, v in value.items()}
@@ -61,7 +69,7 @@ def _plain(value: Any) -> Any:
         return _plain(value.item())
     if isinstance(value, float) and not math.isfinite(value):
         return None if math.isnan(value) else ("inf" if value > 0 else "-inf")
-    if hasattr(value, "to_dict"):
+    if isinstance(value, _PlainData):
         return _plain(value.to_dict())
     return value
 
@@ -165,7 +173,7 @@ class LMIReport:
         return self._certificate() is not None
 
     def _certificate(self) -> tuple[np.ndarray, np.ndarray, float] | None:
-        P, Q0, rho = (getattr(self.result, key, None) for key in ("P", "Q0", "rho"))
+        P, Q0, rho = self.result.P, self.result.Q0, self.result.rho
         if P is None or Q0 is None or rho is None:
             return None
         return P, Q0, rho
@@ -188,7 +196,7 @@ class LMIReport:
                 f"Assumption 4 fails: no certificate with normalised margin{bound} exists "
                 "(dual certificate re-checked exactly)"
             )
-        reason = getattr(self.result, "reason", "")
+        reason = self.result.reason
         return f"inconclusive: {reason}" if reason else f"inconclusive (status {status.value!r})"
 
     def state_eigenvalues(self) -> list[np.ndarray]:
@@ -212,8 +220,7 @@ class LMIReport:
     def to_dict(self) -> dict:
         """The report as a dict of plain Python values, for JSON (per matrix its eigenvalues and margins)."""
         margins = self.lmi_max_eigenvalues()
-        P = getattr(self.result, "P", None)
-        Q0 = getattr(self.result, "Q0", None)
+        P, Q0 = self.result.P, self.result.Q0
         return {
             "model": self.model,
             "form": self.form,
@@ -261,19 +268,19 @@ class LMIReport:
             if self.form == "continuous"
             else "[[A^T P A - P + Q0, A^T P D], [D^T P A, D^T P D - rho I]] < 0, P > 0"
         )
-        solve_time = getattr(result, "solve_time", None)
+        solve_time = result.solve_time
         rows: list[tuple[str, ...]] = [
             ("verdict", f"**{self.verdict}**"),
             (
                 "status",
-                f"{result.status} (certified: {bool(result.certified)}, inaccurate: {bool(getattr(result, 'inaccurate', False))})",
+                f"{result.status} (certified: {bool(result.certified)}, inaccurate: {bool(result.inaccurate)})",
             ),
             ("form", f"{self.form}: `{lmi}`"),
             ("checked", what),
-            ("solver", f"{getattr(result, 'solver', '-')}, status `{getattr(result, 'solver_status', '-')}`"),
+            ("solver", f"{result.solver}, status `{result.solver_status}`"),
             ("time", f"solver {_num(solve_time)} s, wall {_num(self.wall_time)} s"),
         ]
-        if getattr(result, "rho", None) is not None:
+        if result.rho is not None:
             rows.append(("rho", _num(result.rho, 6)))
         slack = "- (no primal SDP optimum behind this result)" if result.slack is None else _num(result.slack, 6)
         rows.append(("normalised slack t* of the primal SDP", slack))
@@ -281,7 +288,7 @@ class LMIReport:
             rows.append(("proven bound on the normalised margin", _num(result.margin, 6)))
         if result.eigenvalues_P is not None and result.eigenvalues_P[0] > 0:
             rows.append(("cond(P)", _num(result.eigenvalues_P[-1] / result.eigenvalues_P[0], 6)))
-        if getattr(result, "reason", ""):
+        if result.reason:
             rows.append(("reason", result.reason))
         lines = [f"## {self.model}", ""] + _table(("", ""), rows) + [""]
 
@@ -482,7 +489,7 @@ def proof_status(result: LMIResult) -> str:
         return "primal certificate re-checked exactly"
     if result.status is LMIStatus.INFEASIBLE and result.dual is not None:
         return "dual certificate re-checked exactly"
-    reason = getattr(result, "reason", "")
+    reason = result.reason
     return f"no proof either way: {reason}" if reason else "no proof either way"
 
 
