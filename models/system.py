@@ -306,9 +306,10 @@ class UncertainLinearSystem:
         ``phi_time="discrete"``. Likewise a discrete-time ``phi`` with a continuous
         ``sys`` is refused.
         """
-        for attr in ("A", "B", "dt"):
-            if not hasattr(sys, attr):
-                raise InputError(f"sys must be a python-control StateSpace, got {type(sys).__name__}")
+        from control import StateSpace  # imported here: only a caller who holds a StateSpace pays for it
+
+        if not isinstance(sys, StateSpace):
+            raise InputError(f"sys must be a python-control StateSpace, got {type(sys).__name__}")
         phi_time = as_choice("phi_time", phi_time, ("continuous", "discrete", None))
         sys_dt = sys.dt
         if sys_dt is None:  # python-control's "unspecified timebase": continuous and discrete at once

@@ -6,6 +6,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 if TYPE_CHECKING:
     from .tree import SearchTree
 
@@ -14,7 +16,7 @@ __all__ = ["Decision"]
 
 def _plain(value: Any) -> Any:
     """A JSON-friendly copy of an action (numpy arrays and scalars become lists/floats)."""
-    if hasattr(value, "tolist"):
+    if isinstance(value, (np.ndarray, np.generic)):
         return value.tolist()
     if isinstance(value, tuple):
         return [_plain(v) for v in value]

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import functools
 import numbers
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Sequence, Sized
 from typing import Any
 
 import numpy as np
@@ -85,7 +85,7 @@ class _Transitions:
             )
         next_states, rewards, terminals = out
         n = self.n_actions
-        if not hasattr(next_states, "__len__"):
+        if not isinstance(next_states, Sized):
             raise InputError(
                 f"models[{self.index}].expand next_states must be a sequence of {n} states, "
                 f"got {type(next_states).__name__}"
