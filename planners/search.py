@@ -83,6 +83,7 @@ class _Transitions:
                 f"models[{self.index}].expand(state, actions) must return a tuple "
                 f"(next_states, rewards, terminals), got {_describe(out)}"
             )
+        next_states: Sequence  # what the caller reads; checked only to be Sized (a numpy array of states is one)
         next_states, rewards, terminals = out
         n = self.n_actions
         if not isinstance(next_states, Sized):
