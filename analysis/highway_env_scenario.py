@@ -88,6 +88,7 @@ __all__ = [
     "HighwayEnvRobustMethod",
     "HighwayEnvNominalMethod",
     "HighwayEnvOracleMethod",
+    "HighwayEnvIDMMethod",
     "simulate_ego",
     "sequence_reach",
     "lane_keeping_sequences",
@@ -271,6 +272,30 @@ class HighwayEnvWorld:
         elif truncated:
             self._outcome = "goal" if "highway" in self.adapter.env_id else "timeout"
         return self._outcome
+
+    def drive_ego_by_idm(self) -> None:
+        """Hand the ego to highway-env's own ``IDMVehicle`` (IDM and MOBIL, highway-env's constants).
+
+        The reference point of the highway-env table: ``IDMVehicle.create_from`` the ego
+        (its position, heading, speed, target lane and speed, route) replaces it on the
+        road and as the controlled vehicle, so that `apply`'s ``env.step`` runs IDM and
+        MOBIL on it (``IDMVehicle.act`` ignores the action it is given).
+
+        Raises
+        ------
+        InputError
+            If the episode has already started (it must be the state at reset).
+        """
+        from minimaxplan.scenarios.highway_env_adapter import require_highway_env
+
+        if self.step_index:
+            raise InputError("the ego can be handed to IDM only at the start of the episode")
+        base = self.adapter.env.unwrapped
+        ego = base.vehicle
+        idm = require_highway_env().vehicle.behavior.IDMVehicle.create_from(ego)
+        base.road.vehicles[base.road.vehicles.index(ego)] = idm
+        base.controlled_vehicles[base.controlled_vehicles.index(ego)] = idm
+        base.action_type.controlled_vehicle = idm
 
     def reward(self) -> float:
         """highway-env's normalised reward of the last step, clipped to [0, 1]."""
@@ -849,6 +874,70 @@ class HighwayEnvOracleMethod(_SearchMethod):
         )
 
 
+class _IdlePolicy:
+    """IDLE at every sub-step (ignored by an ego that highway-env's IDM drives)."""
+
+    def __init__(self, idle: int) -> None:
+        self.idle = idle
+
+    def control(self, measurement: Observation) -> np.ndarray:
+        """The IDLE action's index (shape (1,)).
+
+        Parameters
+        ----------
+        measurement : Observation
+            Unused.
+        """
+        return np.array([self.idle], dtype=float)
+
+
+class HighwayEnvIDMMethod(Method[HighwayEnvWorld]):
+    """highway-env's own rule-based ego (``IDMVehicle``: IDM and MOBIL), a reference point, not a planner.
+
+    `start` hands the episode's ego to highway-env's ``IDMVehicle`` (`HighwayEnvWorld.drive_ego_by_idm`);
+    it then decides by itself at every simulation step, whatever the library's action. It predicts
+    nothing (no boxes to check). The ego keeps its target speed at reset (highway-env's MDPVehicle's).
+
+    Parameters
+    ----------
+    scenario : HighwayEnvScenario
+        The highway-env scenario (any other raises `UnsupportedScenario`).
+    config : LoopConfig
+        The loop settings (unused).
+    """
+
+    def __init__(self, scenario: Any, config: LoopConfig) -> None:
+        if not isinstance(scenario, HighwayEnvScenario):
+            raise UnsupportedScenario(f"{type(self).__name__} drives highway-env scenarios only")
+        self.scenario = scenario
+        self.config = config
+
+    def start(self, world: HighwayEnvWorld) -> None:
+        """Hand the ego to highway-env's IDM.
+
+        Parameters
+        ----------
+        world : HighwayEnvWorld
+            The episode, at reset.
+        """
+        world.drive_ego_by_idm()
+        self.idle = [name for name, *_ in world.actions].index("IDLE")
+
+    def decide(self, measurement: Observation) -> Policy:
+        """IDLE, ignored by the IDM ego.
+
+        Parameters
+        ----------
+        measurement : Observation
+            Unused.
+        """
+        return _IdlePolicy(self.idle)
+
+    def report(self) -> dict:
+        """Which driver the ego had."""
+        return {"ego": "highway-env IDMVehicle (IDM and MOBIL)"}
+
+
 @functools.lru_cache(maxsize=8)
 def _without_side_groups(road: Road) -> Road:
     return Road(
@@ -872,3 +961,4 @@ if highway_env_installed():
     register_method("robust", HighwayEnvRobustMethod)
     register_method("nominal", HighwayEnvNominalMethod)
     register_method("oracle", HighwayEnvOracleMethod)
+    register_method("idm", HighwayEnvIDMMethod)

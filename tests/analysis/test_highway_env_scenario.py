@@ -483,3 +483,27 @@ def test_highway_env_worlds_declare_the_trace_protocol():
     world = HighwayEnvScenario("highway-fast-v0").make_world(0, LoopConfig())
     assert isinstance(world, TracedWorld) and not isinstance(world, CrowdedWorld)
     assert world.state.shape == (4,) and world.params.dt == world.adapter.dt
+
+
+def test_idm_method_hands_the_ego_to_highway_envs_idm_vehicle():
+    """The reference ego: highway-env's IDMVehicle replaces the controlled vehicle at reset and drives itself
+    (IDMVehicle.act ignores the action); the episode is reproducible; the hand-over is refused mid-episode."""
+    from minimaxplan.analysis.highway_env_scenario import HighwayEnvIDMMethod
+
+    scenario = HighwayEnvScenario("highway-fast-v0")
+    world = scenario.make_world(3, LoopConfig())
+    before = world.state
+    method = HighwayEnvIDMMethod(scenario, LoopConfig())
+    method.start(world)
+    base = world.adapter.env.unwrapped
+    assert type(base.vehicle) is highway_env.vehicle.behavior.IDMVehicle
+    assert base.vehicle in base.road.vehicles and base.vehicle is base.action_type.controlled_vehicle
+    np.testing.assert_array_equal(world.state, before)
+    assert world.adapter.agent_id(base.vehicle) == 0 and 0 not in world.measure().ids
+    world.apply(np.array([0.0]))
+    with pytest.raises(InputError, match="only at the start"):
+        world.drive_ego_by_idm()
+    record = run_job(make_job("highway-env:highway-fast-v0", "idm", 3, LoopConfig(max_decisions=3)))
+    again = run_job(make_job("highway-env:highway-fast-v0", "idm", 3, LoopConfig(max_decisions=3)))
+    assert record.decisions == 3 and record.boxes_checked == 0 and record.trajectory == again.trajectory
+    assert record.extra["ego"].startswith("highway-env IDMVehicle")
