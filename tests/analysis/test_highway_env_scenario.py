@@ -45,12 +45,17 @@ def _quiet():
         yield
 
 
-def test_scenarios_are_registered_with_robust_nominal_and_oracle():
+def test_scenarios_are_registered_with_robust_nominal_oracle_and_idm():
     assert set(HIGHWAY_ENV_SCENARIOS) <= set(scenario_names())
     scenario = HighwayEnvScenario("highway-fast-v0")
-    from minimaxplan.analysis.highway_env_scenario import HighwayEnvOracleMethod
+    from minimaxplan.analysis.highway_env_scenario import HighwayEnvIDMMethod, HighwayEnvOracleMethod
 
-    expected = {"robust": HighwayEnvRobustMethod, "nominal": HighwayEnvNominalMethod, "oracle": HighwayEnvOracleMethod}
+    expected = {
+        "robust": HighwayEnvRobustMethod,
+        "nominal": HighwayEnvNominalMethod,
+        "oracle": HighwayEnvOracleMethod,
+        "idm": HighwayEnvIDMMethod,
+    }
     for method, cls in expected.items():
         assert resolve(method_factory(method, scenario, LoopConfig())) is cls
     for baseline in ("dwa", "teb"):  # the road worlds' baselines drive RoadWorlds only
@@ -58,6 +63,8 @@ def test_scenarios_are_registered_with_robust_nominal_and_oracle():
             method_factory(baseline, scenario, LoopConfig())
     with pytest.raises(UnsupportedScenario):
         HighwayEnvRobustMethod(RoadScenario("highway"), LoopConfig())
+    with pytest.raises(UnsupportedScenario):
+        HighwayEnvIDMMethod(RoadScenario("highway"), LoopConfig())
     with pytest.raises(InputError, match="env_id"):
         HighwayEnvScenario("merge-v0")
     with pytest.raises(InputError, match="measured exactly"):
