@@ -514,3 +514,22 @@ def test_idm_method_hands_the_ego_to_highway_envs_idm_vehicle():
     again = run_job(make_job("highway-env:highway-fast-v0", "idm", 3, LoopConfig(max_decisions=3)))
     assert record.decisions == 3 and record.boxes_checked == 0 and record.trajectory == again.trajectory
     assert record.extra["ego"].startswith("highway-env IDMVehicle")
+
+
+@pytest.mark.parametrize("seed", [0, 2, 4])
+def test_the_committed_idm_records_re_run_exactly(seed):
+    """The idm rows of benchmarks/results/experiments/highway-env (a collision, a goal, a timeout at the
+    intersection) come back the same from a fresh run: outcome, time and return."""
+    import csv
+    import pathlib
+
+    path = pathlib.Path(__file__).parents[2] / "benchmarks/results/experiments/highway-env/episodes.csv"
+    with path.open(newline="") as handle:
+        (row,) = [
+            r
+            for r in csv.DictReader(handle)
+            if (r["scenario"], r["method"], r["seed"]) == ("highway-env:intersection-v0", "idm", str(seed))
+        ]
+    record = run_job(make_job("highway-env:intersection-v0", "idm", seed, LoopConfig()))
+    assert record.outcome == row["outcome"] and record.decisions == int(row["decisions"])
+    assert record.time_s == float(row["time_s"]) and record.discounted_return == float(row["discounted_return"])
