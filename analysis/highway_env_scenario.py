@@ -496,7 +496,7 @@ def box_overlaps(boxes: np.ndarray, other: np.ndarray) -> np.ndarray:
     return np.any(overlap, axis=2)
 
 
-def latest_clear_sequence(alive: np.ndarray, values: np.ndarray) -> int:
+def latest_clear_sequence(alive: np.ndarray, values: np.ndarray, *, speeds: np.ndarray | None = None) -> int:
     """The best-valued sequence, unless it may collide sooner than another: then the best of those clear longest.
 
     The road worlds' rule (`minimaxplan.analysis.road_planning.latest_collision_action`)
@@ -505,6 +505,11 @@ def latest_clear_sequence(alive: np.ndarray, values: np.ndarray) -> int:
     sequence that takes speed first may collect more of it for a collision a few
     sub-steps earlier, giving up the time in which new measurements shrink the boxes.
 
+    With ``speeds``, when no sequence is clear over the whole horizon (nothing is proven
+    then), the candidates whose first possible collision is the latest are narrowed to
+    those slowest at that sub-step before the value decides: the least speed where a
+    collision may first happen (braking also leaves the most time for measurements).
+
     Parameters
     ----------
     alive : numpy.ndarray of bool, shape (sequences, steps + 1)
@@ -512,12 +517,15 @@ def latest_clear_sequence(alive: np.ndarray, values: np.ndarray) -> int:
         (nonincreasing along a row).
     values : numpy.ndarray, shape (sequences,)
         The sequences' discounted values.
+    speeds : numpy.ndarray, shape (sequences, steps + 1), optional
+        The ego's speed along each sequence, m/s.
 
     Returns
     -------
     int
         The index of the best-valued sequence among those whose first possible collision
-        is the latest (the first on ties; every clear sequence qualifies when one is).
+        is the latest (and, with ``speeds`` and no clear sequence, the slowest there; the
+        first on ties; every clear sequence qualifies when one is).
     """
     alive = np.asarray(alive, dtype=bool)
     values = np.asarray(values, dtype=float)
@@ -527,6 +535,13 @@ def latest_clear_sequence(alive: np.ndarray, values: np.ndarray) -> int:
         )
     clear = alive.sum(axis=1)
     candidates = np.flatnonzero(clear == clear.max())
+    if speeds is not None:
+        speeds = np.asarray(speeds, dtype=float)
+        if speeds.shape != alive.shape:
+            raise DimensionError(f"speeds must have the shape of alive {alive.shape}, got {speeds.shape}")
+        if not alive[:, -1].any():
+            at = speeds[candidates, int(clear.max())]  # the candidates' first possible collision sub-step
+            candidates = candidates[at == at.min()]
     return int(candidates[np.argmax(values[candidates])])
 
 
@@ -632,7 +647,7 @@ class _SearchMethod(Method[HighwayEnvWorld]):
         values = (rewards[:, 1:] * discount[1:]).sum(axis=1)
         best = int(np.argmax(values))  # ties: the first sequence (SLOWER first at the intersection)
         if self.latest_collision and not alive[best, -1]:
-            best = latest_clear_sequence(alive, values)
+            best = latest_clear_sequence(alive, values, speeds=trajectories[:, :, 2])
         first = int(self.sequences[best, 0])
         predicted: dict[int, dict[str, tuple]] = {}
         if self.predicting:

@@ -190,6 +190,15 @@ def test_latest_clear_sequence_keeps_the_best_clear_plan_else_delays_the_first_p
     # ties in the first possible collision: the value decides, then the first index
     assert latest_clear_sequence(alive(4, 4, 4, 1), values) == 0
     assert latest_clear_sequence(alive(2, 2), np.array([0.3, 0.3])) == 0
+    # with speeds and nothing clear: the slowest at the latest first possible collision, then the value
+    speeds = np.tile(np.array([[20.0], [25.0], [17.0], [19.0]]), (1, 6))  # sequence 2 is slowest but collides sooner
+    assert latest_clear_sequence(alive(4, 4, 2, 4), values, speeds=speeds) == 3
+    speeds[1, 4] = 18.0  # read at sub-step 4, the candidates' first possible collision
+    assert latest_clear_sequence(alive(4, 4, 2, 4), values, speeds=speeds) == 1
+    # with a clear sequence the speeds change nothing
+    assert latest_clear_sequence(alive(3, 6, 6, 2), values, speeds=speeds) == 2
+    with pytest.raises(DimensionError, match="speeds"):
+        latest_clear_sequence(alive(3, 4, 2, 4), values, speeds=speeds[:, :3])
     with pytest.raises(DimensionError, match="values"):
         latest_clear_sequence(alive(3, 4), values)
     with pytest.raises(DimensionError, match="alive"):
