@@ -545,7 +545,17 @@ def latest_clear_sequence(alive: np.ndarray, values: np.ndarray, *, speeds: np.n
     return int(candidates[np.argmax(values[candidates])])
 
 
-class _SearchMethod(Method[HighwayEnvWorld]):
+class _HighwayEnvMethod(Method[HighwayEnvWorld]):
+    """A method of the highway-env scenarios only (any other raises `UnsupportedScenario`)."""
+
+    def __init__(self, scenario: Any, config: LoopConfig) -> None:
+        if not isinstance(scenario, HighwayEnvScenario):
+            raise UnsupportedScenario(f"{type(self).__name__} drives highway-env scenarios only")
+        self.scenario = scenario
+        self.config = config
+
+
+class _SearchMethod(_HighwayEnvMethod):
     """The exhaustive search over `SEARCH_DECISIONS` meta-actions shared by robust and nominal."""
 
     predicting = False
@@ -553,12 +563,6 @@ class _SearchMethod(Method[HighwayEnvWorld]):
     lane_keeping = False
     #: When every sequence may collide, take the one clear longest (`latest_clear_sequence`).
     latest_collision = False
-
-    def __init__(self, scenario: Any, config: LoopConfig) -> None:
-        if not isinstance(scenario, HighwayEnvScenario):
-            raise UnsupportedScenario(f"{type(self).__name__} drives highway-env scenarios only")
-        self.scenario = scenario
-        self.config = config
 
     def start(self, world: HighwayEnvWorld) -> None:
         """Remember the world; enumerate the action sequences.
@@ -906,7 +910,7 @@ class _IdlePolicy:
         return np.array([self.idle], dtype=float)
 
 
-class HighwayEnvIDMMethod(Method[HighwayEnvWorld]):
+class HighwayEnvIDMMethod(_HighwayEnvMethod):
     """highway-env's own rule-based ego (``IDMVehicle``: IDM and MOBIL), a reference point, not a planner.
 
     `start` hands the episode's ego to highway-env's ``IDMVehicle`` (`HighwayEnvWorld.drive_ego_by_idm`);
@@ -920,12 +924,6 @@ class HighwayEnvIDMMethod(Method[HighwayEnvWorld]):
     config : LoopConfig
         The loop settings (unused).
     """
-
-    def __init__(self, scenario: Any, config: LoopConfig) -> None:
-        if not isinstance(scenario, HighwayEnvScenario):
-            raise UnsupportedScenario(f"{type(self).__name__} drives highway-env scenarios only")
-        self.scenario = scenario
-        self.config = config
 
     def start(self, world: HighwayEnvWorld) -> None:
         """Hand the ego to highway-env's IDM.
