@@ -59,6 +59,10 @@ class _PlainData(Protocol):
 
 
 def _plain(value: Any) -> Any:
+    if type(value) in (str, int, bool) or value is None:  # the leaves, first: the protocol check costs microseconds
+        return value
+    if type(value) is float and math.isfinite(value):
+        return value
     if isinstance(value, dict):
         return {str(k): _plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
