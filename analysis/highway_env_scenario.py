@@ -38,9 +38,10 @@ robust
     reads up to its last lane-keeping sub-step (`kept_substeps`), the general one after:
     sound because a forecast's boxes up to sub-step n read the ego's reach only up to n
     (as the road worlds' lane-keeping forecast). When the best-valued sequence may
-    collide within the horizon, the executed one is the best-valued of those whose
-    first possible collision is the latest (`latest_clear_sequence`, the road worlds'
-    latest-collision rule). A `PredictingPolicy`: the ego's
+    collide within the horizon, the executed one is, among those whose first possible
+    collision is the latest, the slowest there when none is clear, then the best-valued
+    (`latest_clear_sequence`, the road worlds' latest-collision rule). A
+    `PredictingPolicy`: the ego's
     predicted state and the state boxes of the forecast that valued the executed
     decision are checked after each sub-step (``boxes_checked``, ``boxes_missed``).
 nominal
@@ -51,6 +52,9 @@ oracle
     The same search on the other vehicles' true future: a deep copy of the environment
     stepped over the horizon with the ego holding its targets (as the road worlds'
     oracle).
+idm
+    A reference point, not a planner: highway-env's own ``IDMVehicle`` (IDM and MOBIL)
+    drives the ego from reset, whatever the library's action.
 
 The road worlds' DWA and TEB (`minimaxplan.analysis.road_methods`) drive `RoadWorld`s
 only: they raise `UnsupportedScenario` here.
@@ -533,12 +537,18 @@ def latest_clear_sequence(alive: np.ndarray, values: np.ndarray, *, speeds: np.n
         raise DimensionError(
             f"alive must have shape (sequences, steps + 1) and values (sequences,), got {alive.shape} and {values.shape}"
         )
+    if np.any(alive[:, 1:] & ~alive[:, :-1]):
+        raise InputError("alive must be nonincreasing along each sequence (clear up to its first possible collision)")
+    if not np.all(np.isfinite(values)):
+        raise InputError("values must be finite")
     clear = alive.sum(axis=1)
     candidates = np.flatnonzero(clear == clear.max())
     if speeds is not None:
         speeds = np.asarray(speeds, dtype=float)
         if speeds.shape != alive.shape:
             raise DimensionError(f"speeds must have the shape of alive {alive.shape}, got {speeds.shape}")
+        if not np.all(np.isfinite(speeds)):
+            raise InputError("speeds must be finite")
         if not alive[:, -1].any():
             at = speeds[candidates, int(clear.max())]  # the candidates' first possible collision sub-step
             candidates = candidates[at == at.min()]
@@ -893,23 +903,6 @@ class HighwayEnvOracleMethod(_SearchMethod):
         )
 
 
-class _IdlePolicy:
-    """IDLE at every sub-step (ignored by an ego that highway-env's IDM drives)."""
-
-    def __init__(self, idle: int) -> None:
-        self.idle = idle
-
-    def control(self, measurement: Observation) -> np.ndarray:
-        """The IDLE action's index (shape (1,)).
-
-        Parameters
-        ----------
-        measurement : Observation
-            Unused.
-        """
-        return np.array([self.idle], dtype=float)
-
-
 class HighwayEnvIDMMethod(_HighwayEnvMethod):
     """highway-env's own rule-based ego (``IDMVehicle``: IDM and MOBIL), a reference point, not a planner.
 
@@ -944,7 +937,7 @@ class HighwayEnvIDMMethod(_HighwayEnvMethod):
         measurement : Observation
             Unused.
         """
-        return _IdlePolicy(self.idle)
+        return _SearchPolicy(self.idle, self.idle, {})
 
     def report(self) -> dict:
         """Which driver the ego had."""

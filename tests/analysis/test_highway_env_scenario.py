@@ -5,6 +5,8 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 
 def _require_highway_env():
@@ -542,3 +544,47 @@ def test_the_committed_idm_records_re_run_exactly(seed):
     record = run_job(make_job("highway-env:intersection-v0", "idm", seed, LoopConfig()))
     assert record.outcome == row["outcome"] and record.decisions == int(row["decisions"])
     assert record.time_s == float(row["time_s"]) and record.discounted_return == float(row["discounted_return"])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    clear=st.lists(st.integers(1, 8), min_size=1, max_size=12),
+    data=st.data(),
+)
+def test_latest_clear_sequence_against_brute_force(clear, data):
+    """The rule, by enumeration: with a sequence clear over the horizon, the best-valued clear one; otherwise
+    among the clear longest (and, with speeds, the slowest at that sub-step) the best-valued, first on ties."""
+    from minimaxplan.analysis.highway_env_scenario import latest_clear_sequence
+
+    steps = 8
+    n = len(clear)
+    alive = np.arange(steps)[None, :] < np.array(clear)[:, None]
+    values = np.array(data.draw(st.lists(st.sampled_from([0.1, 0.5, 0.9]), min_size=n, max_size=n)))
+    speeds = np.array(
+        data.draw(
+            st.lists(
+                st.lists(st.sampled_from([18.0, 20.0, 25.0]), min_size=steps, max_size=steps), min_size=n, max_size=n
+            )
+        )
+    )
+    longest = max(clear)
+    pool = [i for i in range(n) if clear[i] == longest]
+    plain = max(pool, key=lambda i: (values[i], -i))
+    assert latest_clear_sequence(alive, values) == plain
+    if longest < steps:
+        slowest = min(speeds[i, longest] for i in pool)
+        pool = [i for i in pool if speeds[i, longest] == slowest]
+    assert latest_clear_sequence(alive, values, speeds=speeds) == max(pool, key=lambda i: (values[i], -i))
+
+
+def test_latest_clear_sequence_rejects_rows_that_clear_again_and_non_finite_inputs():
+    from minimaxplan.analysis.highway_env_scenario import latest_clear_sequence
+
+    alive = np.array([[True, False, True], [True, True, False]])
+    with pytest.raises(InputError, match="nonincreasing"):
+        latest_clear_sequence(alive, np.array([0.5, 0.5]))
+    alive = np.array([[True, False, False], [True, True, False]])
+    with pytest.raises(InputError, match="values must be finite"):
+        latest_clear_sequence(alive, np.array([np.nan, 0.5]))
+    with pytest.raises(InputError, match="speeds must be finite"):
+        latest_clear_sequence(alive, np.array([0.5, 0.5]), speeds=np.full((2, 3), np.nan))
