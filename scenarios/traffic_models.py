@@ -62,6 +62,7 @@ from .lateral_contraction import (
     ellipse_hull,
     metric_radius,
 )
+from .lateral_invariant import invariant_sets
 from .road import ARC, STRAIGHT, Road, wrap_to_pi
 from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters, slip_angle
 
@@ -952,6 +953,7 @@ def forecast_traffic(
     ego_speed=None,
     ego_heading=None,
     lateral_contraction: bool = True,
+    lateral_invariant: bool = True,
 ) -> TrafficForecast:
     """Sound boxes of every other vehicle of an observation over ``steps`` sub-steps.
 
@@ -994,6 +996,12 @@ def forecast_traffic(
         `lateral_contraction` (their boxes intersected with its ellipse's hull). Both
         settings are sound; False gives the interval boxes alone (for comparison: the
         benchmark's and the tests' reference).
+    lateral_invariant : bool
+        Whether a fine unit on a straight lane whose states are known to lie in one of the
+        proven invariant parallelograms of `lateral_invariant` (its box inside it, and its
+        speed box and steering gains inside the set's proof) keeps its box inside that
+        set's hull, whatever its speed down to standstill. Both settings are sound; False
+        is the reference of the benchmark and the tests.
 
     Returns
     -------
@@ -1051,6 +1059,7 @@ def forecast_traffic(
         raise InputError(f"steps must be >= 0, got {steps}")
     check_instance("road_edges", road_edges, (bool, np.bool_), "a bool")
     check_instance("lateral_contraction", lateral_contraction, (bool, np.bool_), "a bool")
+    check_instance("lateral_invariant", lateral_invariant, (bool, np.bool_), "a bool")
     ids = np.asarray(observation.ids, dtype=int)
     meas = np.asarray(observation.vehicles, dtype=float).reshape(-1, 4)
     m = len(ids)
@@ -1316,6 +1325,13 @@ def forecast_traffic(
     log_nodes = np.log(c_speeds)
     urho = np.full(U, np.inf)
     umet = np.zeros(U, dtype=int)
+    # each unit's invariant set (`lateral_invariant`): its states lie in the table's set uinv (-1: none known);
+    # the proofs hold for the prior's steering gains, so only for rows whose belief lies in them
+    inv_sets = invariant_sets(dt, vehicle, beh) if lateral_invariant else None
+    uinv = np.full(U, -1)
+    if inv_sets is not None:
+        inv_gains = np.all((tb_lo >= inv_sets.theta_b_low) & (tb_hi <= inv_sets.theta_b_high), axis=1)
+        uinv[:R] = np.where(inv_gains, inv_sets.smallest_containing(ui_lo[:R], ui_hi[:R]), -1)
 
     H1 = steps + 1
     boxes = np.empty((H1, m, 4))
@@ -1600,6 +1616,27 @@ def forecast_traffic(
             urho[idx], umet[idx] = rho, k_new
             return nz_lo, nz_hi, ni_lo, ni_hi
 
+        def invariant(nz_lo, nz_hi, ni_lo, ni_hi):
+            """The boxes of the units known to lie in an invariant set, whose step its proof covers (a straight
+            lane, the speed box below its bound), intersected with its hull; then every unit's set updated."""
+            if inv_sets is None or not len(inv_sets):
+                return nz_lo, nz_hi, ni_lo, ni_hi
+            cur = uinv[idx]
+            bound = inv_sets.speed_bounds[np.maximum(cur, 0)]
+            ok = (cur >= 0) & ~curved_u & inv_gains[rr] & (vhi <= bound)
+            sel = np.flatnonzero(ok)
+            if sel.size:
+                t_lo, t_hi = inv_sets.tighten(cur[sel], ni_lo[sel], ni_hi[sel])
+                z_lo, z_hi = _matvec(Tinv[rr[sel]], t_lo, t_hi)
+                ni_lo, ni_hi, nz_lo, nz_hi = ni_lo.copy(), ni_hi.copy(), nz_lo.copy(), nz_hi.copy()
+                ni_lo[sel], ni_hi[sel] = t_lo, t_hi
+                nz_lo[sel], nz_hi[sel] = np.maximum(nz_lo[sel], z_lo), np.minimum(nz_hi[sel], z_hi)
+            # a box inside a (smaller) set puts its states there too; the sets are nested
+            found = np.where(inv_gains[rr], inv_sets.smallest_containing(ni_lo, ni_hi), -1)
+            kept = np.where(ok, cur, -1)
+            uinv[idx] = np.where((kept >= 0) & (found >= 0), np.minimum(kept, found), np.maximum(kept, found))
+            return nz_lo, nz_hi, ni_lo, ni_hi
+
         # The direct step over the whole speed box contains the fine step's set too: intersect them (both
         # sound). Where the speed box is wide and reaches low speeds, the linearised law's stiff gains
         # (q = theta_b2 / v) make the vertex bound grow faster than the bicycle can turn.
@@ -1617,7 +1654,7 @@ def forecast_traffic(
                 np.maximum(if_lo, back_lo),
                 np.minimum(if_hi, back_hi),
             )
-            return (*boxes_, sf[0], sf[1])
+            return (*invariant(*boxes_), sf[0], sf[1])
         # low speeds: the direct step alone
         il_lo, il_hi, sl = direct_step(vlo, np.minimum(vhi, V_MIN))
         zl_lo, zl_hi = _matvec(Tinv[rr], il_lo, il_hi)
@@ -1632,7 +1669,7 @@ def forecast_traffic(
         ni_lo, ni_hi = np.maximum(ni_lo, back_lo), np.minimum(ni_hi, back_hi)
         ds_lo = np.minimum(np.where(f_ok, sf[0], np.inf), np.where(l_ok, sl[0], np.inf))
         ds_hi = np.maximum(np.where(f_ok, sf[1], -np.inf), np.where(l_ok, sl[1], -np.inf))
-        return (*contract(nz_lo, nz_hi, ni_lo, ni_hi), ds_lo, ds_hi)
+        return (*invariant(*contract(nz_lo, nz_hi, ni_lo, ni_hi)), ds_lo, ds_hi)
 
     # dead units hold empty boxes (inf, -inf): their arithmetic is masked, never output
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
@@ -1752,6 +1789,11 @@ def forecast_traffic(
                                 old, np.where(ualive[:R], np.maximum(urho[:R], from_k), from_k), urho[:R]
                             )
                             urho[k] = np.inf
+                        # the merged states lie in the larger of two known sets (nested), else in none known
+                        both_known = (uinv[:R] >= 0) & (uinv[k] >= 0)
+                        merged = np.where(ualive[:R], np.where(both_known, np.maximum(uinv[:R], uinv[k]), -1), uinv[k])
+                        uinv[:R] = np.where(old, merged, uinv[:R])
+                        uinv[k] = -1
                         for lo_a, hi_a in ((ui_lo, ui_hi), (uz_lo, uz_hi)):
                             lo_a[:R] = np.where(old[:, None], np.minimum(lo_a[:R], lo_a[k]), lo_a[:R])
                             hi_a[:R] = np.where(old[:, None], np.maximum(hi_a[:R], hi_a[k]), hi_a[:R])
@@ -1802,6 +1844,7 @@ def forecast_traffic(
                         entry = metric_radius(c_metrics[umet[k]], ii_lo, ii_hi)
                         urho[k] = np.where(both, np.where(ualive[k], np.maximum(urho[k], entry), entry), urho[k])
                     ualive[k] |= both
+                    uinv[k] = np.where(both, -1, uinv[k])  # new states, in no set known yet
                     grow = both | coarse_in
                     for q, (arr, op) in enumerate(
                         ((s_lo, np.minimum), (s_hi, np.maximum), (v_lo, np.minimum), (v_hi, np.maximum))
