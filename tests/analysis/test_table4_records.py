@@ -19,11 +19,11 @@ from minimaxplan.analysis.experiment import run_experiment
 
 RECORDS = pathlib.Path(__file__).parents[2] / "benchmarks" / "results" / "experiments" / "table4" / "episodes.csv"
 IGNORED = {"wall_time_s"}
-#: (scenario, seed, methods): a highway world (robust collided there at 1.7 s before the lane-keeping forecast) with the baselines, a T-junction goal of robust, nominal and oracle, and a T-junction goal of robust that collided before the latest-collision rule
+#: (scenario, seed, methods): a highway world (robust collided there at 1.7 s before the lane-keeping forecast) with the baselines, a T-junction goal of robust, nominal and oracle, and a T-junction goal of robust in which the latest-collision rule overrides the tree (6 times)
 CASES = [
     ("highway", 95, ("robust", "dwa", "teb")),
     ("tjunction", 68, ("robust", "nominal", "oracle")),
-    ("tjunction", 20, ("robust",)),
+    ("tjunction", 13, ("robust",)),
 ]
 
 
