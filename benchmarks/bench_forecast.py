@@ -1,13 +1,16 @@
-"""The traffic forecast with and without the lateral contraction radius: cost and what it buys.
+"""The traffic forecast with and without its lateral bounds: cost and what they buy.
 
 `forecast_traffic` carries, for every fine unit on a straight lane, a quadratic-norm
 bound of the lateral state (`scenarios.lateral_contraction`) and intersects the unit's
-boxes with its ellipse's hull. Measured in the same run, on the same scenes, with
-``lateral_contraction=True`` (what the road methods run) and ``False`` (the interval boxes
-alone, the reference):
+boxes with its ellipse's hull, and it keeps a unit that lies in one of the proven
+invariant parallelograms of `scenarios.lateral_invariant` inside that set at every speed.
+Measured in the same run, on the same scenes, in three settings: the interval boxes
+alone (``lateral_contraction=False, lateral_invariant=False``, the reference), the radius
+alone (``lateral_invariant=False``), and both (what the road methods run):
 
 - CPU time per forecast (`time.process_time`, each forecast repeated `REPEATS` times, the
-  median kept; the ratio is with / without per scene, then the median over the scenes);
+  median kept; a ratio is a setting's time over the reference's per scene, then the
+  median over the scenes);
 - guaranteed vehicle-steps (on the fine model, ``forecast.guaranteed``) out of all;
 - misses: vehicle-steps whose true state or rectangle is outside the forecast's box
   (both settings are sound: 0 is the only correct figure).
@@ -72,7 +75,11 @@ def _scenes(kind: str) -> list:
     return scenes
 
 
-def _forecast(scene, contraction: bool):
+#: (name, lateral_contraction, lateral_invariant), the reference first.
+SETTINGS = (("interval", False, False), ("radius", True, False), ("radius+sets", True, True))
+
+
+def _forecast(scene, contraction: bool, invariant: bool):
     world, states, lanes, obs = scene
     vehicle = world.scenario.vehicle
     ego = [s[0] for s in states]
@@ -91,6 +98,7 @@ def _forecast(scene, contraction: bool):
         ego_heading=np.array([[s[3], s[3]] for s in ego]),
         ego_route=route,
         lateral_contraction=contraction,
+        lateral_invariant=invariant,
     )
 
 
@@ -107,75 +115,71 @@ def _misses(scene, forecast) -> int:
     return missed
 
 
-def _timed(scene, contraction: bool) -> tuple[float, object]:
+def _timed(scene, contraction: bool, invariant: bool) -> tuple[float, object]:
     times, forecast = [], None
     for _ in range(REPEATS):
         start = time.process_time()
-        forecast = _forecast(scene, contraction)
+        forecast = _forecast(scene, contraction, invariant)
         times.append(time.process_time() - start)
     return float(np.median(times)), forecast
 
 
 def main() -> dict:
-    _forecast(_scenes("highway")[0], True)  # warm-up: the metric tables, numpy's first calls
+    for kind in ("highway", "tjunction"):  # warm-up: the metric and invariant-set tables, numpy's first calls
+        _forecast(_scenes(kind)[0], True, True)
     worlds = {}
     for kind in ("highway", "tjunction"):
         scenes = _scenes(kind)
-        rows = {True: {"ms": [], "guaranteed": 0, "missed": 0}, False: {"ms": [], "guaranteed": 0, "missed": 0}}
+        rows = {name: {"ms": [], "guaranteed": 0, "missed": 0} for name, _, _ in SETTINGS}
         total = 0
         for scene in scenes:
-            for contraction in (False, True):
-                seconds, forecast = _timed(scene, contraction)
-                row = rows[contraction]
+            for name, contraction, invariant in SETTINGS:
+                seconds, forecast = _timed(scene, contraction, invariant)
+                row = rows[name]
                 row["ms"].append(1e3 * seconds)
                 row["guaranteed"] += int(np.sum(forecast.guaranteed))
                 row["missed"] += _misses(scene, forecast)
             total += forecast.guaranteed.size
-        ratios = np.array(rows[True]["ms"]) / np.array(rows[False]["ms"])
-        worlds[kind] = {
-            "scenes": len(scenes),
-            "vehicle_steps": total,
-            "with_radius": {
-                "median_ms": float(np.median(rows[True]["ms"])),
-                "guaranteed": rows[True]["guaranteed"],
-                "missed": rows[True]["missed"],
-            },
-            "without_radius": {
-                "median_ms": float(np.median(rows[False]["ms"])),
-                "guaranteed": rows[False]["guaranteed"],
-                "missed": rows[False]["missed"],
-            },
-            "time_ratio_median": float(np.median(ratios)),
-            "time_ratio_range": [float(ratios.min()), float(ratios.max())],
-        }
+        reference = np.array(rows[SETTINGS[0][0]]["ms"])
+        worlds[kind] = {"scenes": len(scenes), "vehicle_steps": total, "settings": {}}
+        for name, _, _ in SETTINGS:
+            ratios = np.array(rows[name]["ms"]) / reference
+            worlds[kind]["settings"][name] = {
+                "median_ms": float(np.median(rows[name]["ms"])),
+                "guaranteed": rows[name]["guaranteed"],
+                "missed": rows[name]["missed"],
+                "time_ratio_median": float(np.median(ratios)),
+                "time_ratio_range": [float(ratios.min()), float(ratios.max())],
+            }
     result = {
         "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "machine": f"{platform.machine()}, {platform.python_implementation()} {platform.python_version()}",
         "load_average": list(os.getloadavg()),
         "setup": {"seeds": SEEDS, "starts": list(STARTS), "steps": STEPS, "repeats": REPEATS},
+        "settings": [{"name": n, "lateral_contraction": c, "lateral_invariant": i} for n, c, i in SETTINGS],
         "worlds": worlds,
     }
     lines = [
-        "# Traffic forecast: with and without the lateral contraction radius",
+        "# Traffic forecast: the interval boxes alone, with the contraction radius, with the radius and the invariant sets",
         "",
         f"{result['date']}, {result['machine']}, load average {result['load_average'][0]:.1f}, CPU times "
         f"(benchmarks/bench_forecast.py). {SEEDS} episodes per world from seed {BENCH_SEED0}, forecasts of "
         f"{STEPS} sub-steps (dt 0.1 s) from sub-steps {', '.join(map(str, STARTS))}, prior beliefs, the ego's "
         "exact footprint as its reach; each forecast timed "
-        f"{REPEATS} times, the median kept.",
+        f"{REPEATS} times, the median kept. Time ratio: the setting's time over the interval boxes' per scene, "
+        "median (range) over the scenes.",
         "",
-        "| world | scenes | forecast ms, without (reference) | with radius | time ratio, median (range) "
-        "| guaranteed vehicle-steps, without | with | of | missed, without | with |",
-        "|---|---:|---:|---:|---|---:|---:|---:|---:|---:|",
+        "| world | setting | scenes | forecast ms, median | time ratio, median (range) | guaranteed vehicle-steps "
+        "| of | missed |",
+        "|---|---|---:|---:|---|---:|---:|---:|",
     ]
     for kind, w in worlds.items():
-        lo, hi = w["time_ratio_range"]
-        lines.append(
-            f"| {kind} | {w['scenes']} | {w['without_radius']['median_ms']:.0f} | {w['with_radius']['median_ms']:.0f} "
-            f"| {w['time_ratio_median']:.2f} ({lo:.2f}-{hi:.2f}) | {w['without_radius']['guaranteed']:,} "
-            f"| {w['with_radius']['guaranteed']:,} | {w['vehicle_steps']:,} | {w['without_radius']['missed']} "
-            f"| {w['with_radius']['missed']} |"
-        )
+        for name, row in w["settings"].items():
+            lo, hi = row["time_ratio_range"]
+            lines.append(
+                f"| {kind} | {name} | {w['scenes']} | {row['median_ms']:.0f} | {row['time_ratio_median']:.2f} "
+                f"({lo:.2f}-{hi:.2f}) | {row['guaranteed']:,} | {w['vehicle_steps']:,} | {row['missed']} |"
+            )
     lines.append("")
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "forecast.md").write_text("\n".join(lines))

@@ -25,6 +25,9 @@ The models (``docs/traffic-models.md`` has the derivations):
   disturbance boxes computed exactly from the box by monotone functions
   (`lateral_remainder`), valid on straight lanes while ``|chi| <= CHI_MAX`` and
   ``v >= V_MIN``; below ``V_MIN`` a direct interval step of the bicycle is hulled in;
+  on straight lanes the boxes are also intersected with the hull of a contraction
+  ellipse (`lateral_contraction`) and, at every speed down to standstill, of a proven
+  invariant parallelogram that holds the unit's states (`lateral_invariant`);
 * **coarse** (``guaranteed = False``): from the first step at which a vehicle's tube
   may leave the straight lanes of its route (arcs, heading errors beyond ``CHI_MAX``),
   the reachable box of the bicycle under its speed, steering and acceleration limits,
