@@ -67,6 +67,9 @@ from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters, s
 __all__ = [
     "HEADING_RATIO",
     "FAMILY_WIDTH",
+    "TABLE_OFFSETS",
+    "TABLE_SPEEDS",
+    "TABLE_BUDGET",
     "InvarianceCertificate",
     "InvariantSets",
     "check_invariance",
