@@ -96,6 +96,7 @@ import numpy as np
 
 from minimaxplan.models import Box
 from minimaxplan.models.errors import InputError, NoConsistentModel, SolverFailure
+from minimaxplan.models.prediction import interval_product
 from minimaxplan.scenarios.road import ARC, Road
 from minimaxplan.scenarios.road_world import HighwayScenario, Observation, TJunctionScenario
 from minimaxplan.scenarios.traffic_models import VehicleBelief
@@ -181,11 +182,6 @@ def remainder_bound(D):
     D = np.asarray(D, dtype=float)
     value = np.sin(np.arctan(np.tan(D) / 2)) - D / 2
     return np.maximum(value, 0.0) * (1 + 1e-9) + 1e-15
-
-
-def _interval_product(alo, ahi, blo, bhi):
-    c = np.stack([alo * blo, alo * bhi, ahi * blo, ahi * bhi])
-    return c.min(axis=0), c.max(axis=0)
 
 
 def _cos_interval(lo, hi):
@@ -473,7 +469,7 @@ class TrafficLearner:
             e_lo, e_hi = e_lo - shift, e_hi - shift
             if e_lo < -np.pi or e_hi >= np.pi:
                 return None
-            g2lo, g2hi = _interval_product(-(off[k] + oe[k]) * L, -(off[k] - oe[k]) * L, 1 / v_hi, 1 / v_lo)
+            g2lo, g2hi = interval_product(-(off[k] + oe[k]) * L, -(off[k] - oe[k]) * L, 1 / v_hi, 1 / v_lo)
             glo = np.minimum(glo, [e_lo * L, g2lo])
             ghi = np.maximum(ghi, [e_hi * L, g2hi])
         pad = ROW_ROUNDING * (1 + np.abs(glo) + np.abs(ghi))
@@ -607,7 +603,7 @@ class TrafficLearner:
             vf_lo, vf_hi = obs_states[:, 2] - obs_noise[:, 2], obs_states[:, 2] + obs_noise[:, 2]
             clo, chi = _cos_interval(-head_err, head_err)
         vf_lo, vf_hi = np.maximum(vf_lo, 0.0), vf_hi
-        pf_lo, pf_hi = _interval_product(vf_lo, vf_hi, clo, chi)
+        pf_lo, pf_hi = interval_product(vf_lo, vf_hi, clo, chi)
         cand = possible & (dist_lo <= d_up)
         d0, T = b.standstill_distance, b.time_headway
         f2lo, f2hi, f3lo, f3hi = [], [], [], []

@@ -27,6 +27,7 @@ __all__ = [
     "ROUNDING_TOL",
     "UNIT_ROUNDOFF",
     "interval_matvec",
+    "interval_product",
     "summation_error_bound",
 ]
 
@@ -78,6 +79,24 @@ def summation_error_bound(n: int) -> float:
     exact trajectories (eq. (7)).
     """
     return 2.0 * n * UNIT_ROUNDOFF / (1.0 - n * UNIT_ROUNDOFF)
+
+
+def interval_product(a_lower, a_upper, b_lower, b_upper) -> tuple[np.ndarray, np.ndarray]:
+    """The elementwise interval product ``[a_lower, a_upper] * [b_lower, b_upper]``.
+
+    Parameters
+    ----------
+    a_lower, a_upper, b_lower, b_upper : array_like
+        Bounds, broadcast together; ``lower <= upper``.
+
+    Returns
+    -------
+    lower, upper : numpy.ndarray
+        The smallest and largest of the four corner products (exact in real arithmetic;
+        each product is one rounding, which callers that need rigour round outward).
+    """
+    corners = np.stack(np.broadcast_arrays(a_lower * b_lower, a_lower * b_upper, a_upper * b_lower, a_upper * b_upper))
+    return corners.min(axis=0), corners.max(axis=0)
 
 
 def interval_matvec(matrix: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

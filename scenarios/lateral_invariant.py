@@ -60,6 +60,7 @@ from functools import lru_cache
 import numpy as np
 
 from minimaxplan.models.errors import DimensionError, InputError
+from minimaxplan.models.prediction import interval_product
 from minimaxplan.models.validation import frozen_copy
 
 from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters, slip_angle
@@ -93,12 +94,6 @@ TABLE_BUDGET = 1_500_000
 _ROUND = 1e-12
 _HALF_PI = np.pi / 2
 _DEFAULT_BEHAVIOUR = BehaviourParameters()
-
-
-def _mul(alo, ahi, blo, bhi):
-    """The interval product ``[alo, ahi] * [blo, bhi]``."""
-    p = np.stack([alo * blo, alo * bhi, ahi * blo, ahi * bhi])
-    return p.min(axis=0), p.max(axis=0)
 
 
 def _sin(lo, hi):
@@ -205,27 +200,27 @@ def _face_bounds(boxes, offset, margin, dt, length, max_steering, speed_epsilon)
     t0, s0, v0, b10, b20 = (boxes[:, i, 0] for i in range(5))
     t1, s1, v1, b11, b21 = (boxes[:, i, 1] for i in range(5))
     top = 1.0 + FAMILY_WIDTH
-    e = _mul(t0, t1, np.full(n, offset), np.full(n, offset * top))
-    z = _mul(s0, s1, np.full(n, margin), np.full(n, margin * top))
+    e = interval_product(t0, t1, np.full(n, offset), np.full(n, offset * top))
+    z = interval_product(s0, s1, np.full(n, margin), np.full(n, margin * top))
     chi = (z[0] + k * e[0], z[1] + k * e[1])
     ve = (np.maximum(v0, speed_epsilon), np.maximum(v1, speed_epsilon))
     inv = (1.0 / ve[1], 1.0 / ve[0])
-    sigma1 = _mul(b10, b11, *chi)
-    sigma2 = _mul(b20, b21, *_mul(*e, *inv))
+    sigma1 = interval_product(b10, b11, *chi)
+    sigma2 = interval_product(b20, b21, *interval_product(*e, *inv))
     sigma = (sigma1[0] + sigma2[0], sigma1[1] + sigma2[1])
-    delta = _mul(-length * inv[1], -length * inv[0], *sigma)
+    delta = interval_product(-length * inv[1], -length * inv[0], *sigma)
     spread = 1e-12 * (1.0 + np.abs(delta[0])), 1e-12 * (1.0 + np.abs(delta[1]))
     d_lo = np.clip(delta[0] - spread[0], -max_steering, max_steering)
     d_hi = np.clip(delta[1] + spread[1], -max_steering, max_steering)
     beta = (slip_angle(d_lo) - _ROUND, slip_angle(d_hi) + _ROUND)
     disp = (v0 * dt, v1 * dt)
     # offset face: e+ - E' <= E (t - 1) + D sin(chi + beta)
-    move = _mul(*disp, *_sin(chi[0] + beta[0], chi[1] + beta[1]))
+    move = interval_product(*disp, *_sin(chi[0] + beta[0], chi[1] + beta[1]))
     ok_e = (move[1] <= 0.0) | (offset * (t1 - 1.0) + move[1] <= -1e-12 * (1.0 + offset))
     # heading face: z+ - M' <= M (s - 1) - (4 D / L) cos(beta + chi / 2) sin(chi / 2)
     cos_ = _cos(beta[0] + chi[0] / 2, beta[1] + chi[1] / 2)
     sin_ = _sin(chi[0] / 2, chi[1] / 2)
-    turn = _mul(-4.0 * disp[1] / length, -4.0 * disp[0] / length, *_mul(*cos_, *sin_))
+    turn = interval_product(-4.0 * disp[1] / length, -4.0 * disp[0] / length, *interval_product(*cos_, *sin_))
     ok_z = (turn[1] <= 0.0) | (margin * (s1 - 1.0) + turn[1] <= -1e-12 * (1.0 + margin))
     return ok_e, ok_z
 

@@ -54,6 +54,7 @@ from typing import NamedTuple
 import numpy as np
 
 from minimaxplan.models.errors import DimensionError, InputError
+from minimaxplan.models.prediction import interval_product
 from minimaxplan.models.sets import Box
 from minimaxplan.models.system import UncertainLinearSystem
 from minimaxplan.models.validation import as_finite_array, check_instance, frozen_copy
@@ -114,12 +115,6 @@ def _out(lo, hi):
     """``[lo, hi]`` rounded outward by `ROUND_MARGIN` (infinite bounds stay as they are)."""
     with np.errstate(invalid="ignore"):  # inf - inf = nan on empty boxes: fmin / fmax keep the infinite bound
         return np.fmin(lo, lo - ROUND_MARGIN * (1.0 + np.abs(lo))), np.fmax(hi, hi + ROUND_MARGIN * (1.0 + np.abs(hi)))
-
-
-def _mul(alo, ahi, blo, bhi):
-    """The interval product ``[alo, ahi] * [blo, bhi]`` (elementwise)."""
-    c = np.stack([alo * blo, alo * bhi, ahi * blo, ahi * bhi])
-    return c.min(axis=0), c.max(axis=0)
 
 
 def cos_interval(lo, hi) -> tuple[np.ndarray, np.ndarray]:
@@ -465,12 +460,12 @@ def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = 
     ``v >= V_MIN``.
     """
     length, dmax = vehicle.length, vehicle.max_steering
-    x_lo, x_hi = _mul(b1[0], b1[1], chi[0], chi[1])
-    y_lo, y_hi = _mul(q[0], q[1], e[0], e[1])
+    x_lo, x_hi = interval_product(b1[0], b1[1], chi[0], chi[1])
+    y_lo, y_hi = interval_product(q[0], q[1], e[0], e[1])
     s_lo, s_hi = x_lo + y_lo, x_hi + y_hi
     # delta_r = -(L / v) s
     k_lo, k_hi = length / v[1], length / v[0]
-    d_lo, d_hi = _mul(-k_hi, -k_lo, s_lo, s_hi)
+    d_lo, d_hi = interval_product(-k_hi, -k_lo, s_lo, s_hi)
     d_lo, d_hi = _out(d_lo, d_hi)
     if ff is not None:
         d_lo, d_hi = _out(d_lo + ff[0], d_hi + ff[1])
@@ -482,8 +477,8 @@ def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = 
     ra_lo, ra_hi = a_lo - np.sin(a_lo), a_hi - np.sin(a_hi)
     rb_lo, rb_hi = b_lo - np.sin(b_lo), b_hi - np.sin(b_hi)
     common_lo, common_hi = c_lo / 2 + g_lo, c_hi / 2 + g_hi
-    re = _mul(v[0] * dt, v[1] * dt, common_lo - ra_hi, common_hi - ra_lo)
-    rc = _mul(2 * v[0] * dt / length, 2 * v[1] * dt / length, common_lo - rb_hi, common_hi - rb_lo)
+    re = interval_product(v[0] * dt, v[1] * dt, common_lo - ra_hi, common_hi - ra_lo)
+    rc = interval_product(2 * v[0] * dt / length, 2 * v[1] * dt / length, common_lo - rb_hi, common_hi - rb_lo)
     return _out(*re), _out(*rc), (dc_lo, dc_hi), (a_lo, a_hi)
 
 
@@ -1242,8 +1237,8 @@ def forecast_traffic(
                     r_lo = rad - np.maximum(sgn * e_l, sgn * e_h)
                     r_hi = rad - np.minimum(sgn * e_l, sgn * e_h)
                     with np.errstate(invalid="ignore"):
-                        xa = _mul(r_lo, r_hi, *cos_interval(ph_lo, ph_hi))
-                        ya = _mul(r_lo, r_hi, *sin_interval(ph_lo, ph_hi))
+                        xa = interval_product(r_lo, r_hi, *cos_interval(ph_lo, ph_hi))
+                        ya = interval_product(r_lo, r_hi, *sin_interval(ph_lo, ph_hi))
                     x = _out(vec[:, 0] + xa[0], vec[:, 0] + xa[1])
                     y = _out(vec[:, 1] + ya[0], vec[:, 1] + ya[1])
                 for i, val in enumerate((x[0], x[1], y[0], y[1])):
@@ -1425,7 +1420,7 @@ def forecast_traffic(
         rad, sg = arc_rad[rr_], arc_sgn[rr_]
         c = cos_interval(*a)
         sn = sin_interval(*a)
-        dsin = _mul(d[0], d[1], *sn)
+        dsin = interval_product(d[0], d[1], *sn)
         de = (np.where(sg > 0, e[0], -e[1]), np.where(sg > 0, e[1], -e[0]))
         tot = (e[0] + dsin[0], e[1] + dsin[1])
         dsum = (np.where(sg > 0, tot[0], -tot[1]), np.where(sg > 0, tot[1], -tot[0]))
@@ -1434,27 +1429,27 @@ def forecast_traffic(
         bad = ~(a_lo > 0.0)
         a_lo = np.where(bad, 1.0, a_lo)
         a_hi = np.where(bad, 1.0, a_hi)
-        dc = _mul(d[0], d[1], *c)
+        dc = interval_product(d[0], d[1], *c)
         x_lo = np.minimum(dc[0] / a_lo, dc[0] / a_hi)
         x_hi = np.maximum(dc[1] / a_lo, dc[1] / a_hi)
         ds = (np.minimum(dc[0], rad * np.arctan(x_lo)), np.maximum(dc[1], rad * np.arctan(x_hi)))
         xm = np.maximum(np.abs(x_lo), np.abs(x_hi))
         sigma = np.where(xm > 0.0, np.arctan(xm) / np.where(xm > 0.0, xm, 1.0), 1.0)
-        rho_a = _mul(*_mul(rad / a_hi, rad / a_lo, *c), sigma, np.ones_like(sigma))
+        rho_a = interval_product(*interval_product(rad / a_hi, rad / a_lo, *c), sigma, np.ones_like(sigma))
         rho = (np.minimum(rho_a[0], c[0]), np.maximum(rho_a[1], c[1]))  # ds / D, hulled with the straight step's
-        km_rho = _mul(km[0][rr_], km[1][rr_], *rho)
+        km_rho = interval_product(km[0][rr_], km[1][rr_], *rho)
         bracket = (ff[0] / length - km_rho[1], ff[1] / length - km_rho[0])
-        chi_x = _mul(d[0], d[1], *bracket)
+        chi_x = interval_product(d[0], d[1], *bracket)
         m_e = d[1] ** 2 / (2.0 * a_lo)
         arc_part, end_part = m_e, np.where(end_in[rr_], m_e, 0.0)
         eps_e = (np.where(sg > 0, -arc_part, -end_part), np.where(sg > 0, end_part, arc_part))
-        ff_e = _mul(d[0], d[1], ff[0] / 2, ff[1] / 2)
+        ff_e = interval_product(d[0], d[1], ff[0] / 2, ff[1] / 2)
         e_x = (ff_e[0] + eps_e[0], ff_e[1] + eps_e[1])
         # a box reaching the arc's centre is outside the terms' validity: widen it past CHI_MAX (finite, so no
         # inf - inf reaches the vertex bound) and the row turns coarse at the next step
         big = np.where(bad, 4.0 * np.pi, 0.0)
         e_x, chi_x = _out(e_x[0] - big, e_x[1] + big), _out(chi_x[0] - big, chi_x[1] + big)
-        return e_x, chi_x, _out(ds[0] - big, ds[1] + big), _mul(km[0][rr_], km[1][rr_], *ds)
+        return e_x, chi_x, _out(ds[0] - big, ds[1] + big), interval_product(km[0][rr_], km[1][rr_], *ds)
 
     def lateral_step(idx, v_lo, v_hi):
         """One step of the units idx: vertex bound plus remainders (v >= V_MIN), hulled with the
@@ -1464,7 +1459,7 @@ def forecast_traffic(
         vlo, vhi = v_lo[rr], v_hi[rr]
         arc_in, kw, km, end_in = curved_rows(v_hi)
         curved_u = arc_in[rr]
-        ff_row = _mul(tb_lo[:, 0], tb_hi[:, 0], length * tau * kw[0], length * tau * kw[1])
+        ff_row = interval_product(tb_lo[:, 0], tb_hi[:, 0], length * tau * kw[0], length * tau * kw[1])
         f_ok = vhi >= V_MIN
         l_ok = vlo < V_MIN
         vf_lo_, vf_hi_ = np.maximum(vlo, V_MIN), np.maximum(vhi, V_MIN)
@@ -1526,7 +1521,7 @@ def forecast_traffic(
                     np.broadcast_to(phi, (len(sel), 3, 2, 2)), e_lo[sel], e_hi[sel], p_lo_, p_hi_
                 )
                 i1_lo, i1_hi = _out(i1_lo + rw_lo, i1_hi + rw_hi)
-                s1 = _mul(bv_lo * dt, bv_hi * dt, *cos_interval(*a_f))
+                s1 = interval_product(bv_lo * dt, bv_hi * dt, *cos_interval(*a_f))
                 if sub.size:
                     s1 = (s1[0].copy(), s1[1].copy())
                     s1[0][sub], s1[1][sub] = ds_c
@@ -1546,8 +1541,8 @@ def forecast_traffic(
                 q_f = (tb_lo[rf, 1] / vf[1], tb_hi[rf, 1] / vf[0])
                 _, _, d_l, a_l = lateral_remainder(e_f, c_f, vf, (b1[0][flat], b1[1][flat]), q_f, dt, vehicle)
                 dd = (vl_lo[flat] * dt, vl_hi[flat] * dt)
-                de = _mul(*dd, *sin_interval(*a_l))
-                dc = _mul(
+                de = interval_product(*dd, *sin_interval(*a_l))
+                dc = interval_product(
                     2 * vl_lo[flat] * dt / length,
                     2 * vl_hi[flat] * dt / length,
                     np.sin(slip_angle(d_l[0])),
@@ -1555,7 +1550,7 @@ def forecast_traffic(
                 )
                 low_e[0][flat], low_e[1][flat] = _out(e_f[0] + de[0], e_f[1] + de[1])
                 low_c[0][flat], low_c[1][flat] = _out(c_f[0] + dc[0], c_f[1] + dc[1])
-                ds_l[0][flat], ds_l[1][flat] = _mul(*dd, *cos_interval(*a_l))
+                ds_l[0][flat], ds_l[1][flat] = interval_product(*dd, *cos_interval(*a_l))
             if sub.size:  # on or near the arc: the feed-forward in the law (any share of it below speed_epsilon)
                 rsub = rr[sub]
                 ffd = (np.minimum(ff_row[0][rsub], 0.0), np.maximum(ff_row[1][rsub], 0.0))
@@ -1564,8 +1559,8 @@ def forecast_traffic(
                 q_s = (tb_lo[rsub, 1] / vs[1], tb_hi[rsub, 1] / vs[0])
                 _, _, d_s, a_s = lateral_remainder(e_s, c_s, vs, (b1[0][sub], b1[1][sub]), q_s, dt, vehicle, ff=ffd)
                 dd = (vl_lo[sub] * dt, vl_hi[sub] * dt)
-                de_s = _mul(*dd, *sin_interval(*a_s))
-                dc_s = _mul(
+                de_s = interval_product(*dd, *sin_interval(*a_s))
+                dc_s = interval_product(
                     2 * dd[0] / length, 2 * dd[1] / length, np.sin(slip_angle(d_s[0])), np.sin(slip_angle(d_s[1]))
                 )
                 zero = np.zeros(sub.size)
@@ -1997,8 +1992,8 @@ def forecast_traffic(
 
             # ----------------------------------------------------------- coarse
             a_lo, a_hi = p_lo - beta_max, p_hi + beta_max
-            dx = _mul(v_lo * dt, v_hi * dt, *cos_interval(a_lo, a_hi))
-            dy = _mul(v_lo * dt, v_hi * dt, *sin_interval(a_lo, a_hi))
+            dx = interval_product(v_lo * dt, v_hi * dt, *cos_interval(a_lo, a_hi))
+            dy = interval_product(v_lo * dt, v_hi * dt, *sin_interval(a_lo, a_hi))
             turn = 2 * dt / length * np.sin(beta_max)
             x_lo, x_hi = _out(x_lo + dx[0], x_hi + dx[1])
             y_lo, y_hi = _out(y_lo + dy[0], y_hi + dy[1])

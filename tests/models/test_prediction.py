@@ -19,6 +19,7 @@ from minimaxplan.models import (
     predict_tube,
 )
 from minimaxplan.models.polytope import parameter_vertices
+from minimaxplan.models.prediction import interval_product
 
 HORIZON = 12
 
@@ -477,3 +478,23 @@ def test_bad_arguments_are_rejected(small_system):
         predict_tube(small_system, x0, np.zeros((3, 1)), basis=np.eye(3))
     with pytest.raises(InputError, match="basis must be invertible with condition number"):
         predict_tube(small_system, x0, np.zeros((3, 1)), basis=np.ones((2, 2)))
+
+
+@given(
+    a=st.tuples(st.floats(-50, 50), st.floats(0, 50)),
+    b=st.tuples(st.floats(-50, 50), st.floats(0, 50)),
+    seed=st.integers(0, 2**31),
+)
+def test_interval_product_is_the_hull_of_every_product(a, b, seed):
+    """`interval_product` contains every product of points of the two intervals and is attained at corners."""
+    a_lo, a_hi = a[0], a[0] + a[1]
+    b_lo, b_hi = b[0], b[0] + b[1]
+    lo, hi = interval_product(np.array([a_lo]), np.array([a_hi]), np.array([b_lo]), np.array([b_hi]))
+    rng = np.random.default_rng(seed)
+    x, y = rng.uniform(a_lo, a_hi, 500), rng.uniform(b_lo, b_hi, 500)
+    assert np.all(x * y >= lo[0]) and np.all(x * y <= hi[0])
+    corners = [p * q for p in (a_lo, a_hi) for q in (b_lo, b_hi)]
+    assert lo[0] == min(corners) and hi[0] == max(corners)
+    # broadcasting: a scalar interval against an array of intervals
+    lo2, hi2 = interval_product(a_lo, a_hi, np.array([b_lo, b_lo]), np.array([b_hi, b_hi]))
+    assert lo2.shape == (2,) and np.all(lo2 == lo[0]) and np.all(hi2 == hi[0])
