@@ -163,9 +163,9 @@ def _run(args: argparse.Namespace) -> int:
     from minimaxplan.models import MinimaxplanError
 
     from .animate import animate_episode
-    from .experiment import markdown_table, run_experiment, write_outputs
+    from .experiment import markdown_table, run_experiment, supported_methods, write_outputs
     from .plots import plot_experiment
-    from .registry import default_scenario_names, method_names
+    from .registry import default_scenario_names
 
     print(report(run(seed=args.seed)), flush=True)
     if args.episodes == 0:
@@ -173,7 +173,8 @@ def _run(args: argparse.Namespace) -> int:
     print(f"\nShort experiment: {args.episodes} episodes per method in each world (paper: 100)", flush=True)
     scenarios = default_scenario_names()
     try:
-        result = run_experiment(scenarios, method_names(), episodes=args.episodes, seed=args.seed, workers=args.workers)
+        methods = supported_methods(scenarios)
+        result = run_experiment(scenarios, methods, episodes=args.episodes, seed=args.seed, workers=args.workers)
         out = write_outputs(result, args.out)
         plot_experiment(result.records, out, scenarios=scenarios)
         animated = _animated_record(result.records, args.seed)

@@ -26,9 +26,10 @@ from scipy import stats
 from minimaxplan.models.errors import InputError, MinimaxplanError
 from minimaxplan.models.validation import as_count
 
+from . import registry
 from .driving_table import write_driving_table
 from .episode import DEFAULT_CONFIG, EpisodeJob, EpisodeRecord, LoopConfig, make_job, run_job
-from .registry import resolve, scenario_factory
+from .registry import UnsupportedScenario, resolve, scenario_factory
 
 __all__ = [
     "ClusterUnavailable",
@@ -37,6 +38,7 @@ __all__ = [
     "episode_seeds",
     "run_experiment",
     "summarise",
+    "supported_methods",
     "write_outputs",
 ]
 
@@ -144,6 +146,47 @@ def summarise(records: Iterable[EpisodeRecord]) -> list[dict]:
             }
         )
     return summary
+
+
+def supported_methods(scenarios: Sequence[str], config: LoopConfig = DEFAULT_CONFIG) -> list[str]:
+    """The registered methods that support every scenario named, in registration order.
+
+    What a run that names no method runs (``minimaxplan experiment`` without
+    ``--methods``, ``minimaxplan demo``): a method registered for other worlds only (the
+    ``idm`` ego of the highway-env scenarios) is left out instead of failing the run.
+
+    Parameters
+    ----------
+    scenarios : sequence of str
+        Registered scenario names.
+    config : LoopConfig
+        The loop settings the methods' factories are asked with.
+
+    Returns
+    -------
+    list of str
+
+    Raises
+    ------
+    UnknownScenario
+        If a name is not registered.
+    InputError
+        If no scenario is named, or no registered method supports them all.
+    """
+    if not scenarios:
+        raise InputError("scenarios must name at least one scenario, got none")
+    built = [resolve(scenario_factory(name))() for name in scenarios]
+    names = []
+    for name in registry.method_names():
+        try:
+            for instance in built:
+                registry.method_factory(name, instance, config)
+        except UnsupportedScenario:
+            continue
+        names.append(name)
+    if not names:
+        raise InputError(f"no registered method supports every one of the scenarios {list(scenarios)}")
+    return names
 
 
 def _jobs(

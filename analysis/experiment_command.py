@@ -81,12 +81,14 @@ def run_and_report(
 def _run(args: argparse.Namespace) -> int:
     from minimaxplan.models import MinimaxplanError
 
-    from .registry import UnknownMethod, UnknownScenario, UnsupportedScenario, default_scenario_names, method_names
+    from .experiment import supported_methods
+    from .registry import UnknownMethod, UnknownScenario, UnsupportedScenario, default_scenario_names
 
     try:
+        scenarios = args.scenario or default_scenario_names()
         table, out = run_and_report(
-            args.scenario or default_scenario_names(),
-            args.methods or method_names(),
+            scenarios,
+            args.methods or supported_methods(scenarios),
             episodes=args.episodes,
             seed=args.seed,
             workers=args.workers,
@@ -110,13 +112,15 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
         "--scenario",
         type=name_list,
         default=None,
-        help="comma-separated registered scenarios (default: all, e.g. static,pedestrian)",
+        help="comma-separated registered scenarios (default: those of the default runs, static,pedestrian,highway,"
+        "tjunction; the optional highway-env: ones only by name)",
     )
     parser.add_argument(
         "--methods",
         type=name_list,
         default=None,
-        help="comma-separated registered methods (default: all, e.g. robust,nominal,oracle,dwa,teb)",
+        help="comma-separated registered methods (default: every registered method that supports every scenario "
+        "of the run, e.g. robust,nominal,oracle,dwa,teb)",
     )
     parser.add_argument("--episodes", type=count(1), default=100, help="episodes per method and scenario (>= 1)")
     parser.add_argument(
@@ -138,8 +142,8 @@ COMMAND = Subcommand(
     help="Monte-Carlo episodes per method and world (Table 3)",
     description="Run seeded episodes of every method in every scenario and write the Table 3 "
     "summary, the per-episode records and trajectory plots. A run has EPISODES x scenarios x "
-    "methods episodes, by default of every registered scenario and method (e.g. 100 x 2 robot "
-    "worlds x 5 methods = 1,000 episodes); the progress bar shows the total.",
+    "methods episodes, by default of the default runs' scenarios and every method that supports them "
+    "all (e.g. 100 x 4 worlds x 5 methods = 2,000 episodes); the progress bar shows the total.",
     epilog="Exit codes: 0 done; 2 a bad option, an unknown name or an unreachable Dask scheduler "
     "(one line on stderr, before any episode runs).",
     add_options=_add_options,

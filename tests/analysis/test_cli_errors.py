@@ -218,7 +218,7 @@ def test_an_unknown_option_is_reported_by_its_subcommand(run_cli, no_work, argv)
             [
                 "(default: 100)",
                 "EPISODES x scenarios x methods",
-                "1,000 episodes",
+                "2,000 episodes",
                 "(default: 0)",
                 "(default: out/experiment)",
                 "default: all cores",

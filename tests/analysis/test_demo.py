@@ -23,11 +23,19 @@ def test_demo_command_part_one_only(capsys):
 def test_demo_writes_the_plots_and_an_animation(tmp_path, monkeypatch, capsys):
     from PIL import Image
 
-    from minimaxplan.analysis import registry
+    from minimaxplan.analysis import experiment, registry
 
-    # one world and one method keep the test short; the demo itself runs every registered one
-    monkeypatch.setattr(registry, "scenario_names", lambda: ["pedestrian"])
-    monkeypatch.setattr(registry, "method_names", lambda: ["robust"])
+    # the demo's own choice, before it is narrowed: the default worlds and the methods that support them all
+    assert experiment.supported_methods(registry.default_scenario_names()) == [
+        "robust",
+        "nominal",
+        "oracle",
+        "dwa",
+        "teb",
+    ]
+    # one world and one method keep the test short; the demo itself runs those
+    monkeypatch.setattr(registry, "default_scenario_names", lambda: ["pedestrian"])
+    monkeypatch.setattr(experiment, "supported_methods", lambda scenarios: ["robust"])
     out = tmp_path / "demo"
     assert main(["demo", "--episodes", "1", "--seed", "3", "--workers", "1", "--out", str(out)]) == 0
     text = capsys.readouterr().out

@@ -316,3 +316,25 @@ def test_learner_boxes_stay_sound_and_nested_between_refits():
         fits.add(learner._fitted_on)
     # refitted as the data grows geometrically (1, 2, 3, 4, 6, 8, ...), not at every transition
     assert 10 <= len(fits) <= 25
+
+
+def test_a_run_that_names_no_method_runs_those_that_support_its_scenarios(monkeypatch):
+    """`supported_methods`: the robot and road worlds get the five planners, not highway-env's own idm ego
+    (registered for the highway-env scenarios only, it made the demo and a default `experiment` fail); the
+    highway-env scenarios get robust, nominal, oracle and idm."""
+    from minimaxplan.analysis import registry
+    from minimaxplan.analysis.experiment import supported_methods
+    from minimaxplan.analysis.registry import UnknownScenario, default_scenario_names, method_names
+
+    assert "idm" in method_names()
+    assert supported_methods(default_scenario_names()) == ["robust", "nominal", "oracle", "dwa", "teb"]
+    assert supported_methods(["highway-env:intersection-v0"]) == ["robust", "nominal", "oracle", "idm"]
+    assert supported_methods(["static", "highway-env:intersection-v0"]) == ["robust", "nominal", "oracle"]
+    with monkeypatch.context() as patch:  # a registry whose only method drives highway-env alone
+        patch.setattr(registry, "method_names", lambda: ["idm"])
+        with pytest.raises(InputError, match="no registered method supports every one of the scenarios"):
+            supported_methods(["static"])
+    with pytest.raises(InputError, match="scenarios must name"):
+        supported_methods([])
+    with pytest.raises(UnknownScenario, match="nowhere"):
+        supported_methods(["nowhere"])
