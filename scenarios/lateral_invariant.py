@@ -61,7 +61,7 @@ import numpy as np
 
 from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.models.prediction import interval_product
-from minimaxplan.models.validation import frozen_copy
+from minimaxplan.models.validation import as_count, frozen_copy
 
 from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters, slip_angle
 
@@ -273,8 +273,7 @@ def check_invariance(
             raise InputError(f"{name} must be finite and > 0, got {value!r}")
     if not (np.isfinite(speed_bound) and speed_bound >= 0.0):
         raise InputError(f"speed_bound must be finite and >= 0, got {speed_bound!r}")
-    if int(max_boxes) < 1:
-        raise InputError(f"max_boxes must be >= 1, got {max_boxes!r}")
+    max_boxes = as_count("max_boxes", max_boxes)
     b_lo, b_hi = behaviour.theta_b_prior if theta_b is None else theta_b
     b_lo, b_hi = np.asarray(b_lo, dtype=float), np.asarray(b_hi, dtype=float)
     if b_lo.shape != (2,) or b_hi.shape != (2,):

@@ -157,6 +157,8 @@ def test_bad_input_is_refused_with_typed_errors():
         check_invariance(0.3, 5.0, float("nan"))
     with pytest.raises(InputError, match="max_boxes"):
         check_invariance(0.3, 5.0, 0.1, max_boxes=0)
+    with pytest.raises(InputError, match="max_boxes"):
+        check_invariance(0.3, 5.0, 0.1, max_boxes="many")
     with pytest.raises(DimensionError, match=r"theta_b.*\(3,\)"):
         check_invariance(0.3, 5.0, 0.1, theta_b=(np.ones(3), np.ones(3)))
     with pytest.raises(InputError, match="theta_b"):
