@@ -28,6 +28,8 @@ __all__ = [
     "UNIT_ROUNDOFF",
     "interval_matvec",
     "interval_product",
+    "cos_interval",
+    "sin_interval",
     "summation_error_bound",
 ]
 
@@ -97,6 +99,38 @@ def interval_product(a_lower, a_upper, b_lower, b_upper) -> tuple[np.ndarray, np
     """
     corners = np.stack(np.broadcast_arrays(a_lower * b_lower, a_lower * b_upper, a_upper * b_lower, a_upper * b_upper))
     return corners.min(axis=0), corners.max(axis=0)
+
+
+def cos_interval(lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """Exact range of ``cos`` over ``[lo, hi]`` (elementwise, before rounding).
+
+    Parameters
+    ----------
+    lo, hi : array_like
+        Angles, rad, ``lo <= hi``.
+
+    Returns
+    -------
+    low, high : ndarray
+        ``min`` and ``max`` of cos on the interval: the endpoint values, or -1 / +1 when
+        the interval holds an odd / even multiple of pi.
+    """
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    a, b = np.cos(lo), np.cos(hi)
+    has_max = np.floor(hi / (2 * np.pi)) * (2 * np.pi) >= lo
+    has_min = np.floor((hi - np.pi) / (2 * np.pi)) * (2 * np.pi) + np.pi >= lo
+    return np.where(has_min, -1.0, np.minimum(a, b)), np.where(has_max, 1.0, np.maximum(a, b))
+
+
+def sin_interval(lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """Exact range of ``sin`` over ``[lo, hi]`` (``sin x = cos(x - pi/2)``).
+
+    Parameters
+    ----------
+    lo, hi : array_like
+        Angles, rad, ``lo <= hi``.
+    """
+    return cos_interval(np.asarray(lo, dtype=float) - np.pi / 2, np.asarray(hi, dtype=float) - np.pi / 2)
 
 
 def interval_matvec(matrix: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

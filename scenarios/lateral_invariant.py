@@ -60,10 +60,18 @@ from functools import lru_cache
 import numpy as np
 
 from minimaxplan.models.errors import DimensionError, InputError
-from minimaxplan.models.prediction import interval_product
+from minimaxplan.models.prediction import cos_interval, interval_product, sin_interval
 from minimaxplan.models.validation import as_count, frozen_copy
 
-from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters, slip_angle
+from .vehicles import (
+    DEFAULT_VEHICLE,
+    BehaviourParameters,
+    VehicleParameters,
+    bicycle_step,
+    linear_steering,
+    slip_angle,
+    steering_features,
+)
 
 __all__ = [
     "HEADING_RATIO",
@@ -92,26 +100,19 @@ TABLE_BUDGET = 1_500_000
 #: Outward rounding of every transcendental bound (absolute; far above the error of
 #: numpy's sin, cos, tan and arctan, about one unit in the last place).
 _ROUND = 1e-12
-_HALF_PI = np.pi / 2
 _DEFAULT_BEHAVIOUR = BehaviourParameters()
 
 
 def _sin(lo, hi):
-    """Bounds of sin over ``[lo, hi]``: monotone inside ``[-pi/2, pi/2]``, else ``[-1, 1]``."""
-    inside = (lo >= -_HALF_PI) & (hi <= _HALF_PI)
-    return (
-        np.where(inside, np.sin(np.clip(lo, -_HALF_PI, _HALF_PI)) - _ROUND, -1.0),
-        np.where(inside, np.sin(np.clip(hi, -_HALF_PI, _HALF_PI)) + _ROUND, 1.0),
-    )
+    """Bounds of sin over ``[lo, hi]``: `sin_interval`, rounded outward by `_ROUND`."""
+    low, high = sin_interval(lo, hi)
+    return low - _ROUND, high + _ROUND
 
 
 def _cos(lo, hi):
-    """Bounds of cos over ``[lo, hi]`` inside ``[-pi/2, pi/2]`` (else ``[-1, 1]``)."""
-    inside = (lo >= -_HALF_PI) & (hi <= _HALF_PI)
-    ends_lo = np.minimum(np.cos(np.clip(lo, -_HALF_PI, _HALF_PI)), np.cos(np.clip(hi, -_HALF_PI, _HALF_PI)))
-    ends_hi = np.maximum(np.cos(np.clip(lo, -_HALF_PI, _HALF_PI)), np.cos(np.clip(hi, -_HALF_PI, _HALF_PI)))
-    top = np.where((lo <= 0.0) & (hi >= 0.0), 1.0, ends_hi + _ROUND)
-    return np.where(inside, ends_lo - _ROUND, -1.0), np.where(inside, top, 1.0)
+    """Bounds of cos over ``[lo, hi]``: `cos_interval`, rounded outward by `_ROUND`."""
+    low, high = cos_interval(lo, hi)
+    return low - _ROUND, high + _ROUND
 
 
 @dataclass(frozen=True)
@@ -180,12 +181,14 @@ class InvarianceCertificate:
         }
 
 
-def _step(e, chi, v, b1, b2, dt, length, max_steering, speed_epsilon):
-    """The exact step of the law and the bicycle on a straight lane (module docstring), pointwise."""
-    ve = np.maximum(v, speed_epsilon)
-    delta = np.clip(-(length / ve) * (b1 * chi + b2 * e / ve), -max_steering, max_steering)
-    beta = slip_angle(delta)
-    return e + v * dt * np.sin(chi + beta), chi + (2.0 * v * dt / length) * np.sin(beta)
+def _world_step(e, chi, v, b1, b2, dt, vehicle, speed_epsilon):
+    """The world's own step (`steering_features`, `linear_steering`, `bicycle_step`) of vehicles on a lane
+    along +x at y = 0, from offset ``e`` and heading error ``chi``: the offsets and heading errors after it."""
+    n = e.shape[0]
+    g = steering_features(np.zeros(n), chi, e, v, vehicle.length, speed_epsilon)
+    steer = linear_steering(np.stack([b1, b2], axis=1), g, vehicle.max_steering)
+    nxt = bicycle_step(np.stack([np.zeros(n), e, v, chi], axis=1), np.zeros(n), steer, dt, vehicle)
+    return nxt[:, 1], nxt[:, 3]
 
 
 def _face_bounds(boxes, offset, margin, dt, length, max_steering, speed_epsilon):
@@ -262,11 +265,12 @@ def check_invariance(
     -----
     Branch and bound over ``(e / E, z / M, v, theta_b1, theta_b2)`` in ``[-1, 1]^2 x [0,
     v_bar] x theta_b``, for both upper faces (module docstring): a box is bounded by
-    interval arithmetic (every function of the step is monotone on the ranges used:
-    the clip, ``arctan(tan(.) / 2)``, sin on ``[-pi/2, pi/2]``), transcendental bounds
+    interval arithmetic (the clip and ``arctan(tan(.) / 2)`` are monotone, sin and cos
+    have exact ranges, `sin_interval` and `cos_interval`), transcendental bounds
     rounded outward; an undecided box is split in its widest coordinate (relative to the
-    domain), and its centre is stepped exactly: if that point leaves the set, the
-    verdict is ``"refuted"``. Deterministic.
+    domain), and its centre is stepped by the world's own functions (`steering_features`,
+    `linear_steering`, `bicycle_step`): if that point leaves the set, the verdict is
+    ``"refuted"``. Deterministic.
     """
     for name, value, low in (("offset", offset, 0.0), ("dt", dt, 0.0)):
         if not (np.isfinite(value) and value > low):
@@ -301,7 +305,7 @@ def check_invariance(
             break
         centre = boxes.mean(axis=2)
         e_c, chi_c = centre[:, 0] * offset, centre[:, 1] * margin + k * centre[:, 0] * offset
-        e1, chi1 = _step(e_c, chi_c, centre[:, 2], centre[:, 3], centre[:, 4], dt, length, dmax, eps)
+        e1, chi1 = _world_step(e_c, chi_c, centre[:, 2], centre[:, 3], centre[:, 4], dt, vehicle, eps)
         out_e, out_z = np.abs(e1) > offset, np.abs(chi1 - k * e1) > margin
         if np.any(out_e | out_z):
             i = int(np.argmax(out_e | out_z))
@@ -354,6 +358,29 @@ class InvariantSets:
     def __post_init__(self) -> None:
         for name in ("offsets", "heading_margins", "speed_bounds", "theta_b_low", "theta_b_high"):
             object.__setattr__(self, name, frozen_copy(getattr(self, name)))
+        k = self.offsets.size
+        shapes = [getattr(self, n).shape for n in ("offsets", "heading_margins", "speed_bounds")]
+        if any(shape != (k,) for shape in shapes):
+            raise DimensionError(f"offsets, heading_margins and speed_bounds must have shape ({k},), got {shapes}")
+        if self.theta_b_low.shape != (2,) or self.theta_b_high.shape != (2,):
+            raise DimensionError(
+                f"theta_b_low and theta_b_high must have shape (2,), got {self.theta_b_low.shape} and "
+                f"{self.theta_b_high.shape}"
+            )
+        # smallest_containing takes the first set that holds a box: the table must be nested, smallest first
+        if not (
+            np.all(self.offsets > 0)
+            and np.all(np.diff(self.offsets) > 0)
+            and np.all(np.diff(self.heading_margins) >= 0)
+            and np.all(self.heading_margins >= 0)
+            and np.all(np.isfinite(self.speed_bounds))
+        ):
+            raise InputError(
+                "offsets must be positive and increasing, heading_margins nonnegative and nondecreasing (nested "
+                f"sets), speed bounds finite; got {self.offsets}, {self.heading_margins}, {self.speed_bounds}"
+            )
+        if not (np.isfinite(self.slope) and self.slope > 0 and np.isfinite(self.dt) and self.dt > 0):
+            raise InputError(f"slope and dt must be finite and > 0, got {self.slope!r} and {self.dt!r}")
 
     def __len__(self) -> int:
         return int(self.offsets.size)

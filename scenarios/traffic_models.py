@@ -54,7 +54,7 @@ from typing import NamedTuple
 import numpy as np
 
 from minimaxplan.models.errors import DimensionError, InputError
-from minimaxplan.models.prediction import interval_product
+from minimaxplan.models.prediction import cos_interval, interval_product, sin_interval
 from minimaxplan.models.sets import Box
 from minimaxplan.models.system import UncertainLinearSystem
 from minimaxplan.models.validation import as_finite_array, check_instance, frozen_copy
@@ -83,8 +83,6 @@ __all__ = [
     "longitudinal_bounds",
     "acceleration_feature_bounds",
     "footprint_box",
-    "cos_interval",
-    "sin_interval",
 ]
 
 #: Largest heading error (rad) of the fine lateral model's region of validity.
@@ -115,38 +113,6 @@ def _out(lo, hi):
     """``[lo, hi]`` rounded outward by `ROUND_MARGIN` (infinite bounds stay as they are)."""
     with np.errstate(invalid="ignore"):  # inf - inf = nan on empty boxes: fmin / fmax keep the infinite bound
         return np.fmin(lo, lo - ROUND_MARGIN * (1.0 + np.abs(lo))), np.fmax(hi, hi + ROUND_MARGIN * (1.0 + np.abs(hi)))
-
-
-def cos_interval(lo, hi) -> tuple[np.ndarray, np.ndarray]:
-    """Exact range of ``cos`` over ``[lo, hi]`` (elementwise, before rounding).
-
-    Parameters
-    ----------
-    lo, hi : array_like
-        Angles, rad, ``lo <= hi``.
-
-    Returns
-    -------
-    low, high : ndarray
-        ``min`` and ``max`` of cos on the interval: the endpoint values, or -1 / +1 when
-        the interval holds an odd / even multiple of pi.
-    """
-    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
-    a, b = np.cos(lo), np.cos(hi)
-    has_max = np.floor(hi / (2 * np.pi)) * (2 * np.pi) >= lo
-    has_min = np.floor((hi - np.pi) / (2 * np.pi)) * (2 * np.pi) + np.pi >= lo
-    return np.where(has_min, -1.0, np.minimum(a, b)), np.where(has_max, 1.0, np.maximum(a, b))
-
-
-def sin_interval(lo, hi) -> tuple[np.ndarray, np.ndarray]:
-    """Exact range of ``sin`` over ``[lo, hi]`` (``sin x = cos(x - pi/2)``).
-
-    Parameters
-    ----------
-    lo, hi : array_like
-        Angles, rad, ``lo <= hi``.
-    """
-    return cos_interval(np.asarray(lo, dtype=float) - np.pi / 2, np.asarray(hi, dtype=float) - np.pi / 2)
 
 
 def footprint_box(center_lower, center_upper, psi_lower, psi_upper, vehicle: VehicleParameters = DEFAULT_VEHICLE):

@@ -9,6 +9,7 @@ from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.scenarios.lateral_invariant import (
     FAMILY_WIDTH,
     HEADING_RATIO,
+    InvariantSets,
     check_invariance,
     invariant_sets,
 )
@@ -136,6 +137,8 @@ def test_containment_and_tightening_are_exact_on_boxes(lo, width, seed):
     ]
     expect = holds.index(True) if any(holds) else -1
     assert sets.smallest_containing(b_lo, b_hi)[0] == expect
+    # nested: a box in a set lies in every larger one (what merging two units' sets relies on)
+    assert all(holds[expect:]) if expect >= 0 else not any(holds)
     rng = np.random.default_rng(seed)
     pts = rng.uniform(b_lo[0], b_hi[0], (400, 2))
     for i in range(len(sets)):
@@ -171,3 +174,19 @@ def test_bad_input_is_refused_with_typed_errors():
         sets.tighten([0], np.zeros((2, 2)), np.zeros((2, 2)))
     with pytest.raises(InputError, match="dt"):
         invariant_sets(-0.1, VEHICLE, BEHAVIOUR)
+    # a table that is not nested, smallest first, would make smallest_containing pick a wrong set
+    fields = dict(
+        offsets=sets.offsets,
+        heading_margins=sets.heading_margins,
+        speed_bounds=sets.speed_bounds,
+        theta_b_low=sets.theta_b_low,
+        theta_b_high=sets.theta_b_high,
+        dt=sets.dt,
+        slope=sets.slope,
+    )
+    with pytest.raises(InputError, match="increasing"):
+        InvariantSets(**{**fields, "offsets": sets.offsets[::-1]})
+    with pytest.raises(DimensionError, match="speed_bounds"):
+        InvariantSets(**{**fields, "speed_bounds": sets.speed_bounds[:-1]})
+    with pytest.raises(InputError, match="slope"):
+        InvariantSets(**{**fields, "slope": 0.0})

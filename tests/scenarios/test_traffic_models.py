@@ -8,6 +8,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from minimaxplan.models import DimensionError, InputError
+from minimaxplan.models.prediction import cos_interval, sin_interval
 from minimaxplan.models.sets import Box
 from minimaxplan.scenarios.road import tjunction_road
 from minimaxplan.scenarios.road_world import HighwayScenario, Observation, TJunctionScenario, make_road_world
@@ -18,14 +19,12 @@ from minimaxplan.scenarios.traffic_models import (
     _centre_arc_length_bounds,
     _centre_arc_length_lower,
     acceleration_feature_bounds,
-    cos_interval,
     footprint_box,
     forecast_traffic,
     lateral_remainder,
     lateral_system,
     longitudinal_bounds,
     prior_belief,
-    sin_interval,
 )
 from minimaxplan.scenarios.vehicles import (
     BehaviourParameters,
