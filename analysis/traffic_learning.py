@@ -96,7 +96,7 @@ import numpy as np
 
 from minimaxplan.models import Box
 from minimaxplan.models.errors import InputError, NoConsistentModel, SolverFailure
-from minimaxplan.models.prediction import interval_product
+from minimaxplan.models.prediction import cos_interval, interval_product
 from minimaxplan.scenarios.road import ARC, Road
 from minimaxplan.scenarios.road_world import HighwayScenario, Observation, TJunctionScenario
 from minimaxplan.scenarios.traffic_models import VehicleBelief
@@ -182,17 +182,6 @@ def remainder_bound(D):
     D = np.asarray(D, dtype=float)
     value = np.sin(np.arctan(np.tan(D) / 2)) - D / 2
     return np.maximum(value, 0.0) * (1 + 1e-9) + 1e-15
-
-
-def _cos_interval(lo, hi):
-    """Bounds of cos over [lo, hi] (exact; intervals shorter than pi)."""
-    clo, chi = np.cos(lo), np.cos(hi)
-    low, high = np.minimum(clo, chi), np.maximum(clo, chi)
-    k0 = np.ceil(lo / (2 * np.pi))
-    has_zero = k0 * 2 * np.pi <= hi
-    kpi = np.ceil((lo - np.pi) / (2 * np.pi))
-    has_pi = kpi * 2 * np.pi + np.pi <= hi
-    return np.where(has_pi, -1.0, low), np.where(has_zero, 1.0, high)
 
 
 class _RowStore:
@@ -594,14 +583,14 @@ class TrafficLearner:
         if self.kind == "highway":
             d_up = np.min(np.where(sure, dist_hi, np.inf), initial=np.inf)
             vf_lo, vf_hi = obs_states[:, 2] - obs_noise[:, 2], obs_states[:, 2] + obs_noise[:, 2]
-            clo, chi = _cos_interval(
+            clo, chi = cos_interval(
                 obs_states[:, 3] - heading - obs_noise[:, 3], obs_states[:, 3] - heading + obs_noise[:, 3]
             )
         else:
             assert head_err is not None  # set off the highway
             d_up = float(np.min(sure, initial=np.inf))
             vf_lo, vf_hi = obs_states[:, 2] - obs_noise[:, 2], obs_states[:, 2] + obs_noise[:, 2]
-            clo, chi = _cos_interval(-head_err, head_err)
+            clo, chi = cos_interval(-head_err, head_err)
         vf_lo, vf_hi = np.maximum(vf_lo, 0.0), vf_hi
         pf_lo, pf_hi = interval_product(vf_lo, vf_hi, clo, chi)
         cand = possible & (dist_lo <= d_up)
