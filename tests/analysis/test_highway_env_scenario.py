@@ -588,3 +588,44 @@ def test_latest_clear_sequence_rejects_rows_that_clear_again_and_non_finite_inpu
         latest_clear_sequence(alive, np.array([np.nan, 0.5]))
     with pytest.raises(InputError, match="speeds must be finite"):
         latest_clear_sequence(alive, np.array([0.5, 0.5]), speeds=np.full((2, 3), np.nan))
+
+
+def _stalls_module():
+    import importlib.util
+    import pathlib
+    import sys
+
+    path = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "trace_highway_env_stalls.py"
+    spec = importlib.util.spec_from_file_location("trace_highway_env_stalls", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("trace_highway_env_stalls", module)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_stall_trace_tells_a_follower_from_other_traffic():
+    """benchmarks/trace_highway_env_stalls.py: a follower is behind the ego, in its lane, heading its way."""
+    follower = _stalls_module()._follower
+    ego = np.array([2.0, 30.0, 5.0, -np.pi / 2])  # heading south (-y)
+    assert follower(ego, np.array([2.0, 45.0, 8.0, -np.pi / 2]))  # behind, same lane
+    assert follower(ego, np.array([3.5, 45.0, 8.0, -np.pi / 2 + 0.2]))
+    assert not follower(ego, np.array([2.0, 20.0, 8.0, -np.pi / 2]))  # ahead
+    assert not follower(ego, np.array([-2.0, 45.0, 8.0, -np.pi / 2]))  # the lane beside
+    assert not follower(ego, np.array([-2.0, 45.0, 8.0, np.pi / 2]))  # oncoming
+    assert not follower(ego, np.array([2.0, 45.0, 8.0, 0.0]))  # crossing
+
+
+def test_stall_trace_counts_every_decision_and_restores_the_method():
+    """The trace of one episode attributes each decision once (free or blocked, with at least one kind),
+    and the patched functions are restored afterwards."""
+    module = _stalls_module()
+    from minimaxplan.analysis import highway_env_scenario as hes
+
+    before = (hes.sequence_reach, hes.HighwayEnvRobustMethod.forecast, hes._SearchMethod.decide)
+    outcome, counts, lines = module.trace(2)
+    assert (hes.sequence_reach, hes.HighwayEnvRobustMethod.forecast, hes._SearchMethod.decide) == before
+    assert outcome in ("goal", "timeout", "collision")
+    assert counts["free"] + counts["blocked"] == len(lines) > 0
+    kinds = sum(v for k, v in counts.items() if k.startswith("blocked: "))
+    assert counts["blocked"] <= kinds  # every blocked decision names at least one kind of box
+    assert all(("blocked at" in line) == (" free " not in line) for line in lines)

@@ -1,0 +1,179 @@
+"""Why the robust ego never reaches highway-env's intersection goal: what blocks each decision (issue 12).
+
+Runs robust ``highway-env:intersection-v0`` episodes (the registered scenario and method,
+the experiment's loop and seeds) and, at every decision, reads the method's own forecast
+and the ego's boxes along every action sequence it searched (`sequence_reach`). A
+decision is *blocked* when every sequence may collide within the horizon (the method
+then takes the one clear longest, `latest_clear_sequence`); it is attributed to the
+vehicles whose boxes the ego's box meets at that sequence's first possible collision:
+
+* ``follower``: a vehicle measured behind the ego in the ego's lane (heading within 0.3
+  rad of the ego's, centre within half a lane of the ego's line, behind it);
+* ``other``: any other vehicle (crossing or oncoming traffic);
+
+each ``fine`` or ``coarse`` by the forecast's ``guaranteed`` flag at that sub-step (and, if
+coarse, the sub-step from which it is).
+A decision may count for both kinds. The diagnosis reads the method's forecasts and the
+observation only (the measured positions are exact in highway-env).
+
+Usage::
+
+    python benchmarks/trace_highway_env_stalls.py --seeds 0,1,2 [--out benchmarks/results/trace_highway_env_stalls.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import pathlib
+import time
+
+import numpy as np
+
+from minimaxplan.analysis import highway_env_scenario as hes
+from minimaxplan.analysis.episode import run_episode
+
+ENV = "highway-env:intersection-v0"
+#: A vehicle is the ego's follower when its heading is within this of the ego's (rad) ...
+SAME_HEADING = 0.3
+#: ... and its centre within this of the ego's line (m: half of highway-env's 4 m lane).
+SAME_LINE = 2.0
+
+
+def _follower(ego: np.ndarray, other: np.ndarray) -> bool:
+    """Whether ``other`` (x, y, v, psi) is behind ``ego`` in its lane."""
+    u = np.array([np.cos(ego[3]), np.sin(ego[3])])
+    d = other[:2] - ego[:2]
+    heading = abs(float(np.angle(np.exp(1j * (other[3] - ego[3])))))
+    return heading < SAME_HEADING and abs(float(d @ np.array([-u[1], u[0]]))) < SAME_LINE and float(d @ u) < 0.0
+
+
+def trace(seed: int) -> tuple[str, collections.Counter, list[str]]:
+    """One robust episode: its outcome, the counts of verdicts per decision, and one line per decision."""
+    counts: collections.Counter = collections.Counter()
+    lines: list[str] = []
+    captured: dict = {}
+    sequence_reach, forecast, decide = hes.sequence_reach, hes.HighwayEnvRobustMethod.forecast, hes._SearchMethod.decide
+
+    def keep_reach(trajectories, vehicle):
+        out = sequence_reach(trajectories, vehicle)
+        captured.setdefault("boxes", out[0])  # the first call of a decision: every sequence
+        return out
+
+    def keep_forecast(self, observation, reach, speed, heading):
+        result = forecast(self, observation, reach, speed, heading)
+        captured.setdefault("forecast", result)  # the forecast from the reach of every sequence
+        captured.setdefault("observation", observation)
+        return result
+
+    def probe(self, measurement):
+        captured.clear()
+        policy = decide(self, measurement)
+        if not isinstance(self, hes.HighwayEnvRobustMethod):
+            return policy
+        boxes, fc, obs = captured["boxes"], captured["forecast"], captured["observation"]
+        hit = hes.box_overlaps(boxes, fc.boxes)
+        hit[:, 0] = False
+        first = np.where(hit.any(axis=1), hit.argmax(axis=1), hit.shape[1])
+        ego = np.asarray(obs.ego, dtype=float)
+        if first.max() == hit.shape[1]:
+            counts["free"] += 1
+            lines.append(f"| {seed} | {obs.time:.1f} | {ego[0]:.1f}, {ego[1]:.1f} | free | |")
+            return policy
+        k = int(first.max())
+        s = int(np.argmax(first))
+        b = boxes[s, k]
+        o = fc.boxes[k]
+        meets = np.flatnonzero((o[:, 0] <= b[2]) & (b[0] <= o[:, 2]) & (o[:, 1] <= b[3]) & (b[1] <= o[:, 3]))
+        states = dict(zip(np.asarray(obs.ids).tolist(), np.asarray(obs.vehicles, dtype=float)))
+        kinds = set()
+        who = []
+        for j in meets:
+            agent = int(fc.ids[j])
+            role = "follower" if agent in states and _follower(ego, states[agent]) else "other"
+            grade = "fine" if fc.guaranteed[k, j] else "coarse"
+            kinds.add(f"{role}, {grade}")
+            lost = np.flatnonzero(~np.asarray(fc.guaranteed[:, j], dtype=bool))
+            since = f", coarse from {lost[0] * fc.dt:.1f} s" if lost.size else ""
+            at = f" at {states[agent][0]:.0f}, {states[agent][1]:.0f}" if agent in states else ""
+            who.append(
+                f"{agent}{at} {role} {grade}{since}, v [{fc.state_lower[k, j, 2]:.1f}, {fc.state_upper[k, j, 2]:.1f}]"
+            )
+        for kind in kinds:
+            counts[f"blocked: {kind}"] += 1
+        counts["blocked"] += 1
+        lines.append(
+            f"| {seed} | {obs.time:.1f} | {ego[0]:.1f}, {ego[1]:.1f} | "
+            f"blocked at {k * fc.dt:.1f} s | {'; '.join(who)} |"
+        )
+        return policy
+
+    hes.sequence_reach = keep_reach
+    hes.HighwayEnvRobustMethod.forecast = keep_forecast
+    hes._SearchMethod.decide = probe
+    try:
+        record = run_episode(ENV, "robust", seed)
+    finally:
+        hes.sequence_reach = sequence_reach
+        hes.HighwayEnvRobustMethod.forecast = forecast
+        hes._SearchMethod.decide = decide
+    return record.outcome, counts, lines
+
+
+def _seeds(text: str) -> list[int]:
+    """``--seeds``: a comma-separated list of integers >= 0 (argparse reports anything else in one line, exit 2)."""
+    try:
+        seeds = [int(item) for item in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--seeds must be comma-separated integers, got {text!r}") from None
+    if not seeds or min(seeds) < 0:
+        raise argparse.ArgumentTypeError(f"--seeds must be integers >= 0, got {text!r}")
+    return seeds
+
+
+def main() -> None:
+    """Trace the seeds given and write the tables."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", required=True, type=_seeds, help="comma-separated episode seeds, each >= 0")
+    parser.add_argument("--out", default="benchmarks/results/trace_highway_env_stalls.md")
+    args = parser.parse_args()
+    start = time.time()
+    total: collections.Counter = collections.Counter()
+    summary = [
+        "| seed | outcome | decisions | free | blocked | follower, fine | follower, coarse | other, fine | other, coarse |"
+    ]
+    summary.append("|---:|---|---:|---:|---:|---:|---:|---:|---:|")
+    detail = [
+        "| seed | t (s) | ego x, y (m) | verdict | boxes met (id, measured x, y, role, grade, speed box m/s at the collision) |",
+        "|---:|---:|---|---|---|",
+    ]
+    for seed in args.seeds:
+        outcome, counts, lines = trace(seed)
+        total.update(counts)
+        n = counts["free"] + counts["blocked"]
+        cells = [
+            counts[f"blocked: {k}"] for k in ("follower, fine", "follower, coarse", "other, fine", "other, coarse")
+        ]
+        summary.append(
+            f"| {seed} | {outcome} | {n} | {counts['free']} | {counts['blocked']} | "
+            + " | ".join(map(str, cells))
+            + " |"
+        )
+        detail.extend(lines)
+    n = total["free"] + total["blocked"]
+    cells = [total[f"blocked: {k}"] for k in ("follower, fine", "follower, coarse", "other, fine", "other, coarse")]
+    summary.append(f"| all | | {n} | {total['free']} | {total['blocked']} | " + " | ".join(map(str, cells)) + " |")
+    text = (
+        f"# Robust on {ENV}: what blocks each decision\n\n"
+        + "\n".join(summary)
+        + f"\n\n{len(args.seeds)} episodes, {time.time() - start:.0f} s wall "
+        + f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}).\n\n"
+        + "\n".join(detail)
+        + "\n"
+    )
+    pathlib.Path(args.out).write_text(text)
+    print("\n".join(summary))
+
+
+if __name__ == "__main__":
+    main()
