@@ -29,6 +29,7 @@ import time
 import numpy as np
 
 from minimaxplan.analysis import road_planning
+from minimaxplan.analysis.arguments import count_list
 from minimaxplan.analysis.episode import run_episode
 
 HELD_DECISIONS = 10
@@ -99,21 +100,10 @@ def trace(seed: int) -> tuple[str, collections.Counter]:
     return record.outcome, counts
 
 
-def _seeds(text: str) -> list[int]:
-    """``--seeds``: a comma-separated list of integers >= 0 (argparse reports anything else in one line, exit 2)."""
-    try:
-        seeds = [int(item) for item in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--seeds must be comma-separated integers, got {text!r}") from None
-    if not seeds or min(seeds) < 0:
-        raise argparse.ArgumentTypeError(f"--seeds must be integers >= 0, got {text!r}")
-    return seeds
-
-
 def main() -> None:
     """Trace the seeds given and write the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", required=True, type=_seeds, help="comma-separated episode seeds, each >= 0")
+    parser.add_argument("--seeds", required=True, type=count_list(0), help="comma-separated episode seeds, each >= 0")
     parser.add_argument("--out", default="benchmarks/results/trace_stalls.md")
     args = parser.parse_args()
     seeds = args.seeds
