@@ -5,7 +5,8 @@ the experiment's loop and seeds) and, at every decision, reads the method's own 
 and the ego's boxes along every action sequence it searched (`sequence_reach`). A
 decision is *blocked* when every sequence may collide within the horizon (the method
 then takes the one clear longest, `latest_clear_sequence`); it is attributed to the
-vehicles whose boxes the ego's box meets at that sequence's first possible collision:
+vehicles whose boxes the ego's box meets at the first possible collision of a sequence
+clear longest (the first in the search's order when several are):
 
 * ``follower``: a vehicle measured behind the ego in the ego's lane (heading within 0.3
   rad of the ego's, centre within half a lane of the ego's line, behind it);
