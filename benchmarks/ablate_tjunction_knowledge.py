@@ -31,7 +31,7 @@ import time
 import numpy as np
 
 from minimaxplan.analysis import road_planning, traffic_learning
-from minimaxplan.analysis.arguments import count_list
+from minimaxplan.analysis.arguments import count, count_list
 from minimaxplan.analysis.episode import run_episode
 from minimaxplan.models.sets import Box
 from minimaxplan.scenarios.traffic_models import VehicleBelief
@@ -85,14 +85,14 @@ def run(seed: int, level: str) -> tuple[int, str, float, int, int]:
     """One robust T-junction episode with told beliefs: (seed, outcome, time s, boxes missed, boxes checked)."""
     beliefs = traffic_learning.TrafficLearner.beliefs
     learn = road_planning._LearningMethod._learn
-    truth: dict = {}
+    episode: dict = {}
 
     def learn_and_keep_world(self, observation):
-        truth["traffic"] = lambda: self.world.world.traffic
+        episode["world"] = self.world.world
         return learn(self, observation)
 
     def told(self, agents=None):
-        return told_beliefs(beliefs(self, agents), truth["traffic"](), level)
+        return told_beliefs(beliefs(self, agents), episode["world"].traffic, level)
 
     road_planning._LearningMethod._learn = learn_and_keep_world
     traffic_learning.TrafficLearner.beliefs = told
@@ -109,11 +109,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--level", required=True, choices=LEVELS)
     parser.add_argument("--seeds", required=True, type=count_list(0), help="comma-separated episode seeds, each >= 0")
-    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--workers", type=count(1), default=2, help="worker processes, >= 1")
     args = parser.parse_args()
     start = time.time()
     jobs = [(seed, args.level) for seed in args.seeds]
-    with multiprocessing.get_context("fork").Pool(max(1, args.workers)) as pool:
+    with multiprocessing.get_context("fork").Pool(args.workers) as pool:
         results = sorted(pool.starmap(run, jobs))
     for seed, outcome, time_s, missed, checked in results:
         print(f"seed {seed}: {outcome} at {time_s:.1f} s, boxes missed {missed} of {checked}")

@@ -33,6 +33,7 @@ import numpy as np
 from minimaxplan.analysis import traffic_learning
 from minimaxplan.analysis.arguments import count_list
 from minimaxplan.analysis.episode import run_episode
+from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.models.sets import Box
 from minimaxplan.verify.interval_regression import IntervalRows, interval_parameter_box
 
@@ -57,6 +58,13 @@ def speed_offset_bound(rows: IntervalRows, prior: Box, v_ref: float) -> tuple[fl
     v_ref : float
         The reference speed, m/s.
 
+    Raises
+    ------
+    DimensionError, InputError
+        Rows or prior not of dimension 4; a non-finite ``v_ref``.
+    NoConsistentModel, SolverFailure
+        As `interval_parameter_box`.
+
     Notes
     -----
     In the coordinates ``(theta_a1, theta_a2, theta_a3, d)`` a row ``g . theta`` becomes
@@ -64,6 +72,13 @@ def speed_offset_bound(rows: IntervalRows, prior: Box, v_ref: float) -> tuple[fl
     exact (not an interval) in the learner's rows, so ``d`` may range below 0; its prior
     side is the hull of ``c - theta_a1 v_ref`` over the prior box.
     """
+    if rows.nparams != 4 or prior.dim != 4:
+        raise DimensionError(
+            f"rows and prior must be in (theta_a1, theta_a2, theta_a3, c): got {rows.nparams} parameters "
+            f"and a prior of dimension {prior.dim}"
+        )
+    if not np.isfinite(v_ref):
+        raise InputError(f"v_ref must be finite, got {v_ref!r}")
     m = np.eye(4)
     m[3, 0] = v_ref  # column 1 of the new regressors: g1 + v_ref g4
     shifted = IntervalRows(rows.regressor_low @ m, rows.regressor_high @ m, rows.target_low, rows.target_high)

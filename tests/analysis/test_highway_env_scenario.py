@@ -378,19 +378,6 @@ def test_lane_keeping_forecast_contains_highway_envs_vehicles_along_a_lane_keepi
     assert total["outside"] == 0 and total["inside"] > 500, total
 
 
-def _misses_module():
-    import importlib.util
-    import pathlib
-    import sys
-
-    path = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "highway_env_misses.py"
-    spec = importlib.util.spec_from_file_location("highway_env_misses", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("highway_env_misses", module)
-    spec.loader.exec_module(module)
-    return module
-
-
 def _fact(
     lane=("0", "1", 1),
     target=None,
@@ -416,10 +403,10 @@ def _fact(
     }
 
 
-def test_miss_classifier_on_a_small_case():
+def test_miss_classifier_on_a_small_case(benchmark_script):
     """benchmarks/highway_env_misses.py: each miss gets the first kind that applies from the step before
     the decision's start to the missed sub-step."""
-    misses = _misses_module()
+    misses = benchmark_script("highway_env_misses")
     classify = misses.classify_miss
     box = {"lower": [-1.0, 3.0, 0.0, -0.1], "upper": [1.0, 5.0, 30.0, 0.1]}  # reaches (0, 4), not (0, 8)
 
@@ -590,22 +577,9 @@ def test_latest_clear_sequence_rejects_rows_that_clear_again_and_non_finite_inpu
         latest_clear_sequence(alive, np.array([0.5, 0.5]), speeds=np.full((2, 3), np.nan))
 
 
-def _stalls_module():
-    import importlib.util
-    import pathlib
-    import sys
-
-    path = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "trace_highway_env_stalls.py"
-    spec = importlib.util.spec_from_file_location("trace_highway_env_stalls", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("trace_highway_env_stalls", module)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_stall_trace_tells_a_follower_from_other_traffic():
+def test_stall_trace_tells_a_follower_from_other_traffic(benchmark_script):
     """benchmarks/trace_highway_env_stalls.py: a follower is behind the ego, in its lane, heading its way."""
-    follower = _stalls_module()._follower
+    follower = benchmark_script("trace_highway_env_stalls")._follower
     ego = np.array([2.0, 30.0, 5.0, -np.pi / 2])  # heading south (-y)
     assert follower(ego, np.array([2.0, 45.0, 8.0, -np.pi / 2]))  # behind, same lane
     assert follower(ego, np.array([3.5, 45.0, 8.0, -np.pi / 2 + 0.2]))
@@ -615,10 +589,10 @@ def test_stall_trace_tells_a_follower_from_other_traffic():
     assert not follower(ego, np.array([2.0, 45.0, 8.0, 0.0]))  # crossing
 
 
-def test_stall_trace_counts_every_decision_and_restores_the_method():
+def test_stall_trace_counts_every_decision_and_restores_the_method(benchmark_script):
     """The trace of one episode attributes each decision once (free or blocked, with at least one kind),
     and the patched functions are restored afterwards."""
-    module = _stalls_module()
+    module = benchmark_script("trace_highway_env_stalls")
     from minimaxplan.analysis import highway_env_scenario as hes
 
     before = (hes.sequence_reach, hes.HighwayEnvRobustMethod.forecast, hes._SearchMethod.decide)

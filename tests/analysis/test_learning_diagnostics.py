@@ -1,28 +1,15 @@
 """The learner diagnostics of benchmarks/: trace_parameter_boxes.py and ablate_tjunction_knowledge.py (issue 11)."""
 
-import importlib.util
-import pathlib
-import sys
-
 import numpy as np
-from hypothesis import given, settings
+import pytest
+from hypothesis import given
 from hypothesis import strategies as st
 
 from minimaxplan.analysis import road_planning, traffic_learning
-from minimaxplan.analysis.traffic_learning import TrafficLearner
-from minimaxplan.models import Box
+from minimaxplan.analysis.traffic_learning import TrafficLearner, hold_lane_control
+from minimaxplan.models import Box, DimensionError, InputError
 from minimaxplan.scenarios import make_road_world
 from minimaxplan.verify.interval_regression import IntervalRows, interval_parameter_box
-
-BENCHMARKS = pathlib.Path(__file__).resolve().parents[2] / "benchmarks"
-
-
-def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault(name, module)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _free_driving_rows(theta1, v_target, v0, steps, disturbance, noise, *, dt=0.1, window=16, v_bar=0.1, w_bar=0.1):
@@ -55,7 +42,6 @@ def _free_driving_rows(theta1, v_target, v0, steps, disturbance, noise, *, dt=0.
     return rows, prior, measured
 
 
-@settings(max_examples=40, deadline=None)
 @given(
     theta1=st.floats(0.15, 0.45),
     v_target=st.floats(7.0, 9.0),
@@ -63,10 +49,10 @@ def _free_driving_rows(theta1, v_target, v0, steps, disturbance, noise, *, dt=0.
     signs=st.lists(st.sampled_from([-1.0, 1.0]), min_size=4, max_size=4),
     switch=st.integers(1, 60),
 )
-def test_speed_offset_bound_holds_the_true_offset(theta1, v_target, v0, signs, switch):
+def test_speed_offset_bound_holds_the_true_offset(benchmark_script, theta1, v_target, v0, signs, switch):
     """The certified bound of d = c - theta_a1 v_ref holds the true one: disturbances and noise at their
     extremes, switching sign at a random step (the change of coordinates is what this would catch)."""
-    module = _script("trace_parameter_boxes")
+    module = benchmark_script("trace_parameter_boxes")
     rows, prior, measured = _free_driving_rows(
         theta1,
         v_target,
@@ -81,10 +67,10 @@ def test_speed_offset_bound_holds_the_true_offset(theta1, v_target, v0, signs, s
     assert lo <= d <= hi
 
 
-def test_speed_offset_bound_is_narrower_than_the_boxes_at_steady_speed():
+def test_speed_offset_bound_is_narrower_than_the_boxes_at_steady_speed(benchmark_script):
     """At a steady speed the rows pin d = theta_a1 (v_t - v_ref) far better than theta_a1's and v_t's boxes do
     (what the trace reports), while theta_a1 alone stays unidentified (the learner's longest window, 64)."""
-    module = _script("trace_parameter_boxes")
+    module = benchmark_script("trace_parameter_boxes")
     rows, prior, _ = _free_driving_rows(0.3, 8.0, 8.0, 200, lambda n: 0.0, lambda n: 0.0, window=64)
     lo, hi = module.speed_offset_bound(rows, prior, 8.0)
     boxes = 0.45 * (9.0 - 8.0) - 0.45 * (7.0 - 8.0)  # theta_a1 (v_t - 8) over [0.15, 0.45] x [7, 9]
@@ -94,10 +80,46 @@ def test_speed_offset_bound_is_narrower_than_the_boxes_at_steady_speed():
     assert theta1.high[0] - theta1.low[0] > 0.9 * (0.45 - 0.15)
 
 
-def test_parameter_box_trace_reads_every_belief_and_restores_the_learner():
+@pytest.mark.parametrize("kind, seed", [("tjunction", 3), ("highway", 1)])
+def test_speed_offset_bound_holds_the_truth_on_the_learners_rows(benchmark_script, kind, seed):
+    """On the learner's own rows in a world (noise, disturbances, leaders, yielding), every surviving
+    hypothesis' d bound holds the vehicle's true theta_a1 (v_t - v_ref): the rows and the change of
+    coordinates together, which the synthetic rows above do not exercise."""
+    module = benchmark_script("trace_parameter_boxes")
+    world = make_road_world(kind, seed)
+    learner = TrafficLearner(world.road, world.scenario)
+    for _ in range(120):
+        learner.observe(world.measure())
+        if world.done:
+            break
+        world.apply(hold_lane_control(world))
+    traffic, checked = world.traffic, 0
+    for agent, track in learner.tracks.items():
+        v_ref = float(track.states[max(track.states)][2])
+        truth = traffic.theta_a[agent][0] * (traffic.target_speed[agent] - v_ref)
+        for lon in {id(h.lon): h.lon for h in track.hyps if learner._alive(h)}.values():
+            if lon.rows.n < module.MIN_ROWS:
+                continue
+            lo, hi = module.speed_offset_bound(learner._lon_rows_of(lon), learner.prior_lon, v_ref)
+            assert lo <= truth <= hi, (agent, lo, truth, hi)
+            checked += 1
+    assert checked >= 3
+
+
+def test_speed_offset_bound_rejects_bad_input(benchmark_script):
+    """Rows or a prior of the wrong dimension, or a non-finite v_ref: typed errors naming them."""
+    module = benchmark_script("trace_parameter_boxes")
+    rows, prior, _ = _free_driving_rows(0.3, 8.0, 8.0, 40, lambda n: 0.0, lambda n: 0.0)
+    with pytest.raises(DimensionError, match="prior of dimension 3"):
+        module.speed_offset_bound(rows, Box(prior.low[:3], prior.high[:3]), 8.0)
+    with pytest.raises(InputError, match="v_ref"):
+        module.speed_offset_bound(rows, prior, float("nan"))
+
+
+def test_parameter_box_trace_reads_every_belief_and_restores_the_learner(benchmark_script):
     """trace() on Table 4's T-junction seed 0 (a goal): one width row per belief, ratios in (0, 1], and the
     learner's method restored."""
-    module = _script("trace_parameter_boxes")
+    module = benchmark_script("trace_parameter_boxes")
     before = traffic_learning.TrafficLearner.beliefs
     outcome, widths, offsets = module.trace("tjunction", 0)
     assert traffic_learning.TrafficLearner.beliefs is before
@@ -108,10 +130,10 @@ def test_parameter_box_trace_reads_every_belief_and_restores_the_learner():
     assert module.summary(w, np.array(offsets))[2].startswith("| 0-20 |")
 
 
-def test_told_beliefs_hold_the_truth_at_each_level():
+def test_told_beliefs_hold_the_truth_at_each_level(benchmark_script):
     """ablate_tjunction_knowledge.told_beliefs: the true parameters in narrow boxes, only routes on the true
     route (when told), the exact target speed only at the top level."""
-    module = _script("ablate_tjunction_knowledge")
+    module = benchmark_script("ablate_tjunction_knowledge")
     world = make_road_world("tjunction", 3)
     learner = TrafficLearner(world.road, world.scenario)
     for _ in range(5):
@@ -140,9 +162,9 @@ def test_told_beliefs_hold_the_truth_at_each_level():
                 assert belief.target_speed is None
 
 
-def test_knowledge_ablation_restores_the_method():
+def test_knowledge_ablation_restores_the_method(benchmark_script):
     """run() patches the learner and the method for one episode only (Table 4's T-junction seed 0)."""
-    module = _script("ablate_tjunction_knowledge")
+    module = benchmark_script("ablate_tjunction_knowledge")
     before = (traffic_learning.TrafficLearner.beliefs, road_planning._LearningMethod._learn)
     seed, outcome, _, missed, checked = module.run(0, "parameters")
     assert (traffic_learning.TrafficLearner.beliefs, road_planning._LearningMethod._learn) == before

@@ -264,20 +264,12 @@ def test_the_robust_rule_rejects_what_is_not_a_tree_decision():
         latest_collision_action(model, root, decision, horizon=0)
 
 
-def test_stall_trace_counts_every_decision_and_restores_the_method():
+def test_stall_trace_counts_every_decision_and_restores_the_method(benchmark_script):
     """benchmarks/trace_stalls.py on one short robust T-junction episode: one verdict per decision, and the
     functions it wraps are restored afterwards."""
-    import importlib.util
-    import pathlib
-    import sys
-
     from minimaxplan.analysis import road_planning
 
-    path = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "trace_stalls.py"
-    spec = importlib.util.spec_from_file_location("trace_stalls", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("trace_stalls", module)
-    spec.loader.exec_module(module)
+    module = benchmark_script("trace_stalls")
     before = (
         road_planning.forecast_traffic,
         road_planning.RoadRobustMethod.obstacles,
