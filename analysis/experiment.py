@@ -29,6 +29,7 @@ from minimaxplan.models.validation import as_count
 from . import registry
 from .driving_table import write_driving_table
 from .episode import DEFAULT_CONFIG, EpisodeJob, EpisodeRecord, LoopConfig, make_job, run_job
+from .numerical_environment import numerical_environment
 from .registry import UnsupportedScenario, resolve, scenario_factory
 
 __all__ = [
@@ -345,7 +346,12 @@ def markdown_table(summary: Sequence[dict]) -> str:
 
 
 def write_outputs(result: ExperimentResult, out_dir: str | os.PathLike) -> pathlib.Path:
-    """Write summary.json, episodes.csv and table.md (and table4.md for driving runs) into ``out_dir``.
+    """Write summary.json, episodes.csv, table.md and environment.json (and table4.md for driving runs) into ``out_dir``.
+
+    ``environment.json`` is `numerical_environment` of the writing process: the CPU,
+    numpy's SIMD targets and the BLAS kernels its floating-point results depend on, and
+    whether they are the ones the committed records are made with (the episodes of a run
+    on Dask workers ran in the workers' environment, which it does not describe).
 
     Parameters
     ----------
@@ -373,6 +379,7 @@ def write_outputs(result: ExperimentResult, out_dir: str | os.PathLike) -> pathl
         + f"\nWall time of the run: {result.wall_time_s:.1f} s\n"
     )
     write_driving_table(rows, out)
+    (out / "environment.json").write_text(json.dumps(numerical_environment(), indent=2) + "\n")
     return out
 
 

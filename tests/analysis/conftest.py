@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import csv
+import json
+import os
+import subprocess
+import sys
 from collections.abc import Callable
 
 import pytest
 
 from minimaxplan.analysis import cli
+from minimaxplan.analysis.numerical_environment import RECORDS_ENVIRONMENT
 
 
 @pytest.fixture
@@ -26,3 +32,27 @@ def run_cli(capsys) -> Callable[..., tuple[int, str, str]]:
         return code, captured.out, captured.err
 
     return run
+
+
+@pytest.fixture
+def replay_records(tmp_path) -> Callable[..., tuple[list[dict[str, str]], dict]]:
+    """``replay_records(scenarios, methods, seed)`` re-runs one episode per scenario and method as the records were made.
+
+    ``minimaxplan experiment`` runs in a fresh process under `RECORDS_ENVIRONMENT` (the
+    BLAS kernel and numpy's SIMD targets are chosen when the libraries load, so the pin
+    cannot be applied to this process). Returns the ``episodes.csv`` rows, every cell a
+    string as the records hold it, and the run's ``environment.json``.
+    """
+
+    def replay(scenarios, methods, seed: int) -> tuple[list[dict[str, str]], dict]:
+        out = tmp_path / f"replay-{seed}-{'-'.join(scenarios)}"
+        command = [sys.executable, "-m", "minimaxplan.analysis.cli", "experiment"]
+        command += ["--scenario", ",".join(scenarios), "--methods", ",".join(methods), "--episodes", "1"]
+        command += ["--seed", str(seed), "--workers", "1", "--no-progress", "--out", str(out)]
+        done = subprocess.run(command, env={**os.environ, **RECORDS_ENVIRONMENT}, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr[-2000:]
+        with open(out / "episodes.csv", newline="") as handle:
+            rows = list(csv.DictReader(handle))
+        return rows, json.loads((out / "environment.json").read_text())
+
+    return replay

@@ -5,6 +5,10 @@ must come back identical in every column but the wall time (floats compared exac
 through the same CSV formatting), the run-time check's ``boxes_checked`` and
 ``boxes_missed`` included. A change that must alter a record re-runs Table 3, updates the
 CSV and says why in the README.
+
+The records are made and replayed under `RECORDS_ENVIRONMENT` (one OpenBLAS kernel, numpy's
+SIMD below AVX-512), in a fresh process: TEB's episodes depend on the BLAS kernel that the
+CPU would otherwise choose (`minimaxplan.analysis.numerical_environment`).
 """
 
 from __future__ import annotations
@@ -14,8 +18,6 @@ import json
 import pathlib
 
 import pytest
-
-from minimaxplan.analysis.experiment import run_experiment
 
 RECORDS = pathlib.Path(__file__).parents[2] / "benchmarks" / "results" / "experiments" / "table3" / "episodes.csv"
 SUMMARY = RECORDS.with_name("summary.json")
@@ -38,18 +40,18 @@ def _as_csv_cells(row: dict) -> dict[str, str]:
 @pytest.mark.slow
 @pytest.mark.parametrize("scenario", ["static", "pedestrian"])
 @pytest.mark.parametrize("seed", SEEDS)
-def test_table3_records_reproduced_exactly(scenario, seed):
+def test_table3_records_reproduced_exactly(scenario, seed, replay_records):
     committed = _committed()
     methods = ["robust", "nominal", "oracle", "dwa", "teb"]
-    result = run_experiment([scenario], methods, episodes=1, seed=seed, workers=1, progress=False)
-    assert len(result.records) == len(methods)
-    for record in result.records:
-        got = _as_csv_cells(record.row())
-        want = committed[(record.scenario, record.method, record.seed)]
-        assert set(got) >= set(want) - IGNORED, (record.method, set(want) - set(got))
+    rows, environment = replay_records([scenario], methods, seed)
+    assert environment["matches_records"], environment
+    assert len(rows) == len(methods)
+    for got in rows:
+        want = committed[(got["scenario"], got["method"], int(got["seed"]))]
+        assert set(got) >= set(want) - IGNORED, (got["method"], set(want) - set(got))
         assert {"boxes_checked", "boxes_missed"} <= set(want)
         mismatches = {k: (got[k], want[k]) for k in want if k not in IGNORED and got[k] != want[k]}
-        assert not mismatches, f"{scenario}/{record.method}/seed {seed}: {mismatches}"
+        assert not mismatches, f"{scenario}/{got['method']}/seed {seed}: {mismatches}"
 
 
 def test_committed_records_carry_the_runtime_check_and_no_miss():

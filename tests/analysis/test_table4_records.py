@@ -2,8 +2,9 @@
 
 A few episodes of `benchmarks/results/experiments/table4/episodes.csv` are re-run and
 must come back identical in every column but the wall time, as the Table 3 anchor does
-for the robot's worlds; a change that must alter a record re-runs Table 4, updates the
-records and says why in the README.
+for the robot's worlds (in a fresh process under `RECORDS_ENVIRONMENT`, as the records were
+made); a change that must alter a record re-runs Table 4, updates the records and says why
+in the README.
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ import pathlib
 import pytest
 
 from minimaxplan.analysis.driving_table import driving_markdown
-from minimaxplan.analysis.experiment import run_experiment
 
 RECORDS = pathlib.Path(__file__).parents[2] / "benchmarks" / "results" / "experiments" / "table4" / "episodes.csv"
 IGNORED = {"wall_time_s"}
@@ -34,14 +34,15 @@ def _committed() -> dict[tuple[str, str, int], dict[str, str]]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("scenario, seed, methods", CASES)
-def test_table4_records_reproduced_exactly(scenario, seed, methods):
+def test_table4_records_reproduced_exactly(scenario, seed, methods, replay_records):
     committed = _committed()
-    result = run_experiment([scenario], list(methods), episodes=1, seed=seed, workers=1, progress=False)
-    for record in result.records:
-        got = {key: "" if value is None else str(value) for key, value in record.row().items()}
-        want = committed[(record.scenario, record.method, record.seed)]
+    rows, environment = replay_records([scenario], list(methods), seed)
+    assert environment["matches_records"], environment
+    assert sorted(r["method"] for r in rows) == sorted(methods)
+    for got in rows:
+        want = committed[(got["scenario"], got["method"], int(got["seed"]))]
         mismatches = {k: (got.get(k), want[k]) for k in want if k not in IGNORED and got.get(k) != want[k]}
-        assert not mismatches, f"{scenario}/{record.method}/seed {seed}: {mismatches}"
+        assert not mismatches, f"{scenario}/{got['method']}/seed {seed}: {mismatches}"
 
 
 def test_the_committed_run_is_complete_and_its_robust_boxes_never_missed():
