@@ -2,10 +2,7 @@
 tests fail, not skip, when CI=true)."""
 
 import copy
-import importlib.util
 import os
-import pathlib
-import sys
 import warnings
 
 import numpy as np
@@ -28,18 +25,13 @@ from highway_env.vehicle.uncertainty.prediction import IntervalVehicle  # noqa: 
 from minimaxplan.scenarios.driving_reward import DrivingReward  # noqa: E402
 from minimaxplan.scenarios.highway_env_adapter import HighwayEnvAdapter, meta_action  # noqa: E402
 
-_PATH = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "highway_env_reference_planner.py"
+
+@pytest.fixture(scope="module")
+def reference(benchmark_script):
+    """``benchmarks/highway_env_reference_planner.py``, loaded once."""
+    return benchmark_script("highway_env_reference_planner")
 
 
-def _load():
-    spec = importlib.util.spec_from_file_location("highway_env_reference_planner", _PATH)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("highway_env_reference_planner", module)
-    spec.loader.exec_module(module)
-    return module
-
-
-reference = _load()
 ACTIONS = ("SLOWER", "IDLE", "LANE_LEFT", "LANE_RIGHT", "FASTER")
 
 
@@ -68,7 +60,7 @@ def _same(a, b):
     )
 
 
-def test_interval_root_replaces_the_other_vehicles_and_puts_the_ego_last(scene):
+def test_interval_root_replaces_the_other_vehicles_and_puts_the_ego_last(scene, reference):
     adapter, _ = scene
     base = adapter.env.unwrapped
     before = _snapshot(base)
@@ -83,7 +75,7 @@ def test_interval_root_replaces_the_other_vehicles_and_puts_the_ego_last(scene):
     assert not any(isinstance(v, IntervalVehicle) for v in base.road.vehicles)
 
 
-def test_reference_planner_at_budget_3_expands_3_nodes_and_returns_a_valid_action(scene):
+def test_reference_planner_at_budget_3_expands_3_nodes_and_returns_a_valid_action(scene, reference):
     adapter, reward = scene
     root = reference.interval_root(adapter.env)
     metas = [meta_action(adapter.env, name) for name in ACTIONS]
@@ -103,7 +95,7 @@ def test_reference_planner_at_budget_3_expands_3_nodes_and_returns_a_valid_actio
     assert decision.lower <= decision.upper <= 1 / (1 - 0.9)
 
 
-def test_reference_copies_are_independent(scene):
+def test_reference_copies_are_independent(scene, reference):
     adapter, reward = scene
     root = reference.interval_root(adapter.env)
     metas = [meta_action(adapter.env, name) for name in ACTIONS]
@@ -127,7 +119,7 @@ def test_reference_copies_are_independent(scene):
     assert _same(_snapshot(child.env), parent_before)
 
 
-def test_depth_rule_and_crash_reward(scene):
+def test_depth_rule_and_crash_reward(scene, reference):
     adapter, reward = scene
     root = reference.interval_root(adapter.env)
     metas = [meta_action(adapter.env, name) for name in ACTIONS]
