@@ -5,7 +5,7 @@ Episode records are replayed bit for bit (``tests/analysis/test_table3_records.p
 do not: its L-BFGS-B iterations amplify differences in the last bit of BLAS results into
 different trajectories, and OpenBLAS chooses its kernels by CPU at run time (measured in
 ``benchmarks/blas_kernel_sensitivity.py``: the same TEB episodes under OpenBLAS's
-Haswell, Sandybridge and Prescott kernels). The same holds, in principle, for numpy's
+Haswell, Sandybridge and Nehalem kernels). The same holds, in principle, for numpy's
 SIMD loops, which dispatch on the CPU's features.
 
 The records are therefore made and replayed under `RECORDS_ENVIRONMENT`: OpenBLAS's

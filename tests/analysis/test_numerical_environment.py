@@ -8,6 +8,8 @@ import pathlib
 import subprocess
 import sys
 
+import pytest
+
 from minimaxplan.analysis.numerical_environment import (
     RECORDS_BLAS_KERNEL,
     RECORDS_ENVIRONMENT,
@@ -59,3 +61,14 @@ def test_the_readme_states_the_pin_that_the_code_applies():
         f'{name}="{value}"' if " " in value else f"{name}={value}" for name, value in RECORDS_ENVIRONMENT.items()
     )
     assert pin in README.read_text()
+
+
+def test_the_sensitivity_benchmark_runs_a_variant_and_checks_that_it_took_effect(benchmark_script, tmp_path):
+    sensitivity = benchmark_script("blas_kernel_sensitivity")
+    label, overrides, kernel, targets = sensitivity.VARIANTS[1]
+    records, environment, _ = sensitivity.run_variant((label, overrides, kernel, targets), [0], tmp_path)
+    assert len(records) == len(sensitivity.WORLDS) * len(sensitivity.METHODS)
+    assert environment["blas_kernels"] == {"numpy": kernel, "scipy": kernel}
+    # a variant whose stated kernel is not what loads is refused, not reported
+    with pytest.raises(RuntimeError, match="did not take effect"):
+        sensitivity.run_variant(("wrong", overrides, RECORDS_BLAS_KERNEL, targets), [0], tmp_path)
