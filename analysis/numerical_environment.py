@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import ctypes
 import glob
+import importlib
 import os
 import platform
 from collections.abc import Mapping
@@ -99,9 +100,9 @@ def numerical_environment() -> dict:
     import scipy
 
     try:
-        from numpy._core import _multiarray_umath as umath
+        umath = importlib.import_module("numpy._core._multiarray_umath")
     except ImportError:  # numpy < 2
-        from numpy.core import _multiarray_umath as umath  # type: ignore[no-redef]
+        umath = importlib.import_module("numpy.core._multiarray_umath")
     features = umath.__cpu_features__
     targets = [name for name in umath.__cpu_dispatch__ if features.get(name)]
     kernels = blas_kernels()
