@@ -26,16 +26,38 @@ import glob
 import importlib
 import os
 import platform
-from collections.abc import Mapping
-from types import MappingProxyType
+from collections.abc import Iterator, Mapping
 
 __all__ = ["RECORDS_ENVIRONMENT", "RECORDS_BLAS_KERNEL", "blas_kernels", "numerical_environment"]
 
 #: The OpenBLAS kernel the committed records are made and replayed with.
 RECORDS_BLAS_KERNEL = "Haswell"
 
-#: Environment variables under which the committed records are made and replayed.
-RECORDS_ENVIRONMENT: Mapping[str, str] = MappingProxyType(
+
+class _Variables(Mapping[str, str]):
+    """Environment variables under which the committed records are made and replayed (read-only).
+
+    Apply them to a child process (``{**os.environ, **RECORDS_ENVIRONMENT}``) or prefix a
+    shell command with them; they act when numpy and scipy load their libraries.
+    """
+
+    def __init__(self, variables: Mapping[str, str]) -> None:
+        self._variables = dict(variables)
+
+    def __getitem__(self, name: str) -> str:
+        return self._variables[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._variables)
+
+    def __len__(self) -> int:
+        return len(self._variables)
+
+    def __repr__(self) -> str:
+        return f"RECORDS_ENVIRONMENT({self._variables!r})"
+
+
+RECORDS_ENVIRONMENT: Mapping[str, str] = _Variables(
     {
         "OPENBLAS_CORETYPE": RECORDS_BLAS_KERNEL,
         # numpy >= 2.4 names its AVX-512 dispatch targets by these groups; a name the CPU
