@@ -99,7 +99,8 @@ def blas_kernels() -> dict[str, str | None]:
             query = getattr(ctypes.CDLL(path), function, None)
             if query is not None:
                 query.restype = ctypes.c_char_p
-                kernels[package] = query().decode()
+                name = query()
+                kernels[package] = name.decode() if name else None
                 break
     return kernels
 
@@ -115,8 +116,8 @@ def numerical_environment() -> dict:
         ``numpy_simd_targets`` (the dispatch targets numpy found and uses, capped by
         ``NPY_DISABLE_CPU_FEATURES``), ``blas_kernels`` (`blas_kernels`), and
         ``pinned`` (the `RECORDS_ENVIRONMENT` variables as this process has them, None
-        where unset) and ``matches_records`` (whether they equal `RECORDS_ENVIRONMENT`
-        and both BLAS kernels are `RECORDS_BLAS_KERNEL`).
+        where unset) and ``matches_records`` (whether they equal `RECORDS_ENVIRONMENT`,
+        both BLAS kernels are `RECORDS_BLAS_KERNEL` and numpy uses no AVX-512 target).
     """
     import numpy
     import scipy
@@ -137,9 +138,22 @@ def numerical_environment() -> dict:
         "numpy_simd_targets": targets,
         "blas_kernels": kernels,
         "pinned": pinned,
-        "matches_records": pinned == dict(RECORDS_ENVIRONMENT)
-        and all(kernel == RECORDS_BLAS_KERNEL for kernel in kernels.values()),
+        "matches_records": _matches_records(pinned, kernels, targets),
     }
+
+
+def _matches_records(pinned: Mapping[str, str | None], kernels: Mapping[str, str | None], targets: list[str]) -> bool:
+    """The variables as pinned, both BLAS kernels the records', and no AVX-512 loop in use.
+
+    The last is checked on what numpy reports, not on the variable: numpy releases before
+    2.4 name their AVX-512 targets differently (``AVX512F``, ``AVX512_SKX``, ...), and
+    there the variable would cap nothing.
+    """
+    return (
+        dict(pinned) == dict(RECORDS_ENVIRONMENT)
+        and all(kernel == RECORDS_BLAS_KERNEL for kernel in kernels.values())
+        and not any(name.startswith(("AVX512", "X86_V4")) for name in targets)
+    )
 
 
 def _cpu_model() -> str | None:

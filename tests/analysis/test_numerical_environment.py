@@ -72,3 +72,15 @@ def test_the_sensitivity_benchmark_runs_a_variant_and_checks_that_it_took_effect
     # a variant whose stated kernel is not what loads is refused, not reported
     with pytest.raises(RuntimeError, match="did not take effect"):
         sensitivity.run_variant(("wrong", overrides, RECORDS_BLAS_KERNEL, targets), [0], tmp_path)
+
+
+def test_matches_records_needs_the_variables_the_kernels_and_no_avx512_loop_in_use():
+    from minimaxplan.analysis.numerical_environment import _matches_records
+
+    pinned, kernels = dict(RECORDS_ENVIRONMENT), {"numpy": RECORDS_BLAS_KERNEL, "scipy": RECORDS_BLAS_KERNEL}
+    assert _matches_records(pinned, kernels, ["X86_V3"])
+    # an older numpy on an AVX-512 machine: the variable is set, its names cap nothing
+    assert not _matches_records(pinned, kernels, ["AVX512F", "AVX512_SKX"])
+    assert not _matches_records(pinned, kernels, ["X86_V3", "X86_V4"])
+    assert not _matches_records(pinned, {**kernels, "scipy": None}, ["X86_V3"])
+    assert not _matches_records({**pinned, "OPENBLAS_NUM_THREADS": None}, kernels, ["X86_V3"])
