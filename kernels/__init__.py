@@ -17,7 +17,9 @@ that neither imports the other:
   controllers, compiled once for the world and the planner (`LaneGeometry`,
   `EgoController`, `ego_control`);
 * `minimaxplan.kernels.driving_reward`: the driving reward's compiled box minimum
-  (`DrivingParams`).
+  (`DrivingParams`);
+* `minimaxplan.kernels.vertex_bounds`: the traffic forecast's interval arithmetic on 2 x 2
+  matrix families (`interval_matvec`, `vertex_bound`, `contraction_vertex_factor`).
 
 A user's reward family gets an exact box minimum and a compiled kernel by exposing a
 registered ``kernel_params`` namedtuple and an overload of `box_reward_minimum`; see

@@ -97,8 +97,11 @@ def interval_product(a_lower, a_upper, b_lower, b_upper) -> tuple[np.ndarray, np
         The smallest and largest of the four corner products (exact in real arithmetic;
         each product is one rounding, which callers that need rigour round outward).
     """
-    corners = np.stack(np.broadcast_arrays(a_lower * b_lower, a_lower * b_upper, a_upper * b_lower, a_upper * b_upper))
-    return corners.min(axis=0), corners.max(axis=0)
+    corners = (a_lower * b_lower, a_lower * b_upper, a_upper * b_lower, a_upper * b_upper)
+    lower, upper = np.minimum(corners[0], corners[1]), np.maximum(corners[0], corners[1])
+    for corner in corners[2:]:  # in order, as a reduction over the stacked corners would (NaN propagates)
+        lower, upper = np.minimum(lower, corner), np.maximum(upper, corner)
+    return lower, upper
 
 
 def cos_interval(lo, hi) -> tuple[np.ndarray, np.ndarray]:

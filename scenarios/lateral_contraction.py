@@ -33,7 +33,7 @@ The metric ``P`` is one of a table per speed (`contraction_metrics`), each tuned
 a grid search over the prior's gains, so that ``lambda < 1`` over a moderate box; the
 bound is sound for any ``P``, the tuning only makes it tight.
 
-Layer: numpy only.
+Layer: numpy, and the compiled vertex maximum of `minimaxplan.kernels.vertex_bounds`.
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from minimaxplan.kernels.vertex_bounds import contraction_vertex_factor
 from minimaxplan.models.errors import DimensionError, InputError
 
 from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters, slip_angle
@@ -53,7 +54,7 @@ __all__ = ["CONTRACTION_MARGIN", "contraction_factor", "contraction_metrics", "e
 CONTRACTION_MARGIN = 1e-9
 _DEFAULT_BEHAVIOUR = BehaviourParameters()
 #: The 64 corners of the box of (s1, s2, g, v, b1, q): 0 the lower end, 1 the upper.
-_CORNERS = np.array(np.meshgrid(*[[0, 1]] * 6, indexing="ij")).reshape(6, -1).T
+_CORNERS = np.array(np.meshgrid(*[[0, 1]] * 6, indexing="ij")).reshape(6, -1).T.astype(bool).copy()
 #: Speed ratio between neighbouring metrics of the table.
 _TABLE_RATIO = 1.25
 #: The box a metric is tuned on: speeds within this ratio of its node, |e| and |chi| up to these.
@@ -67,8 +68,8 @@ def _sinc_lower(a):
         return np.where(a > 0.0, np.sin(a) / np.where(a > 0.0, a, 1.0), 1.0)
 
 
-def _vertex_matrices(dt, length, max_steering, e, chi, v, b1, q):
-    """The 64 vertex matrices of ``A`` over the box, shape (n, 64, 2, 2)."""
+def _vertex_box(dt, length, max_steering, e, chi, v, b1, q):
+    """The box of ``(s1, s2, g, v, b1, q)`` over the state box, as (lower, upper), each shape (n, 6)."""
     e_m = np.maximum(np.abs(e[0]), np.abs(e[1]))
     c_m = np.maximum(np.abs(chi[0]), np.abs(chi[1]))
     # |delta_r| <= (L / v_lo)(b1_hi |chi| + q_hi |e|)
@@ -79,17 +80,10 @@ def _vertex_matrices(dt, length, max_steering, e, chi, v, b1, q):
         # g(x) = beta(clip(x)) / x: 1/2 at 0, increasing in |x| up to max_steering, then beta_max / |x|
         g_hi = np.where(dm > 0.0, beta_m / np.where(dm > 0.0, dm, 1.0), 0.5)
         g_lo = np.where(dr > 0.0, np.minimum(0.5, slip_angle(max_steering) / np.where(dr > 0.0, dr, 1.0)), 0.5)
-    s1 = (_sinc_lower(c_m + beta_m), np.ones_like(c_m))
-    s2 = (_sinc_lower(beta_m), np.ones_like(c_m))
-    g = (g_lo, g_hi)
-    pick = [np.stack(r, axis=-1)[:, _CORNERS[:, i]] for i, r in enumerate((s1, s2, g, v, b1, q))]  # (n, 64) each
-    S1, S2, G, V, B1, Q = pick
-    a = np.empty(S1.shape + (2, 2))
-    a[..., 0, 0] = 1.0 - dt * S1 * G * length * Q
-    a[..., 0, 1] = dt * S1 * (V - G * length * B1)
-    a[..., 1, 0] = -2.0 * dt * S2 * G * Q
-    a[..., 1, 1] = 1.0 - 2.0 * dt * S2 * G * B1
-    return a
+    one = np.ones_like(c_m)
+    lower = np.stack([_sinc_lower(c_m + beta_m), _sinc_lower(beta_m), g_lo, v[0], b1[0], q[0]], axis=-1)
+    upper = np.stack([one, one, g_hi, v[1], b1[1], q[1]], axis=-1)
+    return lower, upper
 
 
 def _metrics(metric) -> np.ndarray:
@@ -130,28 +124,6 @@ def _upper_factor(metric):
     return c
 
 
-def _squared_norm(m):
-    """Largest squared singular value of each 2 x 2 matrix, closed form."""
-    f = np.sum(m**2, axis=(-2, -1))
-    det = m[..., 0, 0] * m[..., 1, 1] - m[..., 0, 1] * m[..., 1, 0]
-    return 0.5 * (f + np.sqrt(np.maximum(f**2 - 4.0 * det**2, 0.0)))
-
-
-def _factor(metric, a):
-    """``max_k ||C A_k C^-1||_2^2`` per box, elementwise (C upper triangular: C^-1 in closed form)."""
-    c = _upper_factor(metric)
-    c11, c12, c22 = (c[:, None, 0, 0], c[:, None, 0, 1], c[:, None, 1, 1])
-    a11, a12, a21, a22 = a[..., 0, 0], a[..., 0, 1], a[..., 1, 0], a[..., 1, 1]
-    # C A = [[c11 a11 + c12 a21, c11 a12 + c12 a22], [c22 a21, c22 a22]]; C^-1 = [[1/c11, -c12/(c11 c22)], [0, 1/c22]]
-    u11, u12, u21, u22 = c11 * a11 + c12 * a21, c11 * a12 + c12 * a22, c22 * a21, c22 * a22
-    m = np.empty(a.shape)
-    m[..., 0, 0] = u11 / c11
-    m[..., 0, 1] = (u12 - u11 * c12 / c11) / c22
-    m[..., 1, 0] = u21 / c11
-    m[..., 1, 1] = (u22 - u21 * c12 / c11) / c22
-    return _squared_norm(m).max(axis=-1)
-
-
 def contraction_factor(metric, e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = DEFAULT_VEHICLE) -> np.ndarray:
     """``lambda`` with ``||x+||_P^2 <= lambda ||x||_P^2`` for every state of the box (module docstring).
 
@@ -189,8 +161,9 @@ def contraction_factor(metric, e, chi, v, b1, q, dt: float, vehicle: VehiclePara
         ranges.append((lo, hi))
     if np.any(ranges[2][0] <= 0.0):
         raise InputError("v must have a positive lower bound")
-    a = _vertex_matrices(float(dt), vehicle.length, vehicle.max_steering, *ranges)
-    lam = _factor(p, a) * (1.0 + CONTRACTION_MARGIN)
+    lower, upper = _vertex_box(float(dt), vehicle.length, vehicle.max_steering, *ranges)
+    lam = contraction_vertex_factor(p, lower, upper, _CORNERS, float(dt), float(vehicle.length))
+    lam = lam * (1.0 + CONTRACTION_MARGIN)
     beta_max = slip_angle(vehicle.max_steering)
     c_m = np.maximum(np.abs(ranges[1][0]), np.abs(ranges[1][1]))
     return np.where(c_m + beta_max <= np.pi, lam, np.inf)
@@ -284,7 +257,7 @@ def contraction_metrics(
     for k, node in enumerate(speeds):
         v = (np.array([node / _TUNE_SPEED_RATIO]), np.array([node * _TUNE_SPEED_RATIO]))
         q = (np.array([b_lo[1] / v[1][0]]), np.array([b_hi[1] / v[0][0]]))
-        a = _vertex_matrices(
+        lower, upper = _vertex_box(
             float(dt),
             vehicle.length,
             vehicle.max_steering,
@@ -294,7 +267,15 @@ def contraction_metrics(
             (np.array([b_lo[0]]), np.array([b_hi[0]])),
             q,
         )
-        scores = _factor(cand, np.broadcast_to(a, (cand.shape[0],) + a.shape[1:]))
+        n_cand = cand.shape[0]
+        scores = contraction_vertex_factor(
+            cand,
+            np.repeat(lower, n_cand, axis=0),
+            np.repeat(upper, n_cand, axis=0),
+            _CORNERS,
+            float(dt),
+            vehicle.length,
+        )
         metrics[k] = cand[int(np.argmin(scores))]
     # ||x||_{P_j}^2 <= mu ||x||_{P_i}^2, mu the largest eigenvalue of C_i^-T P_j C_i^-1
     ci_inv = _inverse(_upper_factor(metrics))

@@ -41,7 +41,8 @@ The per-step loop is in one place (`forecast_traffic`; the lateral step is its
 ``lateral_step`` with the batched vertex bound `_vertex_step`), so that it can move to
 `predict_tube`'s per-step parameter sets and box-valued inputs when those exist.
 
-Layer: numpy only (`minimaxplan.models` for the linear system and boxes); no planner
+Layer: numpy, `minimaxplan.models` for the linear system and boxes, and the compiled interval
+products of `minimaxplan.kernels.vertex_bounds` (the lateral step's arithmetic); no planner
 import.
 """
 
@@ -53,6 +54,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from minimaxplan.kernels.vertex_bounds import interval_matvec, vertex_bound
 from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.models.prediction import cos_interval, interval_product, sin_interval
 from minimaxplan.models.sets import Box
@@ -631,30 +633,14 @@ def _arc_offset_bounds(center, radius, sign, x_lo, x_hi, y_lo, y_hi):
 
 
 def _matvec(m, lo, hi):
-    """Interval product of batched matrices (..., 2, 2) with boxes (..., 2), rounded outward."""
-    new_lo, new_hi = _matvec2(m, lo, hi)
+    """Interval product of one matrix (n, 2, 2) per box (n, 2), rounded outward (`interval_matvec`)."""
+    new_lo, new_hi = interval_matvec(_as_rows(m), _as_rows(lo), _as_rows(hi))
     return _out(new_lo, new_hi)
 
 
-def _matvec2(m, lo, hi):
-    """The exact interval product of 2 x 2 matrices (..., 2, 2) with boxes (..., 2), not rounded."""
-    pos, neg = np.maximum(m, 0.0), np.maximum(-m, 0.0)
-    l0, l1, h0, h1 = lo[..., 0], lo[..., 1], hi[..., 0], hi[..., 1]
-    out_lo = np.stack(
-        [
-            pos[..., 0, 0] * l0 + pos[..., 0, 1] * l1 - neg[..., 0, 0] * h0 - neg[..., 0, 1] * h1,
-            pos[..., 1, 0] * l0 + pos[..., 1, 1] * l1 - neg[..., 1, 0] * h0 - neg[..., 1, 1] * h1,
-        ],
-        axis=-1,
-    )
-    out_hi = np.stack(
-        [
-            pos[..., 0, 0] * h0 + pos[..., 0, 1] * h1 - neg[..., 0, 0] * l0 - neg[..., 0, 1] * l1,
-            pos[..., 1, 0] * h0 + pos[..., 1, 1] * h1 - neg[..., 1, 0] * l0 - neg[..., 1, 1] * l1,
-        ],
-        axis=-1,
-    )
-    return out_lo, out_hi
+def _as_rows(a):
+    """``a`` as a C-contiguous float array (one compiled specialisation of the kernels)."""
+    return np.ascontiguousarray(a, dtype=float)
 
 
 def _bases(a_nominal: np.ndarray) -> np.ndarray:
@@ -891,17 +877,12 @@ def _structure(dt: float, length: float) -> np.ndarray:
 def _vertex_step(base, z_lo, z_hi, p_lo, p_hi):
     """The `IntervalPredictor` vertex bound, batched over rows, with one parameter box per row.
 
-    ``base``: (R, 3, 2, 2) structure matrices in each row's basis; the matrix is
-    ``I + sum_i p_i base_i`` for ``p`` in the box ``[p_lo, p_hi]`` (R, 3). Returns the
-    tightest box of ``M z`` over the 8 vertices and the box of z (before the disturbance).
+    ``base``: (R, 3, 2, 2) structure matrices in each row's basis, or (1, 3, 2, 2) shared by
+    every row; the matrix is ``I + sum_i p_i base_i`` for ``p`` in the box ``[p_lo, p_hi]``
+    (R, 3). Returns the tightest box of ``M z`` over the 8 vertices and the box of z (before
+    the disturbance), not rounded (`minimaxplan.kernels.vertex_bounds.vertex_bound`).
     """
-    corners = np.array([[(k >> i) & 1 for i in range(3)] for k in range(8)], dtype=bool)  # (8, 3)
-    p = np.where(corners[None], p_hi[:, None, :], p_lo[:, None, :])  # (R, 8, 3)
-    mats = (p[..., None, None] * base[:, None]).sum(axis=2)  # (R, 8, 2, 2)
-    mats[..., 0, 0] += 1.0
-    mats[..., 1, 1] += 1.0
-    lo, hi = _matvec2(mats, z_lo[:, None, :], z_hi[:, None, :])
-    return lo.min(axis=1), hi.max(axis=1)
+    return vertex_bound(_as_rows(base), _as_rows(z_lo), _as_rows(z_hi), _as_rows(p_lo), _as_rows(p_hi))
 
 
 def forecast_traffic(
@@ -1483,9 +1464,7 @@ def forecast_traffic(
                 z1_lo, z1_hi = _vertex_step(base[rs], uz_lo[us], uz_hi[us], p_lo_, p_hi_)
                 w_lo, w_hi = _matvec(Tinv[rs], rw_lo, rw_hi)
                 z1_lo, z1_hi = _out(z1_lo + w_lo, z1_hi + w_hi)
-                i1_lo, i1_hi = _vertex_step(
-                    np.broadcast_to(phi, (len(sel), 3, 2, 2)), e_lo[sel], e_hi[sel], p_lo_, p_hi_
-                )
+                i1_lo, i1_hi = _vertex_step(phi[None], e_lo[sel], e_hi[sel], p_lo_, p_hi_)
                 i1_lo, i1_hi = _out(i1_lo + rw_lo, i1_hi + rw_hi)
                 s1 = interval_product(bv_lo * dt, bv_hi * dt, *cos_interval(*a_f))
                 if sub.size:

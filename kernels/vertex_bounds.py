@@ -1,0 +1,181 @@
+"""Compiled bounds of 2 x 2 matrix families over boxes: the arithmetic of the traffic forecast's lateral step.
+
+`minimaxplan.scenarios.traffic_models.forecast_traffic` propagates each vehicle's lateral
+state ``(e, chi)`` (and its image in a per-vehicle basis) as a box, through matrices that
+are affine or multi-affine in a box of parameters. Three operations, each over a batch of
+rows, are the whole of that arithmetic:
+
+* `interval_matvec`: the exact box of ``M z`` for one point matrix per row and ``z`` in a
+  box (the interval product, the building block of the others);
+* `vertex_bound`: the tightest box of ``M(p) z`` over the 8 vertices of a parameter box,
+  ``M(p) = I + sum_i p_i B_i`` (the `IntervalPredictor` vertex bound, Section III of the
+  paper: the map is affine in p, so the box over p is spanned by its vertices for each z,
+  and the interval product covers z);
+* `contraction_vertex_factor`: the largest ``||C A_k C^-1||_2^2`` over the 64 vertices of
+  the contraction bound's multi-affine matrix (`minimaxplan.scenarios.lateral_contraction`,
+  ``P = C' C``).
+
+They were numpy expressions over small arrays, whose call overhead was most of the
+forecast's time; compiled, each row costs nanoseconds. Each performs the same
+floating-point operations in the same order as those numpy expressions did (left to
+right, ``np.maximum``/``np.minimum`` semantics for NaN), so the forecast's boxes are
+unchanged to the last bit; the rounding outward that makes them sound stays with the
+callers (`ROUND_MARGIN`, `CONTRACTION_MARGIN`).
+
+Dead rows hold empty boxes (``inf``, ``-inf``): their products may be NaN, which
+propagates as numpy's would; callers mask them.
+
+Layer: numpy and numba only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .box_primitives import maximum, minimum
+
+__all__ = ["contraction_vertex_factor", "interval_matvec", "vertex_bound"]
+
+
+@njit(cache=True)
+def _product_row(m00, m01, m10, m11, l0, l1, h0, h1):
+    """The exact box of ``M z``, ``z`` in ``[l, h]``: positive parts times the near end, negative times the far."""
+    a00, a01, a10, a11 = maximum(m00, 0.0), maximum(m01, 0.0), maximum(m10, 0.0), maximum(m11, 0.0)
+    n00, n01, n10, n11 = maximum(-m00, 0.0), maximum(-m01, 0.0), maximum(-m10, 0.0), maximum(-m11, 0.0)
+    lo0 = a00 * l0 + a01 * l1 - n00 * h0 - n01 * h1
+    lo1 = a10 * l0 + a11 * l1 - n10 * h0 - n11 * h1
+    hi0 = a00 * h0 + a01 * h1 - n00 * l0 - n01 * l1
+    hi1 = a10 * h0 + a11 * h1 - n10 * l0 - n11 * l1
+    return lo0, lo1, hi0, hi1
+
+
+@njit(cache=True)
+def interval_matvec(matrices, lower, upper):
+    """The exact interval product of one 2 x 2 matrix per row with one box per row, not rounded.
+
+    Parameters
+    ----------
+    matrices : ndarray, shape (n, 2, 2)
+    lower, upper : ndarray, shape (n, 2)
+        The boxes ``[lower, upper]``.
+
+    Returns
+    -------
+    tuple of ndarray, shape (n, 2)
+        ``(lo, hi)``: the smallest box containing ``M z`` for every ``z`` of the row's box.
+    """
+    n = lower.shape[0]
+    out_lo, out_hi = np.empty((n, 2)), np.empty((n, 2))
+    for r in range(n):
+        m = matrices[r]
+        lo0, lo1, hi0, hi1 = _product_row(
+            m[0, 0], m[0, 1], m[1, 0], m[1, 1], lower[r, 0], lower[r, 1], upper[r, 0], upper[r, 1]
+        )
+        out_lo[r, 0], out_lo[r, 1], out_hi[r, 0], out_hi[r, 1] = lo0, lo1, hi0, hi1
+    return out_lo, out_hi
+
+
+@njit(cache=True)
+def vertex_bound(structure, lower, upper, p_lower, p_upper):
+    """The tightest box of ``(I + sum_i p_i B_i) z`` over the vertices of the parameter box, not rounded.
+
+    Parameters
+    ----------
+    structure : ndarray, shape (n, 3, 2, 2) or (1, 3, 2, 2)
+        ``B_1, B_2, B_3`` per row (one set shared by every row when the first axis is 1).
+    lower, upper : ndarray, shape (n, 2)
+        The boxes of ``z``.
+    p_lower, p_upper : ndarray, shape (n, 3)
+        The parameter box per row.
+
+    Returns
+    -------
+    tuple of ndarray, shape (n, 2)
+        ``(lo, hi)``: the hull over the 8 vertices (vertex k takes ``p_i`` at its upper end
+        where bit i of k is set) of the exact interval products.
+    """
+    n = lower.shape[0]
+    shared = structure.shape[0] == 1
+    out_lo, out_hi = np.empty((n, 2)), np.empty((n, 2))
+    for r in range(n):
+        b = structure[0] if shared else structure[r]
+        l0, l1, h0, h1 = lower[r, 0], lower[r, 1], upper[r, 0], upper[r, 1]
+        best_lo0 = best_lo1 = best_hi0 = best_hi1 = 0.0
+        for k in range(8):
+            p0 = p_upper[r, 0] if k & 1 else p_lower[r, 0]
+            p1 = p_upper[r, 1] if k & 2 else p_lower[r, 1]
+            p2 = p_upper[r, 2] if k & 4 else p_lower[r, 2]
+            lo0, lo1, hi0, hi1 = _product_row(
+                p0 * b[0, 0, 0] + p1 * b[1, 0, 0] + p2 * b[2, 0, 0] + 1.0,
+                p0 * b[0, 0, 1] + p1 * b[1, 0, 1] + p2 * b[2, 0, 1],
+                p0 * b[0, 1, 0] + p1 * b[1, 1, 0] + p2 * b[2, 1, 0],
+                p0 * b[0, 1, 1] + p1 * b[1, 1, 1] + p2 * b[2, 1, 1] + 1.0,
+                l0,
+                l1,
+                h0,
+                h1,
+            )
+            if k == 0:
+                best_lo0, best_lo1, best_hi0, best_hi1 = lo0, lo1, hi0, hi1
+            else:
+                best_lo0, best_lo1 = minimum(best_lo0, lo0), minimum(best_lo1, lo1)
+                best_hi0, best_hi1 = maximum(best_hi0, hi0), maximum(best_hi1, hi1)
+        out_lo[r, 0], out_lo[r, 1], out_hi[r, 0], out_hi[r, 1] = best_lo0, best_lo1, best_hi0, best_hi1
+    return out_lo, out_hi
+
+
+@njit(cache=True)
+def contraction_vertex_factor(metric, lower, upper, corners, dt, length):
+    """``max_k ||C A_k C^-1||_2^2`` per row over the vertices of the contraction bound's matrix, not rounded.
+
+    Parameters
+    ----------
+    metric : ndarray, shape (n, 2, 2)
+        Symmetric positive definite ``P = C' C`` per row (C upper triangular).
+    lower, upper : ndarray, shape (n, 6)
+        The box of ``(s1, s2, g, v, b1, q)`` per row (`minimaxplan.scenarios.lateral_contraction`).
+    corners : ndarray of bool, shape (k, 6)
+        The vertices: True takes the upper end.
+    dt, length : float
+        The step (s) and the wheelbase L (m).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The largest squared spectral norm over the vertices of ``C A C^-1`` with::
+
+            A = [[1 - dt s1 g L q,   dt s1 (v - g L b1)],
+                 [  - 2 dt s2 g q,   1 - 2 dt s2 g b1  ]]
+
+        (the closed form ``(f + sqrt(f^2 - 4 det^2)) / 2``, f the squared Frobenius norm).
+    """
+    n = metric.shape[0]
+    out = np.empty(n)
+    for r in range(n):
+        p11, p12, p22 = metric[r, 0, 0], metric[r, 0, 1], metric[r, 1, 1]
+        c11, c12, c22 = np.sqrt(p11), p12 / np.sqrt(p11), np.sqrt(p22 - p12 * p12 / p11)
+        best = 0.0
+        for k in range(corners.shape[0]):
+            s1 = upper[r, 0] if corners[k, 0] else lower[r, 0]
+            s2 = upper[r, 1] if corners[k, 1] else lower[r, 1]
+            g = upper[r, 2] if corners[k, 2] else lower[r, 2]
+            v = upper[r, 3] if corners[k, 3] else lower[r, 3]
+            b1 = upper[r, 4] if corners[k, 4] else lower[r, 4]
+            q = upper[r, 5] if corners[k, 5] else lower[r, 5]
+            a11 = 1.0 - dt * s1 * g * length * q
+            a12 = dt * s1 * (v - g * length * b1)
+            a21 = -2.0 * dt * s2 * g * q
+            a22 = 1.0 - 2.0 * dt * s2 * g * b1
+            # C A = [[c11 a11 + c12 a21, c11 a12 + c12 a22], [c22 a21, c22 a22]]; C^-1 = [[1/c11, -c12/(c11 c22)], [0, 1/c22]]
+            u11, u12, u21, u22 = c11 * a11 + c12 * a21, c11 * a12 + c12 * a22, c22 * a21, c22 * a22
+            m00 = u11 / c11
+            m01 = (u12 - u11 * c12 / c11) / c22
+            m10 = u21 / c11
+            m11 = (u22 - u21 * c12 / c11) / c22
+            f = m00 * m00 + m01 * m01 + m10 * m10 + m11 * m11
+            det = m00 * m11 - m01 * m10
+            value = 0.5 * (f + np.sqrt(maximum(f * f - 4.0 * (det * det), 0.0)))
+            best = value if k == 0 else maximum(best, value)
+        out[r] = best
+    return out
