@@ -1,0 +1,189 @@
+"""The traffic forecast at two commits: its CPU time per forecast and whether its boxes are the same bits.
+
+A change meant to make `forecast_traffic` faster without changing what it computes is
+checked here: each revision is checked out into a temporary git worktree and imported
+from there in its own process (the two never share a process), the processes alternate
+over `ROUNDS` rounds, and each times every forecast of `benchmarks/bench_forecast.py`'s
+scenes (16 per world, 30 sub-steps, prior beliefs, the setting the road methods run:
+the contraction radius and the invariant sets) `REPEATS` times, keeping the median. It
+also writes every forecast's boxes, state bounds and ``guaranteed`` flags, which must be
+equal bit for bit between the revisions (the script exits with status 1 otherwise).
+
+Usage::
+
+    python benchmarks/compare_forecast_commits.py BEFORE [AFTER]
+
+``AFTER`` defaults to HEAD. Writes benchmarks/results/forecast_commits.md and .json.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import pathlib
+import platform
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+REPO = HERE.parent
+RESULTS = HERE / "results"
+ROUNDS = 3
+REPEATS = 3
+
+#: The child: import the package from the given checkout, time the bench scenes' forecasts, save the arrays.
+_CHILD = """
+import json, sys, time
+import numpy as np
+sys.path.insert(0, sys.argv[1] + "/minimaxplan/benchmarks")
+import minimaxplan
+assert minimaxplan.__file__.startswith(sys.argv[1]), minimaxplan.__file__
+import bench_forecast as b
+times, arrays = {}, {}
+for kind in ("highway", "tjunction"):
+    scenes = b._scenes(kind)
+    b._forecast(scenes[0], True, True)  # warm-up: tables, compiled kernels
+    per = []
+    for i, scene in enumerate(scenes):
+        runs = []
+        for _ in range(int(sys.argv[3])):
+            start = time.process_time()
+            forecast = b._forecast(scene, True, True)
+            runs.append(time.process_time() - start)
+        per.append(1e3 * float(np.median(runs)))
+        for name in ("boxes", "state_lower", "state_upper", "guaranteed"):
+            arrays[f"{kind}_{i}_{name}"] = getattr(forecast, name)
+    times[kind] = per
+np.savez(sys.argv[2] + ".npz", **arrays)
+print(json.dumps(times))
+"""
+
+
+def _checkout(revision: str, root: pathlib.Path) -> pathlib.Path:
+    """A detached worktree of ``revision`` importable as ``minimaxplan`` from ``root``."""
+    tree = root / f"tree_{revision[:12]}"
+    subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", "-q", str(tree), revision], check=True)
+    site = root / f"site_{revision[:12]}"
+    site.mkdir()
+    (site / "minimaxplan").symlink_to(tree)
+    return site
+
+
+def _run(site: pathlib.Path, out: pathlib.Path) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(site))
+    done = subprocess.run(
+        [sys.executable, "-c", _CHILD, str(site), str(out), str(REPEATS)],
+        env=env,
+        cwd=str(site),
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _same_bits(a: pathlib.Path, b: pathlib.Path) -> list[str]:
+    """Names of the arrays that differ (NaN equal to NaN; -0.0 and 0.0 count as different)."""
+    first, second = np.load(a), np.load(b)
+    differing = sorted(set(first.files) ^ set(second.files))
+    for name in sorted(set(first.files) & set(second.files)):
+        x, y = first[name], second[name]
+        if x.shape != y.shape or x.tobytes() != y.tobytes():
+            differing.append(name)
+    return differing
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) not in (1, 2):
+        print("usage: compare_forecast_commits.py BEFORE [AFTER]", file=sys.stderr)
+        return 2
+    revisions = []
+    for name in argv + (["HEAD"] if len(argv) == 1 else []):
+        done = subprocess.run(
+            ["git", "-C", str(REPO), "rev-parse", "--verify", name + "^{commit}"], capture_output=True, text=True
+        )
+        if done.returncode != 0:
+            print(f"error: revision {name!r} is not a commit of {REPO}", file=sys.stderr)
+            return 2
+        revisions.append(done.stdout.strip())
+    root = pathlib.Path(tempfile.mkdtemp(prefix="forecast-commits-"))
+    sites = []
+    try:
+        sites = [_checkout(rev, root) for rev in revisions]
+        times: dict[str, dict[str, list[list[float]]]] = {rev: {} for rev in revisions}
+        for round_ in range(ROUNDS):
+            order = list(zip(revisions, sites)) if round_ % 2 == 0 else list(zip(revisions, sites))[::-1]
+            for rev, site in order:
+                print(f"round {round_ + 1}/{ROUNDS}: {rev[:12]}", file=sys.stderr, flush=True)
+                for kind, per in _run(site, root / f"arrays_{rev[:12]}").items():
+                    times[rev].setdefault(kind, []).append(per)
+        differing = _same_bits(root / f"arrays_{revisions[0][:12]}.npz", root / f"arrays_{revisions[1][:12]}.npz")
+    finally:
+        for site in sites:
+            subprocess.run(
+                ["git", "-C", str(REPO), "worktree", "remove", "--force", str(site / "minimaxplan")], check=False
+            )
+        subprocess.run(["git", "-C", str(REPO), "worktree", "prune"], check=False)
+    before, after = revisions
+    worlds = {}
+    for kind in times[before]:
+        # per scene: the median over the rounds of each revision's median; the ratio per scene
+        b = np.median(np.array(times[before][kind]), axis=0)
+        a = np.median(np.array(times[after][kind]), axis=0)
+        ratio = b / a
+        worlds[kind] = {
+            "scenes": len(b),
+            "before_median_ms": float(np.median(b)),
+            "after_median_ms": float(np.median(a)),
+            "speedup_median": float(np.median(ratio)),
+            "speedup_range": [float(ratio.min()), float(ratio.max())],
+        }
+    result = {
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": f"{platform.machine()}, {platform.python_implementation()} {platform.python_version()}",
+        "load_average": list(os.getloadavg()),
+        "before": before,
+        "after": after,
+        "rounds": ROUNDS,
+        "repeats": REPEATS,
+        "worlds": worlds,
+        "differing_arrays": differing,
+    }
+    lines = [
+        "# The traffic forecast at two commits",
+        "",
+        f"{result['date']}, {result['machine']}, load average {result['load_average'][0]:.1f} at the end, CPU times "
+        f"(benchmarks/compare_forecast_commits.py). Before: `{before[:12]}`, after: `{after[:12]}`, each imported from "
+        f"its own worktree in its own process, {ROUNDS} alternating rounds, each forecast timed {REPEATS} times (median), "
+        "then the median over the rounds; the scenes of benchmarks/bench_forecast.py with the contraction radius and the "
+        "invariant sets (what the road methods run).",
+        "",
+        "| world | scenes | before, ms (median) | after, ms (median) | speed-up per scene, median (range) |",
+        "|---|---:|---:|---:|---|",
+    ]
+    for kind, w in worlds.items():
+        lo, hi = w["speedup_range"]
+        lines.append(
+            f"| {kind} | {w['scenes']} | {w['before_median_ms']:.0f} | {w['after_median_ms']:.0f} "
+            f"| {w['speedup_median']:.2f} ({lo:.2f}-{hi:.2f}) |"
+        )
+    total = sum(4 * w["scenes"] for w in worlds.values())
+    lines += [
+        "",
+        f"Outputs (boxes, state bounds, `guaranteed`, per scene): {total - len(differing)} of {total} arrays the same bit "
+        f"for bit{'' if not differing else '; differing: ' + ', '.join(differing[:10])}.",
+        "",
+    ]
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "forecast_commits.md").write_text("\n".join(lines))
+    (RESULTS / "forecast_commits.json").write_text(json.dumps(result, indent=2) + "\n")
+    print("\n".join(lines))
+    return 1 if differing else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
