@@ -20,6 +20,7 @@ def main() -> int:
     (HERE / "results").mkdir(exist_ok=True)
     for script in scripts:
         print(f"== {script.stem}", flush=True)
+        sys.argv = [str(script)]  # each script parses its own (default) options, not run_all's filter
         runpy.run_path(str(script), run_name="__main__")
     return 0
 
