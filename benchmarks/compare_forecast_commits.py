@@ -23,6 +23,7 @@ import json
 import os
 import pathlib
 import platform
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -63,11 +64,11 @@ print(json.dumps(times))
 """
 
 
-def _checkout(revision: str, root: pathlib.Path) -> pathlib.Path:
-    """A detached worktree of ``revision`` importable as ``minimaxplan`` from ``root``."""
-    tree = root / f"tree_{revision[:12]}"
+def _checkout(revision: str, root: pathlib.Path, index: int) -> pathlib.Path:
+    """A detached worktree of ``revision`` importable as ``minimaxplan`` (index: the two may be one commit)."""
+    tree = root / f"tree_{index}"
     subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", "-q", str(tree), revision], check=True)
-    site = root / f"site_{revision[:12]}"
+    site = root / f"site_{index}"
     site.mkdir()
     (site / "minimaxplan").symlink_to(tree)
     return site
@@ -113,27 +114,27 @@ def main(argv: list[str]) -> int:
     root = pathlib.Path(tempfile.mkdtemp(prefix="forecast-commits-"))
     sites = []
     try:
-        sites = [_checkout(rev, root) for rev in revisions]
-        times: dict[str, dict[str, list[list[float]]]] = {rev: {} for rev in revisions}
+        sites = [_checkout(rev, root, index) for index, rev in enumerate(revisions)]
+        times: list[dict[str, list[list[float]]]] = [{}, {}]  # per revision (the two may be one commit)
         for round_ in range(ROUNDS):
-            order = list(zip(revisions, sites)) if round_ % 2 == 0 else list(zip(revisions, sites))[::-1]
-            for rev, site in order:
-                print(f"round {round_ + 1}/{ROUNDS}: {rev[:12]}", file=sys.stderr, flush=True)
-                for kind, per in _run(site, root / f"arrays_{rev[:12]}").items():
-                    times[rev].setdefault(kind, []).append(per)
-        differing = _same_bits(root / f"arrays_{revisions[0][:12]}.npz", root / f"arrays_{revisions[1][:12]}.npz")
+            for index in (0, 1) if round_ % 2 == 0 else (1, 0):
+                print(f"round {round_ + 1}/{ROUNDS}: {revisions[index][:12]}", file=sys.stderr, flush=True)
+                for kind, per in _run(sites[index], root / f"arrays_{index}").items():
+                    times[index].setdefault(kind, []).append(per)
+        differing = _same_bits(root / "arrays_0.npz", root / "arrays_1.npz")
     finally:
         for site in sites:
             subprocess.run(
                 ["git", "-C", str(REPO), "worktree", "remove", "--force", str(site / "minimaxplan")], check=False
             )
+        shutil.rmtree(root, ignore_errors=True)  # then prune forgets any worktree whose checkout failed midway
         subprocess.run(["git", "-C", str(REPO), "worktree", "prune"], check=False)
     before, after = revisions
     worlds = {}
-    for kind in times[before]:
+    for kind in times[0]:
         # per scene: the median over the rounds of each revision's median; the ratio per scene
-        b = np.median(np.array(times[before][kind]), axis=0)
-        a = np.median(np.array(times[after][kind]), axis=0)
+        b = np.median(np.array(times[0][kind]), axis=0)
+        a = np.median(np.array(times[1][kind]), axis=0)
         ratio = b / a
         worlds[kind] = {
             "scenes": len(b),

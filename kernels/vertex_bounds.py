@@ -15,8 +15,8 @@ rows, are the whole of that arithmetic:
   the contraction bound's multi-affine matrix (`minimaxplan.scenarios.lateral_contraction`,
   ``P = C' C``).
 
-They were numpy expressions over small arrays, whose call overhead was most of the
-forecast's time; compiled, each row costs nanoseconds. Each performs the same
+They were numpy expressions over small arrays, whose call overhead made up about a third
+of a forecast's time (`benchmarks/results/forecast_commits.md`). Each performs the same
 floating-point operations in the same order as those numpy expressions did (left to
 right, ``np.maximum``/``np.minimum`` semantics for NaN), so the forecast's boxes are
 unchanged to the last bit; the rounding outward that makes them sound stays with the
