@@ -66,6 +66,8 @@ def interval_matvec(matrices, lower, upper):
         ``(lo, hi)``: the smallest box containing ``M z`` for every ``z`` of the row's box.
     """
     n = lower.shape[0]
+    if matrices.shape[0] != n or upper.shape[0] != n or lower.shape[1] != 2 or upper.shape[1] != 2:
+        raise ValueError("interval_matvec: matrices (n, 2, 2), lower and upper (n, 2) must share n")
     out_lo, out_hi = np.empty((n, 2)), np.empty((n, 2))
     for r in range(n):
         m = matrices[r]
@@ -96,6 +98,12 @@ def vertex_bound(structure, lower, upper, p_lower, p_upper):
         where bit i of k is set) of the exact interval products.
     """
     n = lower.shape[0]
+    if structure.shape[0] not in (1, n) or upper.shape[0] != n or p_lower.shape[0] != n or p_upper.shape[0] != n:
+        raise ValueError(
+            "vertex_bound: structure (n or 1, 3, 2, 2), boxes (n, 2) and parameter boxes (n, 3) must share n"
+        )
+    if lower.shape[1] != 2 or upper.shape[1] != 2 or p_lower.shape[1] != 3 or p_upper.shape[1] != 3:
+        raise ValueError("vertex_bound: boxes must have 2 columns and parameter boxes 3")
     shared = structure.shape[0] == 1
     out_lo, out_hi = np.empty((n, 2)), np.empty((n, 2))
     for r in range(n):
@@ -151,6 +159,14 @@ def contraction_vertex_factor(metric, lower, upper, corners, dt, length):
         (the closed form ``(f + sqrt(f^2 - 4 det^2)) / 2``, f the squared Frobenius norm).
     """
     n = metric.shape[0]
+    if (
+        lower.shape[0] != n
+        or upper.shape[0] != n
+        or lower.shape[1] != 6
+        or upper.shape[1] != 6
+        or corners.shape[1] != 6
+    ):
+        raise ValueError("contraction_vertex_factor: metric (n, 2, 2), lower and upper (n, 6), corners (k, 6)")
     out = np.empty(n)
     for r in range(n):
         p11, p12, p22 = metric[r, 0, 0], metric[r, 0, 1], metric[r, 1, 1]

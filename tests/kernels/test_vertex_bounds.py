@@ -10,6 +10,7 @@ down to points.
 import itertools
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -123,3 +124,17 @@ def test_contraction_vertex_factor_is_the_largest_vertex_norm_by_svd(seed, n, dt
             )
             worst = max(worst, np.linalg.norm(c @ mat @ np.linalg.inv(c), 2) ** 2)
         assert abs(got[r] - worst) <= 1e-9 * (1.0 + worst)
+
+
+def test_rows_that_do_not_match_are_refused_not_read_past():
+    """Compiled code reads past an array's end silently: every kernel checks that its inputs share n."""
+    box = np.zeros((3, 2))
+    with pytest.raises(ValueError, match="share n"):
+        interval_matvec(np.zeros((2, 2, 2)), box, box)
+    with pytest.raises(ValueError, match="share n"):
+        vertex_bound(np.zeros((2, 3, 2, 2)), box, box, np.zeros((3, 3)), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="3"):
+        vertex_bound(np.zeros((1, 3, 2, 2)), box, box, np.zeros((3, 2)), np.zeros((3, 2)))
+    corners = np.ones((64, 6), dtype=bool)
+    with pytest.raises(ValueError, match="corners"):
+        contraction_vertex_factor(np.tile(np.eye(2), (3, 1, 1)), np.ones((2, 6)), np.ones((3, 6)), corners, 0.1, 5.0)
