@@ -41,7 +41,7 @@ from numba import njit
 
 from ..kernels import bicycle as bicycle_kernels
 from ..kernels.bicycle import EgoController, LaneGeometry, apply_action, bicycle_step_one, ego_control_one
-from ..kernels.box_primitives import minimum
+from ..kernels.box_primitives import maximum, minimum
 from ..kernels.reward_protocol import (
     CompiledBoxReward,
     StateIndexedReward,
@@ -63,6 +63,8 @@ __all__ = [
     "ego_controller",
     "MAX_FALLBACK_DECISIONS",
     "LANE_KEEPING_PREFIX",
+    "MEMO_STATES",
+    "RECORDED_DECISIONS",
 ]
 
 #: The highway's actions (the paper's) as (name, speed-level change, lane change: +1 left, -1 right).
@@ -259,29 +261,90 @@ def _expand_kernel(params_type: type):
 #: from enumerates 3^LANE_KEEPING_PREFIX prefixes, each continued by every held action).
 LANE_KEEPING_PREFIX = 3
 
+#: The values of `BicycleState.keep_hold`.
+_KEEP_HOLDS = (-1, 0, 1, 2)
+
 #: The most decisions a continuation is rolled out for (it stops earlier at the first terminal
 #: transition, at the latest where the reward's obstacle table ends).
 MAX_FALLBACK_DECISIONS = 10_000
 
 
+#: The table a continuation reads (`fallback_values`): the reward's, or the lane-keeping one.
+_REWARD_TABLE, _LANE_KEEPING_TABLE = 0, 1
+
+#: The most states whose continuations a `BicycleModel` keeps (a search of K expansions
+#: remembers K * n_actions of them); past it, it forgets them all.
+MEMO_STATES = 4096
+
+
+#: The longest continuation (in decisions) whose per-decision rewards are kept for the children
+#: of its state (`BicycleModel.fallback_values`); a longer one is rolled out again by them.
+RECORDED_DECISIONS = 32
+
+
 @functools.cache
 def _fallback_kernel(params_type: type):
-    """The compiled continuation bounds of `BicycleModel.fallback_values`, for rewards of ``params_type``."""
+    """The compiled continuation bounds of `BicycleModel.fallback_values`, for rewards of ``params_type``.
+
+    For each row i of ``rows`` and action a of ``columns`` (indices into the states and the
+    actions), the continuation holding a from state i is rolled out, its discounted
+    return raises ``out[i]`` (which the caller zeroes), and its per-decision rewards are
+    written to ``record[i, a]``, their number to ``recorded[i, a]`` when it ended at a
+    terminal transition within `RECORDED_DECISIONS` decisions (else -1). A row reached
+    from the parent state by action ``arrived_by[i]`` (-1: unknown) does not roll that
+    action out again when the parent's own continuation of it (``parent_record[a,
+    :parent_recorded[a]]``) was kept, is two decisions or more, and read the same table
+    (``parent_tables[a] == tables[i, a]``): its rewards after the first decision are the
+    row's, summed in the order the rollout sums them, so the value is the same to the last bit.
+    """
     version = sources_digest(__file__, bicycle_kernels.__file__, *minimum_sources(params_type))
 
     def fallback_returns(
-        controller, params, xs, levels, lanes, times, speed_changes, lane_changes, substeps, gamma, z, out
+        controller,
+        params,
+        xs,
+        levels,
+        lanes,
+        times,
+        rows,
+        columns,
+        speed_changes,
+        lane_changes,
+        substeps,
+        gamma,
+        z,
+        arrived_by,
+        parent_record,
+        parent_recorded,
+        parent_tables,
+        tables,
+        record,
+        recorded,
+        out,
     ):
         _ = version  # ties numba's cache entry to the sources it calls into
         half = controller.length / 2
-        for i in range(xs.shape[0]):
+        capacity = record.shape[2]
+        for i in rows:
             best = 0.0
-            for a in range(speed_changes.shape[0]):
-                x, y, v, psi = xs[i, 0], xs[i, 1], xs[i, 2], xs[i, 3]
-                level, lane, time = levels[i], lanes[i], times[i]
+            for a in columns:
                 total = 0.0
                 discount = 1.0
-                for _decision in range(MAX_FALLBACK_DECISIONS):
+                if a == arrived_by[i] and parent_recorded[a] >= 2 and parent_tables[a] == tables[i, a]:
+                    length = parent_recorded[a] - 1
+                    for d in range(length):
+                        worst = parent_record[a, d + 1]
+                        total += discount * worst
+                        discount *= gamma
+                        record[i, a, d] = worst
+                    recorded[i, a] = length
+                    if total > best:
+                        best = total
+                    continue
+                x, y, v, psi = xs[i, 0], xs[i, 1], xs[i, 2], xs[i, 3]
+                level, lane, time = levels[i], lanes[i], times[i]
+                recorded[i, a] = -1
+                for decision in range(MAX_FALLBACK_DECISIONS):
                     level, lane = apply_action(controller, level, lane, speed_changes[a], lane_changes[a])
                     worst = 1.0
                     hit = False
@@ -298,11 +361,15 @@ def _fallback_kernel(params_type: type):
                     total += discount * worst
                     discount *= gamma
                     time += substeps
+                    if decision < capacity:
+                        record[i, a, decision] = worst
                     if hit:
+                        if decision < capacity:
+                            recorded[i, a] = decision + 1
                         break
                 if total > best:
                     best = total
-            out[i] = best
+            out[i] = maximum(out[i], best)
 
     return _compile_without_refcounts(fallback_returns, params_type)
 
@@ -410,6 +477,26 @@ class BicycleModel:
         )
         params_type: type = type(params)  # mypy infers type[Any], which it does not treat as Hashable
         self._kernel = _expand_kernel(params_type)
+        self._fallback = _fallback_kernel(params_type)
+        self._all_actions = np.arange(len(table))
+        # the actions of each held code of the lane-keeping family (`fallback_values`): -1 (the
+        # prefix, any lane-keeping action) or a speed change + 1 held after it; and the others
+        families = {
+            code: (self._lane_changes == 0) & ((self._speed_changes + 1 == code) | (code == -1))
+            for code in (-1, 0, 1, 2)
+        }
+        self._hold_families = [(code, np.flatnonzero(family)) for code, family in families.items()]
+        self._other_actions = {code: np.flatnonzero(~family) for code, family in families.items()}
+        # `fallback_values` memo: each state's continuations (key: its id; the entry holds the
+        # state, so the id names it while the entry lives), and the last expansion (whose
+        # children the next `fallback_values` call is likely asked for)
+        self._continuations: dict[int, tuple] = {}
+        self._last_expansion: tuple[BicycleState, np.ndarray, list[BicycleState]] | None = None
+        self._no_parent = (
+            np.zeros((len(table), RECORDED_DECISIONS)),
+            np.full(len(table), -1, dtype=np.int64),
+            np.zeros(len(table), dtype=np.int8),
+        )
         self._index_cache: tuple[Any, np.ndarray] | None = None
         self._scratch = np.empty(8)  # one box [-x | x] for the reward (the kernels allocate nothing)
 
@@ -520,11 +607,9 @@ class BicycleModel:
         out_x.setflags(write=False)
         time = state.time + self.substeps
         levels, lanes = meta[:, 0].tolist(), meta[:, 1].tolist()
-        return (
-            [BicycleState(out_x[i], levels[i], lanes[i], time, *after[i]) for i in range(n)],
-            rewards,
-            terminals,
-        )
+        children = [BicycleState(out_x[i], levels[i], lanes[i], time, *after[i]) for i in range(n)]
+        self._last_expansion = (state, index, children)
+        return children, rewards, terminals
 
     def _run_expand(self, params, state: BicycleState, index, out_x, meta, rewards, terminals) -> None:
         self._kernel(
@@ -579,56 +664,102 @@ class BicycleModel:
         -------
         numpy.ndarray, shape (len(states),)
             In ``[0, 1 / (1 - gamma)]``.
+
+        Notes
+        -----
+        The model remembers each state's continuations (up to `MEMO_STATES` states). When
+        ``states`` are the children of the last `expand`, as in the search, the child
+        reached by action a does not roll a out again: holding a from it is the parent's
+        continuation of a after its first decision, the same states and rewards, so the
+        value is the same to the last bit (a fifth of the rollouts at five actions).
         """
-        gamma = as_discount("gamma", gamma)
+        if type(gamma) is not float or not 0.0 < gamma < 1.0:
+            gamma = as_discount("gamma", gamma)
         n = len(states)
-        xs = np.empty((n, 4))
-        meta = np.empty((n, 3), dtype=np.int64)
         for i, state in enumerate(states):
             if type(state) is not BicycleState:
                 check_instance(f"states[{i}]", state, BicycleState, "a BicycleState (see BicycleModel.initial_state)")
-            if state.keep_hold not in (-1, 0, 1, 2):
+            if state.keep_hold not in _KEEP_HOLDS:
                 raise InputError(f"states[{i}].keep_hold must be -1, 0, 1 or 2, got {state.keep_hold!r}")
-            xs[i] = state.x
-            meta[i] = state.level, state.lane, state.time
-        out = np.empty(n)
-        params_type: type = type(self._params)  # mypy infers type[Any], which it does not treat as Hashable
-        kernel = _fallback_kernel(params_type)
-        every = np.ones(self.n_actions, dtype=bool)
-        groups = [(self._params, np.ones(n, dtype=bool), every)]
-        if self._keep_params is not None and any(state.kept for state in states):
+        xs = np.array([state.x for state in states], dtype=float).reshape(n, 4)
+        levels = np.array([state.level for state in states], dtype=np.int64)
+        lanes = np.array([state.lane for state in states], dtype=np.int64)
+        times = np.array([state.time for state in states], dtype=np.int64)
+        n_actions = self.n_actions
+        record = np.empty((n, n_actions, RECORDED_DECISIONS))
+        recorded = np.empty((n, n_actions), dtype=np.int64)
+        tables = np.full((n, n_actions), _REWARD_TABLE, dtype=np.int8)
+        out = np.zeros(n)
+        if self._keep_params is None or not any(state.kept for state in states):
+            # every continuation reads the table for any ego
+            groups = [(self._params, np.arange(n), self._all_actions)]
+        else:
             # a path of the family that holds an action of the family stays in it: the lane-keeping
             # table; any other continuation (a lane change, or another action than the one already
             # held) is bounded on the table for any ego. A lane change without effect is bounded
             # there too; the maximum is the same as `step`'s, since such an action moves the ego
             # exactly as the speed action of its family, which is held on the lane-keeping table
             hold = np.array([state.keep_hold if state.kept else -2 for state in states])
-            groups = [(self._params, hold == -2, every)]
-            for code in (-1, 0, 1, 2):
-                family = (self._lane_changes == 0) & ((self._speed_changes + 1 == code) | (code == -1))
-                groups += [(self._keep_params, hold == code, family), (self._params, hold == code, ~family)]
-        out[:] = 0.0
-        for params, rows, held in groups:
-            if not rows.any() or not held.any():
+            groups = [(self._params, np.flatnonzero(hold == -2), self._all_actions)]
+            for code, family in self._hold_families:
+                rows = np.flatnonzero(hold == code)
+                tables[np.ix_(rows, family)] = _LANE_KEEPING_TABLE
+                groups += [(self._keep_params, rows, family), (self._params, rows, self._other_actions[code])]
+        arrived_by, parent = self._arrivals(states)
+        for params, rows, columns in groups:
+            if rows.shape[0] == 0 or columns.shape[0] == 0:
                 continue
-            part = np.flatnonzero(rows)
-            values = np.empty(part.shape[0])
-            kernel(
+            self._fallback(
                 self.controller,
                 params,
-                xs[part],
-                meta[part, 0].copy(),
-                meta[part, 1].copy(),
-                meta[part, 2].copy(),
-                self._speed_changes[held],
-                self._lane_changes[held],
+                xs,
+                levels,
+                lanes,
+                times,
+                rows,
+                columns,
+                self._speed_changes,
+                self._lane_changes,
                 self.substeps,
                 gamma,
                 self._scratch,
-                values,
+                arrived_by,
+                *parent,
+                tables,
+                record,
+                recorded,
+                out,
             )
-            out[part] = np.maximum(out[part], values)
+        memo = self._continuations
+        if len(memo) + n > MEMO_STATES:
+            memo.clear()
+        for i, state in enumerate(states):
+            memo[id(state)] = (state, record, recorded, tables, i)
         return out
+
+    def _arrivals(self, states: Sequence[BicycleState]):
+        """The action that led to each of ``states`` from their parent, and the parent's continuations.
+
+        Known when ``states`` are the children of the last `expand` (by identity) and the
+        expanded state's continuations were kept by an earlier `fallback_values`: then
+        ``(index, (record, recorded, tables))`` of the parent's row, else -1 everywhere
+        (`_fallback_kernel`'s ``arrived_by`` and ``parent_*``).
+        """
+        unknown = np.full(len(states), -1, dtype=np.int64)
+        last = self._last_expansion
+        if last is None:
+            return unknown, self._no_parent
+        parent, index, children = last
+        entry = self._continuations.get(id(parent))
+        if (
+            entry is None
+            or entry[0] is not parent
+            or len(children) != len(states)
+            or any(state is not child for state, child in zip(states, children))
+        ):
+            return unknown, self._no_parent
+        _, record, recorded, tables, row = entry
+        return index, (record[row], recorded[row], tables[row])
 
     def predict(self, state: BicycleState, action) -> tuple[np.ndarray, np.ndarray, BicycleState]:
         """The sub-step states and controls of one action: what the world's ego does under them.

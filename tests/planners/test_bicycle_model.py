@@ -445,3 +445,76 @@ def test_first_possible_collision_rejects_an_empty_plan_and_a_bad_horizon():
         model.first_possible_collision(state, (0,), 0)
     with pytest.raises(InputError, match="action indices"):
         model.first_possible_collision(state, (5,), 10)
+
+
+def _random_table(rng, x, rows):
+    """Obstacle boxes of 3 vehicles near the ego, drifting at random speeds (some rows empty)."""
+    table = np.tile(EMPTY, (rows, 3, 1))
+    for j in range(3):
+        lane_y = 4.0 * rng.integers(0, 3)
+        start = x[0] + rng.uniform(-20.0, 80.0)
+        speed = rng.uniform(10.0, 30.0)
+        grow = rng.uniform(0.0, 0.5)
+        for n in range(rows):
+            centre = start + speed * 0.1 * n
+            half = 2.5 + grow * 0.1 * n
+            table[n, j] = [centre - half, lane_y - 1.0, centre + half, lane_y + 1.0]
+    return table
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    lane_keeping=st.booleans(),
+    gamma=st.floats(0.5, 0.99),
+    path=st.lists(st.integers(0, len(HIGHWAY_ACTIONS) - 1), min_size=1, max_size=7),
+)
+def test_inherited_continuations_give_the_fallback_values_bit_for_bit(seed, lane_keeping, gamma, path):
+    """Along a path expanded as the planner does, each call equals a fresh model's, which rolls everything out.
+
+    A model remembers each state's continuations and hands the child reached by action a
+    its parent's continuation of a after the first decision (`_fallback_kernel`); a fresh
+    model (`with_reward`: no memo) asked for the same states rolls every action out.
+    """
+    rng = np.random.default_rng(seed)
+    world, controller, model, state = _ego_setup("highway")
+    x = np.array([200.0, 4.0 * rng.integers(0, 3), rng.uniform(18.0, 30.0), rng.uniform(-0.05, 0.05)])
+    rows = int(rng.integers(25, 60))
+    general = DrivingReward.highway(_random_table(rng, x, rows), 0, world.road)
+    keeping = DrivingReward.highway(_random_table(rng, x, rows), 0, world.road) if lane_keeping else None
+    searching = model.with_reward(general, lane_keeping_reward=keeping)
+    node = searching.initial_state(x, level=int(rng.integers(0, 3)), lane=int(round(x[1] / 4.0)))
+    inherited = 0
+    for action in path:
+        children, _, _ = searching.expand(node, searching.actions)
+        inherited += int(np.sum(searching._arrivals(children)[0] >= 0))
+        values = searching.fallback_values(children, gamma)
+        fresh = searching.with_reward(general, lane_keeping_reward=keeping)
+        expected = fresh.fallback_values(children, gamma)
+        assert values.tobytes() == expected.tobytes()
+        node = children[action]
+    event(f"children that inherited a continuation: {'some' if inherited else 'none'}")
+
+
+def test_children_inherit_their_parents_continuation_and_the_memo_stays_bounded():
+    """The search's order (expand, then the children's values) reuses continuations; past the limit the memo forgets."""
+    from minimaxplan.planners.bicycle_model import MEMO_STATES
+
+    world, root, both, general, keeping = _lane_keeping_case()
+    wide = both.with_reward(
+        DrivingReward.highway(np.tile(EMPTY, (51, 1, 1)), 0, world.road),
+        lane_keeping_reward=DrivingReward.highway(np.tile(EMPTY, (51, 1, 1)), 0, world.road),
+    )
+    for model in (both, wide):
+        children, _, _ = model.expand(root, model.actions)
+        assert np.all(model._arrivals(children)[0] == -1)  # the root's continuations were never asked for
+        model.fallback_values(children, 0.9)
+        grand, _, _ = model.expand(children[1], model.actions)
+        arrived_by = model._arrivals(grand)[0]
+        assert arrived_by.tolist() == list(model.actions)
+        # a list that is not the last expansion's children inherits nothing
+        assert np.all(model._arrivals([*grand[1:], grand[0]])[0] == -1)
+    planner = RobustTreePlanner([wide], wide.actions, gamma=0.9, budget=100)
+    for _ in range(12):
+        planner.plan(root)
+        assert len(wide._continuations) <= MEMO_STATES
