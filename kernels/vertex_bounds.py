@@ -16,7 +16,7 @@ rows, are the whole of that arithmetic:
   ``P = C' C``).
 
 They were numpy expressions over small arrays, whose call overhead made up about a third
-of a forecast's time (`benchmarks/results/forecast_commits.md`). Each performs the same
+of a forecast's time (`benchmarks/results/commits/cea30b31cf01-39ffdf072809.md`). Each performs the same
 floating-point operations in the same order as those numpy expressions did (left to
 right, ``np.maximum``/``np.minimum`` semantics for NaN), so the forecast's boxes are
 unchanged to the last bit; the rounding outward that makes them sound stays with the
