@@ -66,7 +66,7 @@ def interval_matvec(matrices, lower, upper):
         ``(lo, hi)``: the smallest box containing ``M z`` for every ``z`` of the row's box.
     """
     n = lower.shape[0]
-    if matrices.shape[0] != n or upper.shape[0] != n or lower.shape[1] != 2 or upper.shape[1] != 2:
+    if matrices.shape != (n, 2, 2) or upper.shape[0] != n or lower.shape[1] != 2 or upper.shape[1] != 2:
         raise ValueError("interval_matvec: matrices (n, 2, 2), lower and upper (n, 2) must share n")
     out_lo, out_hi = np.empty((n, 2)), np.empty((n, 2))
     for r in range(n):
@@ -98,7 +98,9 @@ def vertex_bound(structure, lower, upper, p_lower, p_upper):
         where bit i of k is set) of the exact interval products.
     """
     n = lower.shape[0]
-    if structure.shape[0] not in (1, n) or upper.shape[0] != n or p_lower.shape[0] != n or p_upper.shape[0] != n:
+    if structure.shape[0] not in (1, n) or structure.shape[1:] != (3, 2, 2):
+        raise ValueError("vertex_bound: structure must have shape (n or 1, 3, 2, 2)")
+    if upper.shape[0] != n or p_lower.shape[0] != n or p_upper.shape[0] != n:
         raise ValueError(
             "vertex_bound: structure (n or 1, 3, 2, 2), boxes (n, 2) and parameter boxes (n, 3) must share n"
         )
@@ -160,7 +162,8 @@ def contraction_vertex_factor(metric, lower, upper, corners, dt, length):
     """
     n = metric.shape[0]
     if (
-        lower.shape[0] != n
+        metric.shape[1:] != (2, 2)
+        or lower.shape[0] != n
         or upper.shape[0] != n
         or lower.shape[1] != 6
         or upper.shape[1] != 6

@@ -676,12 +676,15 @@ class BicycleModel:
         if type(gamma) is not float or not 0.0 < gamma < 1.0:
             gamma = as_discount("gamma", gamma)
         n = len(states)
+        xs = np.empty((n, 4))
         for i, state in enumerate(states):
             if type(state) is not BicycleState:
                 check_instance(f"states[{i}]", state, BicycleState, "a BicycleState (see BicycleModel.initial_state)")
             if state.keep_hold not in _KEEP_HOLDS:
                 raise InputError(f"states[{i}].keep_hold must be -1, 0, 1 or 2, got {state.keep_hold!r}")
-        xs = np.array([state.x for state in states], dtype=float).reshape(n, 4)
+            if np.shape(state.x) != (4,):
+                raise DimensionError(f"states[{i}].x must have shape (4,), got shape {np.shape(state.x)}")
+            xs[i] = state.x
         levels = np.array([state.level for state in states], dtype=np.int64)
         lanes = np.array([state.lane for state in states], dtype=np.int64)
         times = np.array([state.time for state in states], dtype=np.int64)
@@ -745,19 +748,16 @@ class BicycleModel:
         ``(index, (record, recorded, tables))`` of the parent's row, else -1 everywhere
         (`_fallback_kernel`'s ``arrived_by`` and ``parent_*``).
         """
-        unknown = np.full(len(states), -1, dtype=np.int64)
         last = self._last_expansion
-        if last is None:
-            return unknown, self._no_parent
-        parent, index, children = last
-        entry = self._continuations.get(id(parent))
+        entry = None if last is None else self._continuations.get(id(last[0]))
         if (
             entry is None
-            or entry[0] is not parent
-            or len(children) != len(states)
-            or any(state is not child for state, child in zip(states, children))
+            or entry[0] is not last[0]
+            or len(last[2]) != len(states)
+            or any(state is not child for state, child in zip(states, last[2]))
         ):
-            return unknown, self._no_parent
+            return np.full(len(states), -1, dtype=np.int64), self._no_parent
+        _, index, _ = last
         _, record, recorded, tables, row = entry
         return index, (record[row], recorded[row], tables[row])
 

@@ -132,9 +132,17 @@ def test_rows_that_do_not_match_are_refused_not_read_past():
     with pytest.raises(ValueError, match="share n"):
         interval_matvec(np.zeros((2, 2, 2)), box, box)
     with pytest.raises(ValueError, match="share n"):
+        interval_matvec(np.zeros((3, 2, 1)), box, box)
+    with pytest.raises(ValueError, match="structure"):
+        vertex_bound(np.zeros((1, 2, 2, 2)), box, box, np.zeros((3, 3)), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="structure"):
         vertex_bound(np.zeros((2, 3, 2, 2)), box, box, np.zeros((3, 3)), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="share n"):
+        vertex_bound(np.zeros((1, 3, 2, 2)), box, box, np.zeros((2, 3)), np.zeros((3, 3)))
     with pytest.raises(ValueError, match="3"):
         vertex_bound(np.zeros((1, 3, 2, 2)), box, box, np.zeros((3, 2)), np.zeros((3, 2)))
     corners = np.ones((64, 6), dtype=bool)
     with pytest.raises(ValueError, match="corners"):
         contraction_vertex_factor(np.tile(np.eye(2), (3, 1, 1)), np.ones((2, 6)), np.ones((3, 6)), corners, 0.1, 5.0)
+    with pytest.raises(ValueError, match="corners"):
+        contraction_vertex_factor(np.ones((3, 2, 1)), np.ones((3, 6)), np.ones((3, 6)), corners, 0.1, 5.0)

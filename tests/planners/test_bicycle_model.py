@@ -6,7 +6,7 @@ from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from minimaxplan.kernels.bicycle import apply_action, ego_control
-from minimaxplan.models.errors import InputError
+from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.planners import RobustTreePlanner
 from minimaxplan.planners.bicycle_model import (
     HIGHWAY_ACTIONS,
@@ -179,6 +179,8 @@ def test_the_fallback_values_are_the_best_held_actions_return(kind):
         model.fallback_values([(state.x, 1, 1, 0)], 0.9)
     with pytest.raises(InputError, match="gamma"):
         model.fallback_values([state], 1.0)
+    with pytest.raises(DimensionError, match="states\\[1\\].x must have shape \\(4,\\), got shape \\(3,\\)"):
+        model.fallback_values([state, state._replace(x=state.x[:3])], 0.9)
 
 
 def _robust_value(models, state, depth, gamma):
@@ -448,12 +450,12 @@ def test_first_possible_collision_rejects_an_empty_plan_and_a_bad_horizon():
 
 
 def _random_table(rng, x, rows):
-    """Obstacle boxes of 3 vehicles near the ego, drifting at random speeds (some rows empty)."""
+    """Obstacle boxes of 3 vehicles near the ego at random speeds; the first one slower, ahead in its lane."""
     table = np.tile(EMPTY, (rows, 3, 1))
     for j in range(3):
-        lane_y = 4.0 * rng.integers(0, 3)
-        start = x[0] + rng.uniform(-20.0, 80.0)
-        speed = rng.uniform(10.0, 30.0)
+        lane_y = x[1] if j == 0 else 4.0 * rng.integers(0, 3)
+        start = x[0] + (rng.uniform(15.0, 60.0) if j == 0 else rng.uniform(-20.0, 80.0))
+        speed = rng.uniform(0.0, 15.0) if j == 0 else rng.uniform(10.0, 30.0)
         grow = rng.uniform(0.0, 0.5)
         for n in range(rows):
             centre = start + speed * 0.1 * n
@@ -462,26 +464,44 @@ def _random_table(rng, x, rows):
     return table
 
 
+def _continuation_rewards(model, states):
+    """The per-decision rewards of every held action's continuation from each state, as ``model`` kept them."""
+    out = []
+    for state in states:
+        _, record, recorded, _, row = model._continuations[id(state)]
+        out.append([record[row, a, : recorded[row, a]].tobytes() for a in model.actions])
+    return out
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
     lane_keeping=st.booleans(),
     gamma=st.floats(0.5, 0.99),
-    path=st.lists(st.integers(0, len(HIGHWAY_ACTIONS) - 1), min_size=1, max_size=7),
+    # mostly lane-keeping actions, so that paths often pass the lane-keeping prefix and then switch actions
+    path=st.lists(st.sampled_from([0, 1, 1, 2, 3, 3, 4, 4]), min_size=1, max_size=8),
 )
 def test_inherited_continuations_give_the_fallback_values_bit_for_bit(seed, lane_keeping, gamma, path):
     """Along a path expanded as the planner does, each call equals a fresh model's, which rolls everything out.
 
     A model remembers each state's continuations and hands the child reached by action a
     its parent's continuation of a after the first decision (`_fallback_kernel`); a fresh
-    model (`with_reward`: no memo) asked for the same states rolls every action out.
+    model (`with_reward`: no memo) asked for the same states rolls every action out. The
+    reuse assumes that both continuations read the same table (lane-keeping or not): the
+    random paths change lanes, hold actions past the prefix and try lane changes that
+    have no effect at the road's edge (the kernel also checks the tables per action).
     """
     rng = np.random.default_rng(seed)
     world, controller, model, state = _ego_setup("highway")
     x = np.array([200.0, 4.0 * rng.integers(0, 3), rng.uniform(18.0, 30.0), rng.uniform(-0.05, 0.05)])
     rows = int(rng.integers(25, 60))
-    general = DrivingReward.highway(_random_table(rng, x, rows), 0, world.road)
-    keeping = DrivingReward.highway(_random_table(rng, x, rows), 0, world.road) if lane_keeping else None
+    table = _random_table(rng, x, rows)
+    general = DrivingReward.highway(table, 0, world.road)
+    keeping = None
+    if lane_keeping:  # as the forecast for a lane-keeping ego: a subset of the boxes (here: some vehicles gone)
+        kept_table = table.copy()
+        kept_table[:, rng.random(table.shape[1]) < 0.5] = EMPTY
+        keeping = DrivingReward.highway(kept_table, 0, world.road)
     searching = model.with_reward(general, lane_keeping_reward=keeping)
     node = searching.initial_state(x, level=int(rng.integers(0, 3)), lane=int(round(x[1] / 4.0)))
     inherited = 0
@@ -492,7 +512,13 @@ def test_inherited_continuations_give_the_fallback_values_bit_for_bit(seed, lane
         fresh = searching.with_reward(general, lane_keeping_reward=keeping)
         expected = fresh.fallback_values(children, gamma)
         assert values.tobytes() == expected.tobytes()
-        node = children[action]
+        # each action's continuation too, not only the best one (a wrong table may hide under the max)
+        assert _continuation_rewards(searching, children) == _continuation_rewards(fresh, children)
+        # and what the values mean: the best return of holding one action, stepped in Python
+        child = children[action]
+        held = max(_held_return(fresh, child, a, gamma) for a in fresh.actions)
+        assert values[action] == pytest.approx(held, rel=1e-12, abs=1e-12)
+        node = child
     event(f"children that inherited a continuation: {'some' if inherited else 'none'}")
 
 
