@@ -748,16 +748,17 @@ class BicycleModel:
         ``(index, (record, recorded, tables))`` of the parent's row, else -1 everywhere
         (`_fallback_kernel`'s ``arrived_by`` and ``parent_*``).
         """
-        last = self._last_expansion
-        entry = None if last is None else self._continuations.get(id(last[0]))
+        if self._last_expansion is None:
+            return np.full(len(states), -1, dtype=np.int64), self._no_parent
+        parent, index, children = self._last_expansion
+        entry = self._continuations.get(id(parent))
         if (
             entry is None
-            or entry[0] is not last[0]
-            or len(last[2]) != len(states)
-            or any(state is not child for state, child in zip(states, last[2]))
+            or entry[0] is not parent
+            or len(children) != len(states)
+            or any(state is not child for state, child in zip(states, children))
         ):
             return np.full(len(states), -1, dtype=np.int64), self._no_parent
-        _, index, _ = last
         _, record, recorded, tables, row = entry
         return index, (record[row], recorded[row], tables[row])
 
