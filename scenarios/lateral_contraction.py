@@ -33,7 +33,8 @@ The metric ``P`` is one of a table per speed (`contraction_metrics`), each tuned
 a grid search over the prior's gains, so that ``lambda < 1`` over a moderate box; the
 bound is sound for any ``P``, the tuning only makes it tight.
 
-Layer: numpy, and the compiled vertex maximum of `minimaxplan.kernels.vertex_bounds`.
+Layer: numpy, and the compiled arithmetic of `minimaxplan.kernels.vertex_bounds` (the vertex
+maximum) and `minimaxplan.kernels.lateral_bounds` (the vertex box, the corner norms).
 """
 
 from __future__ import annotations
@@ -42,12 +43,21 @@ from functools import lru_cache
 
 import numpy as np
 
+from minimaxplan.kernels.lateral_bounds import contraction_vertex_box, metric_radius_bounds
 from minimaxplan.kernels.vertex_bounds import contraction_vertex_factor
 from minimaxplan.models.errors import DimensionError, InputError
 
 from .vehicles import DEFAULT_VEHICLE, BehaviourParameters, VehicleParameters, slip_angle
 
-__all__ = ["CONTRACTION_MARGIN", "contraction_factor", "contraction_metrics", "ellipse_hull", "metric_radius"]
+__all__ = [
+    "CONTRACTION_MARGIN",
+    "contraction_factor",
+    "contraction_metrics",
+    "ellipse_hull",
+    "metric_radius",
+    "unchecked_contraction_factor",
+    "unchecked_metric_radius",
+]
 
 #: Relative outward rounding of a contraction factor (orders of magnitude above the
 #: floating-point error of the few operations of one vertex).
@@ -61,29 +71,17 @@ _TABLE_RATIO = 1.25
 _TUNE_SPEED_RATIO, _TUNE_OFFSET, _TUNE_HEADING = 1.12, 0.5, 0.1
 
 
-def _sinc_lower(a):
-    """``min sin(x) / x`` over ``|x| <= a`` (a <= pi): sin(x) / x decreases on [0, pi]."""
-    a = np.minimum(a, np.pi)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(a > 0.0, np.sin(a) / np.where(a > 0.0, a, 1.0), 1.0)
-
-
 def _vertex_box(dt, length, max_steering, e, chi, v, b1, q):
-    """The box of ``(s1, s2, g, v, b1, q)`` over the state box, as (lower, upper), each shape (n, 6)."""
-    e_m = np.maximum(np.abs(e[0]), np.abs(e[1]))
-    c_m = np.maximum(np.abs(chi[0]), np.abs(chi[1]))
-    # |delta_r| <= (L / v_lo)(b1_hi |chi| + q_hi |e|)
-    dr = length / v[0] * (np.maximum(np.abs(b1[0]), np.abs(b1[1])) * c_m + np.maximum(np.abs(q[0]), np.abs(q[1])) * e_m)
-    dm = np.minimum(dr, max_steering)
-    beta_m = slip_angle(dm)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # subnormal |delta_r|: g_lo = 1/2
-        # g(x) = beta(clip(x)) / x: 1/2 at 0, increasing in |x| up to max_steering, then beta_max / |x|
-        g_hi = np.where(dm > 0.0, beta_m / np.where(dm > 0.0, dm, 1.0), 0.5)
-        g_lo = np.where(dr > 0.0, np.minimum(0.5, slip_angle(max_steering) / np.where(dr > 0.0, dr, 1.0)), 0.5)
-    one = np.ones_like(c_m)
-    lower = np.stack([_sinc_lower(c_m + beta_m), _sinc_lower(beta_m), g_lo, v[0], b1[0], q[0]], axis=-1)
-    upper = np.stack([one, one, g_hi, v[1], b1[1], q[1]], axis=-1)
-    return lower, upper
+    """The box of ``(s1, s2, g, v, b1, q)`` over the state box, as (lower, upper), each shape (n, 6).
+
+    The sector factors' ranges (`minimaxplan.kernels.lateral_bounds.contraction_vertex_box`):
+    ``s1 = sinc(chi + beta)`` and ``s2 = sinc(beta)`` from the largest ``|chi| + |beta|``
+    and ``|beta|``, ``g = beta(clip(delta_r)) / delta_r`` from the largest ``|delta_r| <=
+    (L / v_lo)(|b1|_max |chi|_max + |q|_max |e|_max)``. ``dt`` is unused (the caller's
+    signature).
+    """
+    rows = [np.ascontiguousarray(bound, dtype=float) for pair in (e, chi, v, b1, q) for bound in pair]
+    return contraction_vertex_box(float(length), float(max_steering), *rows)
 
 
 def _metrics(metric) -> np.ndarray:
@@ -161,11 +159,36 @@ def contraction_factor(metric, e, chi, v, b1, q, dt: float, vehicle: VehiclePara
         ranges.append((lo, hi))
     if np.any(ranges[2][0] <= 0.0):
         raise InputError("v must have a positive lower bound")
-    lower, upper = _vertex_box(float(dt), vehicle.length, vehicle.max_steering, *ranges)
-    lam = contraction_vertex_factor(p, lower, upper, _CORNERS, float(dt), float(vehicle.length))
+    return unchecked_contraction_factor(p, *ranges, float(dt), vehicle)
+
+
+def unchecked_contraction_factor(metric, e, chi, v, b1, q, dt: float, vehicle: VehicleParameters) -> np.ndarray:
+    """`contraction_factor` without its argument checks, for callers whose arguments are valid by construction.
+
+    The traffic forecast calls it at every sub-step with metrics from `contraction_metrics`
+    and boxes it built; the checks cost about as much as the bound there.
+
+    Parameters
+    ----------
+    metric : ndarray, shape (n, 2, 2)
+        Symmetric positive definite, float.
+    e, chi, v, b1, q : tuple of 2 ndarray, shape (n,)
+        Finite intervals, ``v_lo > 0``.
+    dt : float
+        Step, s, > 0.
+    vehicle : VehicleParameters
+        L and the steering bound.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        As `contraction_factor`.
+    """
+    lower, upper = _vertex_box(dt, vehicle.length, vehicle.max_steering, e, chi, v, b1, q)
+    lam = contraction_vertex_factor(metric, lower, upper, _CORNERS, float(dt), float(vehicle.length))
     lam = lam * (1.0 + CONTRACTION_MARGIN)
     beta_max = slip_angle(vehicle.max_steering)
-    c_m = np.maximum(np.abs(ranges[1][0]), np.abs(ranges[1][1]))
+    c_m = np.maximum(np.abs(chi[0]), np.abs(chi[1]))
     return np.where(c_m + beta_max <= np.pi, lam, np.inf)
 
 
@@ -180,13 +203,28 @@ def metric_radius(metric, lo, hi) -> np.ndarray:
     """
     p = _metrics(metric)
     lo, hi = _boxes("lo, hi", lo, hi, p.shape[0])
-    best = np.zeros(p.shape[0])
-    for x0 in (lo[:, 0], hi[:, 0]):
-        for x1 in (lo[:, 1], hi[:, 1]):
-            best = np.maximum(best, p[:, 0, 0] * x0**2 + 2 * p[:, 0, 1] * x0 * x1 + p[:, 1, 1] * x1**2)
-    with np.errstate(invalid="ignore"):
-        empty = ~np.all(lo <= hi, axis=1)
-    return np.where(empty, np.inf, np.sqrt(best) * (1.0 + CONTRACTION_MARGIN))
+    return unchecked_metric_radius(p, lo, hi)
+
+
+def unchecked_metric_radius(metric, lo, hi) -> np.ndarray:
+    """`metric_radius` without its argument checks (metrics of `contraction_metrics`, boxes of shape (n, 2)).
+
+    Parameters
+    ----------
+    metric : ndarray, shape (n, 2, 2)
+    lo, hi : ndarray, shape (n, 2)
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        As `metric_radius` (compiled: `minimaxplan.kernels.lateral_bounds.metric_radius_bounds`).
+    """
+    return metric_radius_bounds(
+        np.ascontiguousarray(metric, dtype=float),
+        np.ascontiguousarray(lo, dtype=float),
+        np.ascontiguousarray(hi, dtype=float),
+        CONTRACTION_MARGIN,
+    )
 
 
 def ellipse_hull(metric, radius, to_basis=None) -> np.ndarray:

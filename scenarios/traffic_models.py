@@ -54,6 +54,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from minimaxplan.kernels.lateral_bounds import footprint_bounds, lateral_remainder_bounds
 from minimaxplan.kernels.vertex_bounds import interval_matvec, vertex_bound
 from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.models.prediction import cos_interval, interval_product, sin_interval
@@ -63,10 +64,10 @@ from minimaxplan.models.validation import as_finite_array, check_instance, froze
 
 from .lateral_contraction import (
     CONTRACTION_MARGIN,
-    contraction_factor,
     contraction_metrics,
     ellipse_hull,
-    metric_radius,
+    unchecked_contraction_factor,
+    unchecked_metric_radius,
 )
 from .lateral_invariant import invariant_sets
 from .road import ARC, STRAIGHT, Road, wrap_to_pi
@@ -139,24 +140,31 @@ def footprint_box(center_lower, center_upper, psi_lower, psi_upper, vehicle: Veh
     A corner is ``centre + r (cos(psi + a_c), sin(psi + a_c))`` with ``r`` the half
     diagonal and ``a_c`` in ``{+-atan2(W, L), pi +- atan2(W, L)}``; the union over the
     box and the interval is the centre box plus the range of each corner offset, whose
-    extremes are exact (`cos_interval`, `sin_interval`). Rectangles whose heading
+    extremes are exact (the ranges of `cos_interval` and `sin_interval`, compiled in
+    `minimaxplan.kernels.lateral_bounds.footprint_bounds`). Rectangles whose heading
     interval is at least 2 pi wide get the disc of radius r.
     """
     clo = np.asarray(center_lower, dtype=float)
     chi = np.asarray(center_upper, dtype=float)
     plo, phi = np.asarray(psi_lower, dtype=float), np.asarray(psi_upper, dtype=float)
+    shape = np.broadcast_shapes(clo.shape[:-1], chi.shape[:-1], plo.shape, phi.shape)
+    if clo.shape[-1:] != (2,) or chi.shape[-1:] != (2,):
+        raise DimensionError(
+            f"center_lower and center_upper must have shape (..., 2), got shapes {clo.shape} and {chi.shape}"
+        )
     r = 0.5 * np.hypot(vehicle.length, vehicle.width)
     a = np.arctan2(vehicle.width, vehicle.length)
-    dx_lo = dy_lo = np.full(plo.shape, np.inf)
-    dx_hi = dy_hi = np.full(plo.shape, -np.inf)
-    for ac in (a, -a, np.pi + a, np.pi - a):
-        c_lo, c_hi = cos_interval(plo + ac, phi + ac)
-        s_lo, s_hi = sin_interval(plo + ac, phi + ac)
-        dx_lo, dx_hi = np.minimum(dx_lo, r * c_lo), np.maximum(dx_hi, r * c_hi)
-        dy_lo, dy_hi = np.minimum(dy_lo, r * s_lo), np.maximum(dy_hi, r * s_hi)
-    x_lo, x_hi = _out(clo[..., 0] + dx_lo, chi[..., 0] + dx_hi)
-    y_lo, y_hi = _out(clo[..., 1] + dy_lo, chi[..., 1] + dy_hi)
-    return np.stack([x_lo, y_lo, x_hi, y_hi], axis=-1)
+    offsets = np.array([a, -a, np.pi + a, np.pi - a])
+    boxes = footprint_bounds(
+        np.ascontiguousarray(np.broadcast_to(clo, shape + (2,)).reshape(-1, 2)),
+        np.ascontiguousarray(np.broadcast_to(chi, shape + (2,)).reshape(-1, 2)),
+        np.ascontiguousarray(np.broadcast_to(plo, shape).reshape(-1)),
+        np.ascontiguousarray(np.broadcast_to(phi, shape).reshape(-1)),
+        offsets,
+        float(r),
+        ROUND_MARGIN,
+    )
+    return boxes.reshape(shape + (4,))
 
 
 # ----------------------------------------------------------------- beliefs
@@ -427,27 +435,18 @@ def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = 
     ``v >= speed_epsilon``; the forecast uses it on ``|chi| <= CHI_MAX``,
     ``v >= V_MIN``.
     """
-    length, dmax = vehicle.length, vehicle.max_steering
-    x_lo, x_hi = interval_product(b1[0], b1[1], chi[0], chi[1])
-    y_lo, y_hi = interval_product(q[0], q[1], e[0], e[1])
-    s_lo, s_hi = x_lo + y_lo, x_hi + y_hi
-    # delta_r = -(L / v) s
-    k_lo, k_hi = length / v[1], length / v[0]
-    d_lo, d_hi = interval_product(-k_hi, -k_lo, s_lo, s_hi)
-    d_lo, d_hi = _out(d_lo, d_hi)
+    bounds = [e[0], e[1], chi[0], chi[1], v[0], v[1], b1[0], b1[1], q[0], q[1]]
     if ff is not None:
-        d_lo, d_hi = _out(d_lo + ff[0], d_hi + ff[1])
-    dc_lo, dc_hi = np.clip(d_lo, -dmax, dmax), np.clip(d_hi, -dmax, dmax)
-    c_lo, c_hi = dc_hi - d_hi, dc_lo - d_lo  # clip(x) - x, nonincreasing
-    g_lo, g_hi = slip_angle(dc_lo) - dc_lo / 2, slip_angle(dc_hi) - dc_hi / 2
-    b_lo, b_hi = slip_angle(dc_lo), slip_angle(dc_hi)
-    a_lo, a_hi = chi[0] + b_lo, chi[1] + b_hi
-    ra_lo, ra_hi = a_lo - np.sin(a_lo), a_hi - np.sin(a_hi)
-    rb_lo, rb_hi = b_lo - np.sin(b_lo), b_hi - np.sin(b_hi)
-    common_lo, common_hi = c_lo / 2 + g_lo, c_hi / 2 + g_hi
-    re = interval_product(v[0] * dt, v[1] * dt, common_lo - ra_hi, common_hi - ra_lo)
-    rc = interval_product(2 * v[0] * dt / length, 2 * v[1] * dt / length, common_lo - rb_hi, common_hi - rb_lo)
-    return _out(*re), _out(*rc), (dc_lo, dc_hi), (a_lo, a_hi)
+        bounds += [ff[0], ff[1]]
+    arrays = np.broadcast_arrays(*[np.asarray(bound, dtype=float) for bound in bounds])
+    shape = arrays[0].shape
+    rows = [np.ascontiguousarray(a.reshape(-1)) for a in arrays]
+    if ff is None:
+        rows += [np.empty(0), np.empty(0)]
+    out = lateral_remainder_bounds(
+        *rows, float(dt), float(vehicle.length), float(vehicle.max_steering), ROUND_MARGIN
+    ).reshape((8,) + shape)
+    return (out[0], out[1]), (out[2], out[3]), (out[4], out[5]), (out[6], out[7])
 
 
 def acceleration_feature_bounds(v, target, front_speed, gap, params: BehaviourParameters = DEFAULT_BEHAVIOUR):
@@ -1527,7 +1526,9 @@ def forecast_traffic(
             if sel.size:
                 us, rs, ks = idx[sel], rr[sel], k_new[sel]
                 met = c_metrics[ks]
-                rho_cur = np.minimum(urho[us] * c_conv[umet[us], ks], metric_radius(met, e_lo[sel], e_hi[sel]))
+                rho_cur = np.minimum(
+                    urho[us] * c_conv[umet[us], ks], unchecked_metric_radius(met, e_lo[sel], e_hi[sel])
+                )
                 # the speed box in SPEED_BINS geometric bins (narrow boxes too: cheap and tighter), lambda the
                 # largest over the bins
                 nb_ = SPEED_BINS
@@ -1538,7 +1539,7 @@ def forecast_traffic(
                 bv_lo = vs_lo * ratio_s ** (j / nb_)
                 bv_hi = np.where(j == nb_ - 1, vs_hi, vs_lo * ratio_s ** ((j + 1) / nb_))
                 q = (tb_lo[rr[rep], 1] / bv_hi, tb_hi[rr[rep], 1] / bv_lo)
-                lam = contraction_factor(
+                lam = unchecked_contraction_factor(
                     np.tile(met, (nb_, 1, 1)),
                     (e_lo[rep, 0], e_hi[rep, 0]),
                     (e_lo[rep, 1], e_hi[rep, 1]),
@@ -1726,7 +1727,7 @@ def forecast_traffic(
                             # the merged states satisfy either ellipse: the larger radius in the row's metric
                             from_k = np.minimum(
                                 urho[k] * c_conv[umet[k], umet[:R]],
-                                metric_radius(c_metrics[umet[:R]], eu_lo[k], eu_hi[k]),
+                                unchecked_metric_radius(c_metrics[umet[:R]], eu_lo[k], eu_hi[k]),
                             )
                             urho[:R] = np.where(
                                 old, np.where(ualive[:R], np.maximum(urho[:R], from_k), from_k), urho[:R]
@@ -1784,7 +1785,7 @@ def forecast_traffic(
                         hi_a[k] = np.where(both[:, None], np.maximum(hi_a[k], a_hi), hi_a[k])
                     if lateral_contraction:
                         # the cohort's new states: the radius of their box joins the cohort's
-                        entry = metric_radius(c_metrics[umet[k]], ii_lo, ii_hi)
+                        entry = unchecked_metric_radius(c_metrics[umet[k]], ii_lo, ii_hi)
                         urho[k] = np.where(both, np.where(ualive[k], np.maximum(urho[k], entry), entry), urho[k])
                     ualive[k] |= both
                     uinv[k] = np.where(both, -1, uinv[k])  # new states, in no set known yet
