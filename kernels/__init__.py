@@ -19,7 +19,10 @@ that neither imports the other:
 * `minimaxplan.kernels.driving_reward`: the driving reward's compiled box minimum
   (`DrivingParams`);
 * `minimaxplan.kernels.vertex_bounds`: the traffic forecast's interval arithmetic on 2 x 2
-  matrix families (`interval_matvec`, `vertex_bound`, `contraction_vertex_factor`).
+  matrix families (`interval_matvec`, `vertex_bound`, `contraction_vertex_factor`);
+* `minimaxplan.kernels.lateral_bounds`: its bounds of the bicycle's nonlinear terms over
+  boxes (the lateral remainder, the footprint boxes, the contraction bound's vertex box,
+  the corner norms of a metric).
 
 A user's reward family gets an exact box minimum and a compiled kernel by exposing a
 registered ``kernel_params`` namedtuple and an overload of `box_reward_minimum`; see

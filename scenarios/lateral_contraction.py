@@ -159,7 +159,8 @@ def contraction_factor(metric, e, chi, v, b1, q, dt: float, vehicle: VehiclePara
         ranges.append((lo, hi))
     if np.any(ranges[2][0] <= 0.0):
         raise InputError("v must have a positive lower bound")
-    return unchecked_contraction_factor(p, *ranges, float(dt), vehicle)
+    e_r, chi_r, v_r, b1_r, q_r = ranges
+    return unchecked_contraction_factor(p, e_r, chi_r, v_r, b1_r, q_r, float(dt), vehicle)
 
 
 def unchecked_contraction_factor(metric, e, chi, v, b1, q, dt: float, vehicle: VehicleParameters) -> np.ndarray:

@@ -440,11 +440,27 @@ def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = 
         bounds += [ff[0], ff[1]]
     arrays = np.broadcast_arrays(*[np.asarray(bound, dtype=float) for bound in bounds])
     shape = arrays[0].shape
-    rows = [np.ascontiguousarray(a.reshape(-1)) for a in arrays]
-    if ff is None:
-        rows += [np.empty(0), np.empty(0)]
+    e_lo, e_hi, c_lo, c_hi, v_lo, v_hi, b_lo, b_hi, q_lo, q_hi, *feed = [
+        np.ascontiguousarray(a.reshape(-1)) for a in arrays
+    ]
+    ff_lo, ff_hi = feed if feed else (np.empty(0), np.empty(0))
     out = lateral_remainder_bounds(
-        *rows, float(dt), float(vehicle.length), float(vehicle.max_steering), ROUND_MARGIN
+        e_lo,
+        e_hi,
+        c_lo,
+        c_hi,
+        v_lo,
+        v_hi,
+        b_lo,
+        b_hi,
+        q_lo,
+        q_hi,
+        ff_lo,
+        ff_hi,
+        float(dt),
+        float(vehicle.length),
+        float(vehicle.max_steering),
+        ROUND_MARGIN,
     ).reshape((8,) + shape)
     return (out[0], out[1]), (out[2], out[3]), (out[4], out[5]), (out[6], out[7])
 
