@@ -31,7 +31,10 @@ def maximum(a: float, b: float) -> float:
     Returns
     -------
     float
-        ``a`` when ``a >= b`` or ``a`` is NaN, else ``b``.
+        ``a`` when ``a >= b`` or ``a`` is NaN, else ``b``. On a tie numpy returns ``b``:
+        the two differ only in the sign of a zero (``maximum(-0.0, 0.0)`` is -0.0 here,
+        0.0 in numpy); `minimaxplan.kernels.lateral_bounds` has numpy's tie rule where
+        its results must be numpy's to the bit.
     """
     return a if (a >= b or a != a) else b
 
@@ -48,7 +51,9 @@ def minimum(a: float, b: float) -> float:
     Returns
     -------
     float
-        ``a`` when ``a <= b`` or ``a`` is NaN, else ``b``.
+        ``a`` when ``a <= b`` or ``a`` is NaN, else ``b``. On a tie numpy returns ``b``:
+        the two differ only in the sign of a zero (``minimum(0.0, -0.0)`` is 0.0 here,
+        -0.0 in numpy).
     """
     return a if (a <= b or a != a) else b
 

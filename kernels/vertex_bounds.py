@@ -18,9 +18,12 @@ rows, are the whole of that arithmetic:
 They were numpy expressions over small arrays, whose call overhead made up about a third
 of a forecast's time (`benchmarks/results/commits/cea30b31cf01-39ffdf072809.md`). Each performs the same
 floating-point operations in the same order as those numpy expressions did (left to
-right, ``np.maximum``/``np.minimum`` semantics for NaN), so the forecast's boxes are
-unchanged to the last bit; the rounding outward that makes them sound stays with the
-callers (`ROUND_MARGIN`, `CONTRACTION_MARGIN`).
+right, ``np.maximum``/``np.minimum`` semantics for NaN; on a tie between signed zeros
+`minimaxplan.kernels.box_primitives` keeps the first argument where numpy keeps the
+second, so a bound that is exactly zero may differ from numpy's in its sign only), so the
+forecast's boxes are unchanged to the last bit on every scene compared
+(`benchmarks/compare_forecast_commits.py`); the rounding outward that makes them sound
+stays with the callers (`ROUND_MARGIN`, `CONTRACTION_MARGIN`).
 
 Dead rows hold empty boxes (``inf``, ``-inf``): their products may be NaN, which
 propagates as numpy's would; callers mask them.
