@@ -14,15 +14,17 @@ each over a batch of rows (one element per row, no reduction across rows):
 * `metric_radius_bounds`: the largest norm of a box's corners in a metric
   (`minimaxplan.scenarios.lateral_contraction.metric_radius`).
 
-They were numpy expressions over small arrays, a few dozen calls each, which made up
-about a third of a forecast's time (`benchmarks/results/commits/`). Each performs the same
-floating-point operations in the same order as those expressions did, with numpy's
-semantics for NaN and for ties between signed zeros (`np.minimum` and `np.maximum`
-return the second argument on a tie; `np.fmin` and `np.fmax`, as numpy's vector loops
-do, too), so the forecast's boxes are unchanged to the last bit; ``cos``, ``sin``, ``tan``
-and ``arctan`` are the C library's, as numpy's are where its AVX-512 kernels are not in use
-(the records' numerical environment, `minimaxplan.analysis.numerical_environment`). The
-callers keep the argument checks and the meaning: this module is their arithmetic only.
+They were numpy expressions over small arrays, a few dozen calls each, about a third of a
+highway forecast's time when profiled (2026-12-06). Each performs the same floating-point
+operations in the same order as those expressions did, with numpy's semantics for NaN and
+for ties between signed zeros (`np.minimum` and `np.maximum` return the second argument
+on a tie; `np.fmin` and `np.fmax`, as numpy's vector loops do, too), so the forecast's
+boxes are unchanged to the last bit (`benchmarks/results/commits/273f767dd9c0-de7304f18ee8.md`).
+``cos``, ``sin``, ``tan`` and ``arctan`` are the C library's; numpy's agreed with them bit
+for bit on the AVX2 machine where this was measured, and the records' numerical
+environment (`minimaxplan.analysis.numerical_environment`) keeps numpy off its AVX-512
+kernels, which may not. The callers keep the argument checks and the meaning: this
+module is their arithmetic only.
 
 Layer: numpy and numba only.
 """
