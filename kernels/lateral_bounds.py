@@ -66,6 +66,14 @@ def _fmax(a, b):
 
 
 @njit(cache=True)
+def _same_rows(n, a, b, c, d, e, f, g, h, i):
+    """Whether the nine arrays have ``n`` rows each (any layouts: no tuple to iterate)."""
+    return (a.shape[0] == n and b.shape[0] == n and c.shape[0] == n and d.shape[0] == n and e.shape[0] == n) and (
+        f.shape[0] == n and g.shape[0] == n and h.shape[0] == n and i.shape[0] == n
+    )
+
+
+@njit(cache=True)
 def _round_out(lo, hi, margin):
     """``[lo, hi]`` widened by ``margin (1 + |.|)`` (infinite bounds stay; `traffic_models._out`)."""
     return _fmin(lo, lo - margin * (1.0 + abs(lo))), _fmax(hi, hi + margin * (1.0 + abs(hi)))
@@ -125,7 +133,9 @@ def lateral_remainder_bounds(
         (lo, hi), as `minimaxplan.scenarios.traffic_models.lateral_remainder` documents.
     """
     n = e_lo.shape[0]
-    with_ff = ff_lo.shape[0] > 0
+    if not _same_rows(n, e_hi, c_lo, c_hi, v_lo, v_hi, b_lo, b_hi, q_lo, q_hi):
+        raise ValueError("lateral_remainder_bounds: every bound must have the rows' length")
+    with_ff = ff_lo.shape[0] > 0 or ff_hi.shape[0] > 0
     if with_ff and (ff_lo.shape[0] != n or ff_hi.shape[0] != n):
         raise ValueError("lateral_remainder_bounds: ff_lo and ff_hi must have the rows' length or be empty")
     out = np.empty((8, n))
@@ -220,6 +230,8 @@ def contraction_vertex_box(length, max_steering, e_lo, e_hi, c_lo, c_hi, v_lo, v
     lower, upper : ndarray, shape (n, 6)
     """
     n = e_lo.shape[0]
+    if not _same_rows(n, e_hi, c_lo, c_hi, v_lo, v_hi, b_lo, b_hi, q_lo, q_hi):
+        raise ValueError("contraction_vertex_box: every bound must have the rows' length")
     lower, upper = np.empty((n, 6)), np.empty((n, 6))
     beta_max = _slip(max_steering)
     for i in range(n):
@@ -256,7 +268,7 @@ def metric_radius_bounds(metrics, lo, hi, margin):
     ndarray, shape (n,)
     """
     n = lo.shape[0]
-    if metrics.shape[0] != n or hi.shape[0] != n or lo.shape[1] != 2 or hi.shape[1] != 2:
+    if metrics.shape != (n, 2, 2) or hi.shape[0] != n or lo.shape[1] != 2 or hi.shape[1] != 2:
         raise ValueError("metric_radius_bounds: metrics (n, 2, 2), lo and hi (n, 2) must share n")
     out = np.empty(n)
     for i in range(n):

@@ -71,14 +71,13 @@ _TABLE_RATIO = 1.25
 _TUNE_SPEED_RATIO, _TUNE_OFFSET, _TUNE_HEADING = 1.12, 0.5, 0.1
 
 
-def _vertex_box(dt, length, max_steering, e, chi, v, b1, q):
+def _vertex_box(length, max_steering, e, chi, v, b1, q):
     """The box of ``(s1, s2, g, v, b1, q)`` over the state box, as (lower, upper), each shape (n, 6).
 
     The sector factors' ranges (`minimaxplan.kernels.lateral_bounds.contraction_vertex_box`):
     ``s1 = sinc(chi + beta)`` and ``s2 = sinc(beta)`` from the largest ``|chi| + |beta|``
     and ``|beta|``, ``g = beta(clip(delta_r)) / delta_r`` from the largest ``|delta_r| <=
-    (L / v_lo)(|b1|_max |chi|_max + |q|_max |e|_max)``. ``dt`` is unused (the caller's
-    signature).
+    (L / v_lo)(|b1|_max |chi|_max + |q|_max |e|_max)``.
     """
     rows = [np.ascontiguousarray(bound, dtype=float) for pair in (e, chi, v, b1, q) for bound in pair]
     return contraction_vertex_box(float(length), float(max_steering), *rows)
@@ -185,7 +184,7 @@ def unchecked_contraction_factor(metric, e, chi, v, b1, q, dt: float, vehicle: V
     ndarray, shape (n,)
         As `contraction_factor`.
     """
-    lower, upper = _vertex_box(dt, vehicle.length, vehicle.max_steering, e, chi, v, b1, q)
+    lower, upper = _vertex_box(vehicle.length, vehicle.max_steering, e, chi, v, b1, q)
     lam = contraction_vertex_factor(metric, lower, upper, _CORNERS, float(dt), float(vehicle.length))
     lam = lam * (1.0 + CONTRACTION_MARGIN)
     beta_max = slip_angle(vehicle.max_steering)
@@ -297,7 +296,6 @@ def contraction_metrics(
         v = (np.array([node / _TUNE_SPEED_RATIO]), np.array([node * _TUNE_SPEED_RATIO]))
         q = (np.array([b_lo[1] / v[1][0]]), np.array([b_hi[1] / v[0][0]]))
         lower, upper = _vertex_box(
-            float(dt),
             vehicle.length,
             vehicle.max_steering,
             (np.array([-_TUNE_OFFSET]), np.array([_TUNE_OFFSET])),

@@ -147,11 +147,17 @@ def footprint_box(center_lower, center_upper, psi_lower, psi_upper, vehicle: Veh
     clo = np.asarray(center_lower, dtype=float)
     chi = np.asarray(center_upper, dtype=float)
     plo, phi = np.asarray(psi_lower, dtype=float), np.asarray(psi_upper, dtype=float)
-    shape = np.broadcast_shapes(clo.shape[:-1], chi.shape[:-1], plo.shape, phi.shape)
     if clo.shape[-1:] != (2,) or chi.shape[-1:] != (2,):
         raise DimensionError(
             f"center_lower and center_upper must have shape (..., 2), got shapes {clo.shape} and {chi.shape}"
         )
+    try:
+        shape = np.broadcast_shapes(clo.shape[:-1], chi.shape[:-1], plo.shape, phi.shape)
+    except ValueError:
+        raise DimensionError(
+            "center_lower, center_upper (..., 2), psi_lower and psi_upper must broadcast together, got shapes "
+            f"{clo.shape}, {chi.shape}, {plo.shape} and {phi.shape}"
+        ) from None
     r = 0.5 * np.hypot(vehicle.length, vehicle.width)
     a = np.arctan2(vehicle.width, vehicle.length)
     offsets = np.array([a, -a, np.pi + a, np.pi - a])
@@ -438,7 +444,13 @@ def lateral_remainder(e, chi, v, b1, q, dt: float, vehicle: VehicleParameters = 
     bounds = [e[0], e[1], chi[0], chi[1], v[0], v[1], b1[0], b1[1], q[0], q[1]]
     if ff is not None:
         bounds += [ff[0], ff[1]]
-    arrays = np.broadcast_arrays(*[np.asarray(bound, dtype=float) for bound in bounds])
+    given = [np.asarray(bound, dtype=float) for bound in bounds]
+    try:
+        arrays = np.broadcast_arrays(*given)
+    except ValueError:
+        names = ("e", "chi", "v", "b1", "q", "ff")
+        shapes = ", ".join(f"{names[k // 2]} {given[k].shape} {given[k + 1].shape}" for k in range(0, len(given), 2))
+        raise DimensionError(f"the bounds must broadcast together, got shapes {shapes}") from None
     shape = arrays[0].shape
     e_lo, e_hi, c_lo, c_hi, v_lo, v_hi, b_lo, b_hi, q_lo, q_hi, *feed = [
         np.ascontiguousarray(a.reshape(-1)) for a in arrays

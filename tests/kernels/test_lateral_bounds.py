@@ -75,7 +75,9 @@ def test_contraction_vertex_box_contains_every_states_factors(e, chi, v, b1, q, 
     lower, upper = lb.contraction_vertex_box(length, dmax, *bounds)
     k = 400
     es, cs, vs, bs, qs = (rng.uniform(lo[0], hi[0], k) for lo, hi in zip(bounds[::2], bounds[1::2]))
-    es[:2], cs[:2] = bounds[1], bounds[3]  # the corners of largest |e|, |chi|
+    # the corner of largest |e| and |chi| (where the steering is largest)
+    es[0] = bounds[0][0] if abs(bounds[0][0]) > abs(bounds[1][0]) else bounds[1][0]
+    cs[0] = bounds[2][0] if abs(bounds[2][0]) > abs(bounds[3][0]) else bounds[3][0]
     delta_r = -(length / vs) * (bs * cs + qs * es)
     beta = np.arctan(0.5 * np.tan(np.clip(delta_r, -dmax, dmax)))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -111,6 +113,15 @@ def test_kernels_refuse_rows_of_different_lengths():
     z = np.zeros(2)
     with pytest.raises(ValueError, match="lateral_remainder_bounds"):
         lb.lateral_remainder_bounds(z, z, z, z, z + 1, z + 1, z, z, z, z, np.zeros(1), np.zeros(1), 0.1, 5.0, 0.8, 1e-9)
+    short = np.zeros(1)
+    with pytest.raises(ValueError, match="lateral_remainder_bounds"):
+        lb.lateral_remainder_bounds(
+            z, z, z, z, z + 1, z + 1, z, z, z, short, np.empty(0), np.empty(0), 0.1, 5.0, 0.8, 1e-9
+        )
+    with pytest.raises(ValueError, match="contraction_vertex_box"):
+        lb.contraction_vertex_box(5.0, 0.8, z, z, z, z, z + 1, z + 1, z, z, z, short)
+    with pytest.raises(ValueError, match="metric_radius_bounds"):
+        lb.metric_radius_bounds(np.zeros((2, 3, 3)), np.zeros((2, 2)), np.ones((2, 2)), 1e-9)
 
 
 def test_the_wrappers_broadcast_as_before():
@@ -124,4 +135,8 @@ def test_the_wrappers_broadcast_as_before():
         footprint_box(np.zeros(3), np.zeros(3), 0.0, 0.0)
     r_e, r_c, delta, angle = lateral_remainder((0.1, 0.2), (0.0, 0.05), (10.0, 12.0), (1.0, 1.2), (0.01, 0.02), 0.1)
     assert all(np.shape(x) == () for pair in (r_e, r_c, delta, angle) for x in pair)
+    with pytest.raises(DimensionError, match="psi_lower"):
+        footprint_box(np.zeros((3, 2)), np.ones((3, 2)), np.zeros(4), np.ones(4))
+    with pytest.raises(DimensionError, match=r"q \(3,\)"):
+        lateral_remainder((0.1, 0.2), (0.0, 0.05), (10.0, 12.0), (1.0, 1.2), (np.zeros(3), np.ones(2)), 0.1)
     assert r_e[0] <= r_e[1] and r_c[0] <= r_c[1] and delta[0] <= delta[1]
