@@ -14,7 +14,8 @@ genuine interval, ``g . theta`` ranges exactly over ``[g_lo . theta, g_hi . thet
 two linear inequalities (exact: no relaxation). Coordinates with a point regressor
 (``g_lo = g_hi``) may have any sign (e.g. an auxiliary variable or a linear relation
 between parameters). A hypothesis is consistent with rows iff one ``theta`` in its prior
-box explains all of them: an LP feasibility problem, solved with HiGHS.
+box explains all of them: an LP feasibility problem, solved with HiGHS (a single row in
+closed form, exactly: the dual of its margin LP has one free weight).
 
 Verdicts are proven both ways, as `minimaxplan.verify.eliminate_models` does:
 ``"consistent"`` only with a witness ``theta`` re-checked with numpy on every row,
@@ -227,7 +228,9 @@ class _Scaled:
         self.theta_scale = _check_prior(rows, prior)
         glo, ghi, ylo, yhi = rows.regressor_low, rows.regressor_high, rows.target_low, rows.target_high
         y_abs = np.maximum(np.where(np.isfinite(ylo), np.abs(ylo), 0.0), np.where(np.isfinite(yhi), np.abs(yhi), 0.0))
-        beta = np.maximum(np.abs(glo), np.abs(ghi)) @ self.theta_scale + y_abs
+        # a coordinate fixed at 0 adds nothing to a row's magnitude, whatever its regressor's units
+        theta_max = np.maximum(np.abs(prior.low), np.abs(prior.high))
+        beta = np.maximum(np.abs(glo), np.abs(ghi)) @ theta_max + y_abs
         self.beta = np.where(beta > 0, beta, 1.0)
         upper, lower = np.isfinite(yhi), np.isfinite(ylo)
         # upper rows: g_lo . theta <= y_hi;  lower rows: -g_hi . theta <= -y_lo
@@ -298,6 +301,85 @@ def _solve(scaled: _Scaled, objective: np.ndarray, margin: float | None) -> tupl
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(mu))):
         raise SolverFailure(f"HiGHS returned non-finite values on the interval-regression LP over {m} inequalities")
     return x[:d], (float(x[d]) if margin is None else float(margin)), mu[:m]
+
+
+def _dual_value(scaled: _Scaled, weight: float) -> float:
+    """``min_t sum_j mu_j (a_j . t - b_j)`` over the box for two inequalities, ``mu = (weight, 1 - weight)``."""
+    c = weight * scaled.a[0] + (1.0 - weight) * scaled.a[1]
+    return float(
+        np.sum(np.minimum(c * scaled.low, c * scaled.high)) - (weight * scaled.b[0] + (1.0 - weight) * scaled.b[1])
+    )
+
+
+def _balance(scaled: _Scaled, t: np.ndarray, free: np.ndarray, goal: str) -> np.ndarray:
+    """Move the free coordinates of ``t`` inside the box so that ``d(t) = (a_0 - a_1) . t - (b_0 - b_1)`` is
+    largest (``goal="max"``), smallest (``"min"``) or 0 (``"zero"``, or the end nearest 0 if 0 is not reached).
+
+    Every such ``t`` minimises the dual combination at the chosen weight (the free coordinates are those
+    whose coefficient vanishes there); the goal picks among them the one with the smallest larger side.
+    """
+    diff = scaled.a[0] - scaled.a[1]
+    t = t.copy()
+    up = np.where(diff > 0, scaled.high, scaled.low)  # the end raising d
+    down = np.where(diff > 0, scaled.low, scaled.high)
+    if goal == "max":
+        t[free] = up[free]
+        return t
+    t[free] = down[free]
+    if goal == "min":
+        return t
+    offset = scaled.b[0] - scaled.b[1]
+    value = float(diff @ t - offset)
+    for i in np.flatnonzero(free):
+        if value >= 0.0:
+            break
+        gain = diff[i] * (up[i] - down[i])
+        if value + gain >= 0.0 and gain > 0.0:
+            t[i] = min(max(down[i] - value / diff[i], min(down[i], up[i])), max(down[i], up[i]))
+            break
+        t[i] = up[i]
+        value += gain
+    return t
+
+
+def _solve_single_row(scaled: _Scaled) -> tuple[np.ndarray, float, np.ndarray]:
+    """The margin LP of `interval_consistency` for one row (one or two inequalities), in closed form.
+
+    With one inequality ``a . t <= b`` the optimum is ``min_t a . t - b``, at a vertex. With two
+    (the row's two sides), by LP duality ``s* = max_w phi(w)``, ``phi(w) = min_t (w a_0 + (1 - w) a_1) . t
+    - w b_0 - (1 - w) b_1`` over ``w`` in [0, 1]: a concave piecewise-linear function whose kinks are
+    where one coordinate's coefficient changes sign, so its maximum is at 0, 1 or a kink, and every
+    candidate is evaluated. The multipliers are ``(w*, 1 - w*)``; the primal ``t`` minimises the
+    combination at ``w*`` and, among those minimisers, balances the two sides (`_balance`), which makes
+    it optimal (0 is a subgradient of phi at an interior ``w*``). Returns ``(t, s, mu)`` as `_solve`,
+    ``s`` floored at ``-WITNESS_DEPTH``. Nothing here is trusted: `interval_consistency` re-checks the
+    witness on the row and recomputes the bound from the multipliers, as for HiGHS's answer.
+    """
+    low, high = scaled.low, scaled.high
+    if scaled.a.shape[0] == 1:
+        c = scaled.a[0]
+        t = np.where(c > 0, low, np.where(c < 0, high, (low + high) / 2))
+        return t, max(float(c @ t - scaled.b[0]), -WITNESS_DEPTH), np.ones(1)
+    a0, a1 = scaled.a
+    diff = a0 - a1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kinks = np.where(diff != 0.0, -a1 / diff, np.nan)
+    inside = np.isfinite(kinks) & (kinks > 0.0) & (kinks < 1.0)
+    candidates = np.concatenate([[0.0, 1.0], kinks[inside]])
+    values = [_dual_value(scaled, float(w)) for w in candidates]
+    best = int(np.argmax(values))
+    weight = float(candidates[best])
+    c = weight * a0 + (1.0 - weight) * a1
+    free = c == 0.0
+    if best >= 2:
+        free |= inside & (kinks == weight)
+    t = np.where(c > 0, low, high)
+    goal = "min" if weight == 0.0 else "max" if weight == 1.0 else "zero"
+    t = _balance(scaled, t, free, goal)
+    unused = (a0 == 0.0) & (a1 == 0.0)
+    t[unused] = (low[unused] + high[unused]) / 2
+    s = float(np.max(scaled.a @ t - scaled.b))
+    return t, max(s, -WITNESS_DEPTH), np.array([weight, 1.0 - weight])
 
 
 @dataclass(frozen=True, eq=False)
@@ -372,7 +454,7 @@ class IntervalVerdict:
     witness : numpy.ndarray
         Shape (d,): the LP's parameter, in the prior box.
     margin : float
-        HiGHS's optimum of the margin LP (dimensionless).
+        The optimum of the margin LP (dimensionless): HiGHS's, or the closed form's for one row.
     upper : float
         The margin the witness needs on every row, recomputed with numpy (>= 0).
     lower : float
@@ -465,7 +547,7 @@ def interval_consistency(
     InputError, DimensionError
         A prior of the wrong size, or reaching below 0 where a regressor is an interval.
     SolverFailure
-        HiGHS returned any status but optimal.
+        HiGHS returned any status but optimal (on two rows or more).
 
     Notes
     -----
@@ -480,14 +562,17 @@ def interval_consistency(
     re-checked with numpy; the multipliers ``mu >= 0``, normalised to ``sum mu = 1``,
     give ``s >= sum mu (row(theta))`` for every feasible ``(theta, s)``, hence
     ``s* >= min_theta sum mu row(theta)`` (weak duality, minimised over the box in
-    closed form and rounded down).
+    closed form and rounded down). A single row (one or two inequalities, the common case of a
+    streaming check) is solved without HiGHS, in closed form (`_solve_single_row`: the dual's one
+    weight is maximised over its finitely many kinks); its witness and multipliers are re-checked
+    exactly as HiGHS's are.
     """
     check_instance("rows", rows, IntervalRows)
     tol = as_positive_scalar("tolerance", tolerance)
     allowance = as_positive_scalar("rounding_allowance", rounding_allowance, allow_zero=True)
     scaled = _Scaled(rows, prior, allowance)
     d = rows.nparams
-    t, s, mu = _solve(scaled, np.zeros(d), None)
+    t, s, mu = _solve_single_row(scaled) if rows.nrows == 1 else _solve(scaled, np.zeros(d), None)
     witness = np.clip(t * scaled.theta_scale, prior.low, prior.high)
     upper = float(max(np.max(scaled.needed(witness), initial=0.0), 0.0))
     lower = scaled.lower_bound(mu, np.zeros(d), 0.0, True) if mu.size else -np.inf

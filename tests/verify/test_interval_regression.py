@@ -137,3 +137,85 @@ def test_bad_inputs_are_rejected():
         interval_consistency(rows, PRIOR)
     # rows infinite on both sides say nothing and are dropped
     assert IntervalRows([[0.0, 1.0]], [[1.0, 1.0]], [-np.inf], [np.inf]).nrows == 0
+
+
+@st.composite
+def _single_rows(draw):
+    """One row in random units: interval and point regressors, targets one- or two-sided, thin or wide."""
+    seed = draw(st.integers(0, 2**31 - 1))
+    rng = np.random.default_rng(seed)
+    d = int(rng.integers(1, 7))
+    low = rng.uniform(0, 1, d) * (rng.random(d) < 0.8)
+    high = low + rng.uniform(0, 2, d) * (rng.random(d) < 0.9)
+    g = rng.normal(size=(1, d)) * 10 ** rng.uniform(-3, 3)
+    g[0, rng.random(d) < 0.15] = 0.0
+    half = rng.uniform(0, 1, (1, d)) * (rng.random((1, d)) < 0.7) * np.abs(g).max(initial=1.0)
+    y = float(rng.normal() * 10 ** rng.uniform(-3, 3))
+    width = float(abs(rng.normal()) * 10 ** rng.uniform(-6, 2))
+    sides = draw(st.sampled_from(["both", "upper", "lower"]))
+    y_lo = -np.inf if sides == "upper" else y - width
+    y_hi = np.inf if sides == "lower" else y + width
+    return IntervalRows(g - half, g + half, [y_lo], [y_hi]), Box(low, high)
+
+
+@settings(max_examples=300, deadline=None)
+@given(case=_single_rows())
+def test_single_row_closed_form_is_the_lp_optimum(case):
+    """One row is solved in closed form: its margin is HiGHS's optimum of the same LP, and both
+    proofs hold (the witness needs what the margin says; the multipliers bound it from below)."""
+    from minimaxplan.verify.interval_regression import _Scaled, _solve, _solve_single_row
+
+    rows, prior = case
+    scaled = _Scaled(rows, prior, 1e-9)
+    t, s, mu = _solve_single_row(scaled)
+    _, s_highs, _ = _solve(scaled, np.zeros(rows.nparams), None)
+    assert s == pytest.approx(s_highs, abs=1e-9)
+    assert np.all(t >= scaled.low) and np.all(t <= scaled.high)
+    assert float(np.max(scaled.needed(t * scaled.theta_scale))) <= max(s, 0.0) + 1e-12 or s == -1.0
+    assert scaled.lower_bound(mu, np.zeros(rows.nparams), 0.0, True) == pytest.approx(s_highs, abs=1e-9) or s == -1.0
+    verdict = interval_consistency(rows, prior)
+    if verdict.eliminated:
+        assert verdict.certificate.recheck(rows, prior) > INTERVAL_ELIMINATION_MARGIN
+    else:
+        assert verdict.status == "consistent"
+        assert witness_margin(rows, prior, verdict.witness) <= INTERVAL_ELIMINATION_MARGIN
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), extreme=st.booleans())
+def test_single_row_never_eliminates_its_true_parameter(seed, extreme):
+    """A row made by a parameter of the prior (at the ends of every interval if extreme) is explained."""
+    rng = np.random.default_rng(seed)
+    theta = rng.uniform(PRIOR.low, PRIOR.high)
+    if extreme:
+        theta = np.where(rng.random(3) < 0.5, PRIOR.low, PRIOR.high)
+    rows = _rows(rng, theta, 1, extreme=extreme, width=rng.choice([0.0, 0.5]), noise=rng.choice([0.0, 0.2]))
+    verdict = interval_consistency(rows, PRIOR)
+    assert verdict.status == "consistent"
+    assert witness_margin(rows, PRIOR, verdict.witness) <= INTERVAL_ELIMINATION_MARGIN
+
+
+@settings(max_examples=100, deadline=None)
+@given(case=_single_rows())
+def test_single_row_verdict_does_not_depend_on_units(case):
+    rows, prior = case
+    rng = np.random.default_rng(rows.nparams)
+    r = 10.0 ** rng.uniform(-3, 3, size=1)
+    c = 10.0 ** rng.uniform(-2, 2, size=rows.nparams)
+    a = interval_consistency(rows, prior)
+    b = interval_consistency(rows.scaled(r, c), Box(prior.low * c, prior.high * c))
+    assert a.status == b.status
+    assert a.margin == pytest.approx(b.margin, abs=1e-9)
+
+
+def test_a_parameter_fixed_at_zero_leaves_the_margin_unit_free():
+    """A coordinate whose prior is [0, 0] adds nothing to a row's magnitude, in any units of its regressor."""
+    rng = np.random.default_rng(3)
+    prior = Box([0.15, 0.0, 1.0], [0.45, 0.0, 3.0])
+    rows = _rows(rng, np.array([0.3, 0.0, 2.0]), 12, extreme=False)
+    rows = IntervalRows(rows.regressor_low, rows.regressor_high, rows.target_low + 3.0, rows.target_high + 3.0)
+    c = np.array([1.0, 1e-3, 1.0])
+    a = interval_consistency(rows, prior)
+    b = interval_consistency(rows.scaled(np.ones(rows.nrows), c), Box(prior.low * c, prior.high * c))
+    assert a.margin > 1e-3  # shifted rows: a margin worth comparing
+    assert a.status == b.status and a.margin == pytest.approx(b.margin, rel=1e-9)
