@@ -894,9 +894,10 @@ class TrafficLearner:
         `forecast_traffic` covers as a switch at its step 0, under the gap rule), or it
         was chosen earlier and was in force on the last transition. The second case is
         refuted by that one transition's row (the rows of a window of length 1, built as
-        `_lateral_rows` builds them) when the certified LP finds it inconsistent with
-        every theta_b of the prior; the hypothesis then stays alive (it may start now)
-        but is not an intention in force.
+        `_lateral_rows` builds them) when `interval_consistency` proves it inconsistent
+        with every theta_b of the prior (one row: its margin LP in closed form, the
+        certificate re-checked as for HiGHS's); the hypothesis then stays alive (it may
+        start now) but is not an intention in force.
         """
         step = self.step
         if h.tstar < step:

@@ -152,7 +152,7 @@ def _single_rows(draw):
     half = rng.uniform(0, 1, (1, d)) * (rng.random((1, d)) < 0.7) * np.abs(g).max(initial=1.0)
     y = float(rng.normal() * 10 ** rng.uniform(-3, 3))
     width = float(abs(rng.normal()) * 10 ** rng.uniform(-6, 2))
-    sides = draw(st.sampled_from(["both", "upper", "lower"]))
+    sides = draw(st.sampled_from(["both", "both", "both", "upper", "lower"]))  # two sides: the dual has a weight
     y_lo = -np.inf if sides == "upper" else y - width
     y_hi = np.inf if sides == "lower" else y + width
     return IntervalRows(g - half, g + half, [y_lo], [y_hi]), Box(low, high)

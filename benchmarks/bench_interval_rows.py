@@ -1,0 +1,190 @@
+"""One interval row: the closed-form verdict against HiGHS on the same margin LP, on the learner's own rows.
+
+The traffic learner (`minimaxplan.analysis.traffic_learning`) checks, for every vehicle and
+lane-change intention whose last possible switch is now, whether the one transition just
+observed rules it out (`TrafficLearner._in_force_before_now`), and it checks a new
+hypothesis's first row. Both are `interval_consistency` on one row, which solves that row's
+margin LP in closed form (`_solve_single_row`). This benchmark records every one-row call of a
+few robust episodes in both road worlds (real rows, real priors), then times, in the same run
+and process, on the same rows:
+
+* ours: `interval_consistency` as shipped (closed form, witness and certificate re-checked);
+* the reference: the same function with the margin LP handed to HiGHS (`linprog`, as for two
+  rows or more), everything else identical.
+
+Asserted on every row: the same status, margins equal to 1e-9 (they are dimensionless), and
+the certificate of every elimination re-checks above the tolerance. Also timed: the learner's
+share of those episodes' CPU time with each solver. Writes benchmarks/results/interval_rows.md
+and .json.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import pathlib
+import platform
+import time
+
+import numpy as np
+
+import minimaxplan.verify.interval_regression as interval_regression
+from minimaxplan.analysis.episode import run_episode
+from minimaxplan.analysis.traffic_learning import TrafficLearner
+
+RESULTS = pathlib.Path(__file__).parent / "results"
+EPISODES = {"highway": (0, 1), "tjunction": (0, 1)}
+REPEATS = 5
+
+
+def _highs_single_row(scaled):
+    """The reference: the same margin LP solved by HiGHS."""
+    return interval_regression._solve(scaled, np.zeros(scaled.a.shape[1]), None)
+
+
+class _UseHighs:
+    """Within this context `interval_consistency` hands one-row LPs to HiGHS (the reference)."""
+
+    def __enter__(self):
+        self.closed_form = interval_regression._solve_single_row
+        interval_regression._solve_single_row = _highs_single_row
+
+    def __exit__(self, *exc):
+        interval_regression._solve_single_row = self.closed_form
+
+
+def _record_rows() -> tuple[dict, dict]:
+    """Every one-row call of the episodes, per world, and the learner's CPU seconds with each solver."""
+    original = interval_regression.interval_consistency
+    import minimaxplan.analysis.traffic_learning as traffic_learning
+
+    calls: dict = {world: [] for world in EPISODES}
+    learner: dict = {world: {"ours": 0.0, "reference": 0.0, "decisions": 0} for world in EPISODES}
+    current = {"world": None, "side": "ours"}
+
+    def recording(rows, prior, **kwargs):
+        if rows.nrows == 1 and current["side"] == "ours":
+            calls[current["world"]].append((rows, prior))
+        return original(rows, prior, **kwargs)
+
+    methods = (TrafficLearner.observe, TrafficLearner.beliefs)
+
+    def timed(function):
+        def wrapper(*args, **kwargs):
+            start = time.process_time()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                learner[current["world"]][current["side"]] += time.process_time() - start
+
+        return wrapper
+
+    traffic_learning.interval_consistency = recording
+    TrafficLearner.observe, TrafficLearner.beliefs = (timed(m) for m in methods)
+    try:
+        run_episode("highway", "robust", 10000)  # compile the numba kernels outside the clock
+        for world, seeds in EPISODES.items():
+            current["world"] = world
+            for seed in seeds:
+                current["side"] = "ours"
+                record = run_episode(world, "robust", seed)
+                learner[world]["decisions"] += record.decisions
+                current["side"] = "reference"
+                with _UseHighs():
+                    again = run_episode(world, "robust", seed)
+                if (again.outcome, again.time_s, again.discounted_return) != (
+                    record.outcome,
+                    record.time_s,
+                    record.discounted_return,
+                ):
+                    raise AssertionError(f"{world} seed {seed}: the episode differs with HiGHS on one row")
+    finally:
+        traffic_learning.interval_consistency = original
+        TrafficLearner.observe, TrafficLearner.beliefs = methods
+    return calls, learner
+
+
+def _best(cases: list, repeats: int) -> float:
+    """The least CPU seconds of ``repeats`` passes of `interval_consistency` over ``cases``."""
+    best = np.inf
+    for _ in range(repeats):
+        start = time.process_time()
+        for rows, prior in cases:
+            interval_regression.interval_consistency(rows, prior)
+        best = min(best, time.process_time() - start)
+    return best
+
+
+def main() -> dict:
+    started = time.perf_counter()
+    calls, learner = _record_rows()
+    consistency = interval_regression.interval_consistency
+    tolerance = interval_regression.INTERVAL_ELIMINATION_MARGIN
+    rows_out = []
+    for world, cases in calls.items():
+        ours = [consistency(r, p) for r, p in cases]
+        with _UseHighs():
+            reference = [consistency(r, p) for r, p in cases]
+        for (rows, prior), a, b in zip(cases, ours, reference):
+            assert a.status == b.status, (a.to_dict(), b.to_dict())
+            assert abs(a.margin - b.margin) <= 1e-9, (a.margin, b.margin)
+            if a.eliminated:
+                assert a.certificate.recheck(rows, prior) > tolerance
+        ours_s = _best(cases, REPEATS)
+        with _UseHighs():
+            reference_s = _best(cases, REPEATS)
+        n = max(len(cases), 1)
+        per_decision = {
+            side: 1e3 * learner[world][side] / max(learner[world]["decisions"], 1) for side in ("ours", "reference")
+        }
+        rows_out.append(
+            {
+                "world": world,
+                "rows": len(cases),
+                "eliminated": int(sum(v.eliminated for v in ours)),
+                "ours_us": 1e6 * ours_s / n,
+                "reference_us": 1e6 * reference_s / n,
+                "ratio": reference_s / ours_s if ours_s > 0 else float("nan"),
+                "max_margin_difference": float(
+                    max((abs(a.margin - b.margin) for a, b in zip(ours, reference)), default=0.0)
+                ),
+                "learner_ms_per_decision": per_decision,
+                "decisions": learner[world]["decisions"],
+            }
+        )
+    machine = f"{platform.machine()} {platform.processor() or ''} {platform.python_implementation()} {platform.python_version()}".strip()
+    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    load = os.getloadavg()[0]
+    total = time.perf_counter() - started
+    lines = [
+        "# One interval row: closed-form verdict against HiGHS, on the learner's own rows",
+        "",
+        f"Machine: {machine}; date: {date}; load {load:.1f}; run time {total:.0f} s. Rows: every one-row "
+        f"`interval_consistency` call of robust episodes {EPISODES}; CPU time, best of {REPEATS} passes over "
+        "all rows, both sides in the same process. Statuses equal and margins within 1e-9 on every row (asserted); "
+        "every elimination's certificate re-checked.",
+        "",
+        "| world | one-row verdicts | eliminated | closed form (us / verdict) | HiGHS (us / verdict) | ratio | max margin difference | learner, closed form (ms / decision) | learner, HiGHS (ms / decision) |",
+        "|---|---|---|---|---|---|---|---|---|",
+        *[
+            f"| {r['world']} | {r['rows']} | {r['eliminated']} | {r['ours_us']:.0f} | {r['reference_us']:.0f} | "
+            f"{r['ratio']:.1f}x | {r['max_margin_difference']:.1e} | {r['learner_ms_per_decision']['ours']:.1f} | "
+            f"{r['learner_ms_per_decision']['reference']:.1f} |"
+            for r in rows_out
+        ],
+        "",
+        "The learner's columns time `TrafficLearner.observe` and `beliefs` over the same episodes, run once with "
+        "each solver (the episodes' outcomes, times and returns are asserted equal); each is one run, not a best of.",
+    ]
+    text = "\n".join(lines) + "\n"
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "interval_rows.md").write_text(text)
+    results = {"machine": machine, "date": date, "load": load, "run_seconds": total, "worlds": rows_out}
+    (RESULTS / "interval_rows.json").write_text(json.dumps(results, indent=2) + "\n")
+    print(text)
+    return results
+
+
+if __name__ == "__main__":
+    main()
