@@ -15,7 +15,17 @@ clear longest (the first in the search's order when several are):
 each ``fine`` or ``coarse`` by the forecast's ``guaranteed`` flag at that sub-step (and, if
 coarse, the sub-step from which it is).
 A decision may count for both kinds. The diagnosis reads the method's forecasts and the
-observation only (the measured positions are exact in highway-env).
+observation only (the measured positions are exact in highway-env). A vehicle coarse from
+the observation itself gets the largest heading error ``|chi|`` of its belief's lanes at
+its measured position (the fine model holds for ``|chi| <= CHI_MAX``): at the intersection
+the beliefs are the priors of each observation (`prior_belief`: every lane whose strip
+holds the centre), which inside the junction include lanes crossing the vehicle's path.
+
+``--lane-history`` (diagnosis only, not the registered method) restricts each vehicle's
+prior lanes, from its second observation on, to those of its previous sub-step, their
+successors and their predecessors (sound while highway-env's vehicles move along their
+lanes' successions, reversing included, by less than a lane per sub-step), to measure
+what the crossing lanes cost.
 
 Usage::
 
@@ -26,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import dataclasses
 import pathlib
 import time
 
@@ -36,6 +47,8 @@ from minimaxplan.analysis.arguments import count_list
 from minimaxplan.analysis.episode import run_episode
 
 ENV = "highway-env:intersection-v0"
+#: Every removal made by ``--lane-history`` (lanes taken out of a prior; priors left whole).
+LANE_HISTORY = collections.Counter()
 #: A vehicle is the ego's follower when its heading is within this of the ego's (rad) ...
 SAME_HEADING = 0.3
 #: ... and its centre within this of the ego's line (m: half of highway-env's 4 m lane).
@@ -50,12 +63,71 @@ def _follower(ego: np.ndarray, other: np.ndarray) -> bool:
     return heading < SAME_HEADING and abs(float(d @ np.array([-u[1], u[0]]))) < SAME_LINE and float(d @ u) < 0.0
 
 
-def trace(seed: int) -> tuple[str, collections.Counter, list[str]]:
+def _largest_heading_error(road, lanes, state: np.ndarray) -> float:
+    """The largest ``|chi|`` (rad) of a measured state against the lanes, at its projection on each."""
+    errors = []
+    for lane in lanes:
+        s, _ = road.frenet(np.array([lane]), np.array([state[0]]), np.array([state[1]]))
+        heading = float(road.heading_at(lane, float(np.clip(s[0], 0.0, road.lengths[lane]))))
+        errors.append(abs(float(np.angle(np.exp(1j * (state[3] - heading))))))
+    return max(errors, default=0.0)
+
+
+def _neighbour_lanes(road, lanes) -> set:
+    """``lanes``, their successors and their predecessors."""
+    out = set(lanes)
+    for lane in range(len(road)):
+        following = set(road.successors(lane))
+        if lane in lanes:
+            out |= following
+        if following & set(lanes):
+            out.add(lane)
+    return out
+
+
+def _lane_history_beliefs(method, observation) -> dict:
+    """The priors of ``observation`` with each vehicle's lanes restricted by its previous sub-step's."""
+    adapter = method.world.adapter
+    history = method.__dict__.setdefault("_lane_history", {})
+    beliefs = {}
+    for agent, state in zip(np.asarray(observation.ids).tolist(), np.asarray(observation.vehicles, dtype=float)):
+        prior = adapter.prior(agent, state)
+        previous = history.get(agent)
+        lanes = set(prior.lanes)
+        if previous is not None and abs(previous[0] - observation.time) < 1e-9:
+            lanes = set(previous[1])
+        elif previous is not None and abs(observation.time - previous[0] - adapter.dt) < 1e-6:
+            kept = lanes & _neighbour_lanes(adapter.road, previous[1])
+            if kept:
+                LANE_HISTORY["lanes removed"] += len(lanes) - len(kept)
+                lanes = kept
+            else:
+                LANE_HISTORY["priors left whole"] += 1
+        history[agent] = (observation.time, frozenset(lanes))
+        beliefs[agent] = dataclasses.replace(prior, lanes=tuple(sorted(lanes)))
+    return beliefs
+
+
+def trace(seed: int, lane_history: bool = False) -> tuple[str, collections.Counter, list[str]]:
     """One robust episode: its outcome, the counts of verdicts per decision, and one line per decision."""
     counts: collections.Counter = collections.Counter()
     lines: list[str] = []
     captured: dict = {}
     sequence_reach, forecast, decide = hes.sequence_reach, hes.HighwayEnvRobustMethod.forecast, hes._SearchMethod.decide
+    observe, beliefs = hes.HighwayEnvRobustMethod.observe, hes.HighwayEnvRobustMethod._beliefs
+
+    def observe_lanes(self, transition):
+        observe(self, transition)
+        _lane_history_beliefs(self, transition.next_measured)
+
+    def history_beliefs(self, observation):
+        captured["beliefs"] = _lane_history_beliefs(self, observation)
+        return captured["beliefs"]
+
+    def prior_beliefs(self, observation):
+        result = beliefs(self, observation)
+        captured["beliefs"] = result
+        return result
 
     def keep_reach(trajectories, vehicle):
         out = sequence_reach(trajectories, vehicle)
@@ -97,6 +169,10 @@ def trace(seed: int) -> tuple[str, collections.Counter, list[str]]:
             kinds.add(f"{role}, {grade}")
             lost = np.flatnonzero(~np.asarray(fc.guaranteed[:, j], dtype=bool))
             since = f", coarse from {lost[0] * fc.dt:.1f} s" if lost.size else ""
+            if lost.size and lost[0] == 0 and agent in states:
+                adapter = self.world.adapter
+                belief = captured["beliefs"].get(agent) or adapter.prior(agent, states[agent])
+                since += f" (its lanes' largest \\|chi\\| {_largest_heading_error(adapter.road, belief.lanes, states[agent]):.2f} rad)"
             at = f" at {states[agent][0]:.0f}, {states[agent][1]:.0f}" if agent in states else ""
             who.append(
                 f"{agent}{at} {role} {grade}{since}, v [{fc.state_lower[k, j, 2]:.1f}, {fc.state_upper[k, j, 2]:.1f}]"
@@ -113,12 +189,18 @@ def trace(seed: int) -> tuple[str, collections.Counter, list[str]]:
     hes.sequence_reach = keep_reach
     hes.HighwayEnvRobustMethod.forecast = keep_forecast
     hes._SearchMethod.decide = probe
+    if lane_history:
+        hes.HighwayEnvRobustMethod.observe = observe_lanes
+        hes.HighwayEnvRobustMethod._beliefs = history_beliefs
+    else:
+        hes.HighwayEnvRobustMethod._beliefs = prior_beliefs
     try:
         record = run_episode(ENV, "robust", seed)
     finally:
         hes.sequence_reach = sequence_reach
         hes.HighwayEnvRobustMethod.forecast = forecast
         hes._SearchMethod.decide = decide
+        hes.HighwayEnvRobustMethod.observe, hes.HighwayEnvRobustMethod._beliefs = observe, beliefs
     return record.outcome, counts, lines
 
 
@@ -127,6 +209,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", required=True, type=count_list(0), help="comma-separated episode seeds, each >= 0")
     parser.add_argument("--out", default="benchmarks/results/trace_highway_env_stalls.md")
+    parser.add_argument(
+        "--lane-history",
+        action="store_true",
+        help="diagnosis only: restrict each vehicle's prior lanes by its previous sub-step's (see the docstring)",
+    )
     args = parser.parse_args()
     start = time.time()
     total: collections.Counter = collections.Counter()
@@ -139,7 +226,7 @@ def main() -> None:
         "|---:|---:|---|---|---|",
     ]
     for seed in args.seeds:
-        outcome, counts, lines = trace(seed)
+        outcome, counts, lines = trace(seed, args.lane_history)
         total.update(counts)
         n = counts["free"] + counts["blocked"]
         cells = [
@@ -154,11 +241,19 @@ def main() -> None:
     n = total["free"] + total["blocked"]
     cells = [total[f"blocked: {k}"] for k in ("follower, fine", "follower, coarse", "other, fine", "other, coarse")]
     summary.append(f"| all | | {n} | {total['free']} | {total['blocked']} | " + " | ".join(map(str, cells)) + " |")
+    variant = " (diagnosis: lanes restricted by their history)" if args.lane_history else ""
+    removed = (
+        f"Lane history: {LANE_HISTORY['lanes removed']} lanes removed from priors, "
+        f"{LANE_HISTORY['priors left whole']} priors left whole.\n\n"
+        if args.lane_history
+        else ""
+    )
     text = (
-        f"# Robust on {ENV}: what blocks each decision\n\n"
+        f"# Robust on {ENV}: what blocks each decision{variant}\n\n"
         + "\n".join(summary)
         + f"\n\n{len(args.seeds)} episodes, {time.time() - start:.0f} s wall "
         + f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}).\n\n"
+        + removed
         + "\n".join(detail)
         + "\n"
     )

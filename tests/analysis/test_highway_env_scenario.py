@@ -595,11 +595,36 @@ def test_stall_trace_counts_every_decision_and_restores_the_method(benchmark_scr
     module = benchmark_script("trace_highway_env_stalls")
     from minimaxplan.analysis import highway_env_scenario as hes
 
-    before = (hes.sequence_reach, hes.HighwayEnvRobustMethod.forecast, hes._SearchMethod.decide)
+    def patched():
+        return (
+            hes.sequence_reach,
+            hes.HighwayEnvRobustMethod.forecast,
+            hes._SearchMethod.decide,
+            hes.HighwayEnvRobustMethod.observe,
+            hes.HighwayEnvRobustMethod._beliefs,
+        )
+
+    before = patched()
     outcome, counts, lines = module.trace(2)
-    assert (hes.sequence_reach, hes.HighwayEnvRobustMethod.forecast, hes._SearchMethod.decide) == before
+    assert patched() == before
     assert outcome in ("goal", "timeout", "collision")
     assert counts["free"] + counts["blocked"] == len(lines) > 0
     kinds = sum(v for k, v in counts.items() if k.startswith("blocked: "))
     assert counts["blocked"] <= kinds  # every blocked decision names at least one kind of box
     assert all(("blocked at" in line) == (" free " not in line) for line in lines)
+
+
+def test_stall_trace_lane_history_keeps_neighbours_and_measures_heading_errors(benchmark_script):
+    """`--lane-history` keeps a lane, its successors and its predecessors, nothing else; the heading
+    error of a state against a lane is 0 along it and pi against it."""
+    from minimaxplan.scenarios.road import Road, StraightLane
+
+    module = benchmark_script("trace_highway_env_stalls")
+    # 0 -> 1 -> 2 in a row, and 3 apart, all straight, 10 m long, heading +x
+    lanes = tuple(StraightLane((x, y), (x + 10.0, y)) for x, y in ((0.0, 0.0), (10.0, 0.0), (20.0, 0.0), (0.0, 20.0)))
+    road = Road(lanes, ("a", "b", "c", "d"), connections=((0, 1), (1, 2)))
+    assert module._neighbour_lanes(road, {1}) == {0, 1, 2}
+    assert module._neighbour_lanes(road, {0}) == {0, 1}
+    assert module._neighbour_lanes(road, {3}) == {3}
+    assert module._largest_heading_error(road, [0], np.array([5.0, 0.0, 5.0, 0.0])) == pytest.approx(0.0)
+    assert module._largest_heading_error(road, [0, 3], np.array([5.0, 0.0, 5.0, np.pi])) == pytest.approx(np.pi)
