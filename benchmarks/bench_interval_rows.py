@@ -13,7 +13,8 @@ and process, on the same rows:
   rows or more), everything else identical.
 
 Asserted on every row: the same status, margins equal to 1e-9 (they are dimensionless), and
-the certificate of every elimination re-checks above the tolerance. Also timed: the learner's
+the certificate of every elimination re-checks above the tolerance; every parameter box the learner
+fits in the episodes is the same bits with either solver. Also timed: the learner's
 share of those episodes' CPU time with each solver. Writes benchmarks/results/interval_rows.md
 and .json.
 """
@@ -60,8 +61,15 @@ def _record_rows() -> tuple[dict, dict]:
     import minimaxplan.analysis.traffic_learning as traffic_learning
 
     calls: dict = {world: [] for world in EPISODES}
-    learner: dict = {world: {"ours": 0.0, "reference": 0.0, "decisions": 0} for world in EPISODES}
+    learner: dict = {world: {"ours": 0.0, "reference": 0.0, "decisions": 0, "boxes": 0} for world in EPISODES}
     current = {"world": None, "side": "ours"}
+    boxes: dict = {"ours": [], "reference": []}
+    fit = TrafficLearner._box
+
+    def keep_box(self, rows, prior, old, coordinates=None):
+        box = fit(self, rows, prior, old, coordinates)
+        boxes[current["side"]].append(b"" if box is None else box.low.tobytes() + box.high.tobytes())
+        return box
 
     def recording(rows, prior, **kwargs):
         if rows.nrows == 1 and current["side"] == "ours":
@@ -82,6 +90,7 @@ def _record_rows() -> tuple[dict, dict]:
 
     traffic_learning.interval_consistency = recording
     TrafficLearner.observe, TrafficLearner.beliefs = (timed(m) for m in methods)
+    TrafficLearner._box = keep_box
     try:
         current["world"] = "highway"
         run_episode("highway", "robust", 10000)  # compile the numba kernels outside the clock
@@ -91,6 +100,8 @@ def _record_rows() -> tuple[dict, dict]:
             current["world"] = world
             for seed in seeds:
                 current["side"] = "ours"
+                boxes["ours"].clear()
+                boxes["reference"].clear()
                 record = run_episode(world, "robust", seed)
                 learner[world]["decisions"] += record.decisions
                 current["side"] = "reference"
@@ -102,9 +113,13 @@ def _record_rows() -> tuple[dict, dict]:
                     record.discounted_return,
                 ):
                     raise AssertionError(f"{world} seed {seed}: the episode differs with HiGHS on one row")
+                if boxes["ours"] != boxes["reference"]:
+                    raise AssertionError(f"{world} seed {seed}: a parameter box differs with HiGHS on one row")
+                learner[world]["boxes"] += len(boxes["ours"])
     finally:
         traffic_learning.interval_consistency = original
         TrafficLearner.observe, TrafficLearner.beliefs = methods
+        TrafficLearner._box = fit
     return calls, learner
 
 
@@ -154,6 +169,7 @@ def main() -> dict:
                 ),
                 "learner_ms_per_decision": per_decision,
                 "decisions": learner[world]["decisions"],
+                "parameter_boxes_identical": learner[world]["boxes"],
                 "explained_ms_per_decision": 1e3 * (reference_s - ours_s) / max(learner[world]["decisions"], 1),
             }
         )
@@ -180,7 +196,10 @@ def main() -> dict:
         "",
         "The learner's columns time `TrafficLearner.observe` and `beliefs` over the same episodes, run once with "
         "each solver (the episodes' outcomes, times and returns are asserted equal); each is one run, not a best of, so their difference carries the machine's noise; the last column is "
-        "the part of it the one-row verdicts account for (their time difference above, over the decisions).",
+        "the part of it the one-row verdicts account for (their time difference above, over the decisions). "
+        "Every parameter box the learner fitted in those episodes is the same bits with either solver (asserted): "
+        + ", ".join(f"{r['world']} {r['parameter_boxes_identical']}" for r in rows_out)
+        + ".",
     ]
     text = "\n".join(lines) + "\n"
     RESULTS.mkdir(exist_ok=True)
