@@ -45,8 +45,11 @@ import numpy as np
 from minimaxplan.analysis import highway_env_scenario as hes
 from minimaxplan.analysis.arguments import count_list
 from minimaxplan.analysis.episode import run_episode
+from minimaxplan.scenarios.traffic_models import CHI_MAX
 
 ENV = "highway-env:intersection-v0"
+#: The largest heading error of each vehicle forecast coarse at step 0 (rad), over the run.
+CHI_RANGE: list = []
 #: Every removal made by ``--lane-history`` (lanes taken out of a prior; priors left whole).
 LANE_HISTORY = collections.Counter()
 #: A vehicle is the ego's follower when its heading is within this of the ego's (rad) ...
@@ -146,6 +149,17 @@ def trace(seed: int, lane_history: bool = False) -> tuple[str, collections.Count
         if not isinstance(self, hes.HighwayEnvRobustMethod):
             return policy
         boxes, fc, obs = captured["boxes"], captured["forecast"], captured["observation"]
+        states = dict(zip(np.asarray(obs.ids).tolist(), np.asarray(obs.vehicles, dtype=float)))
+        adapter = self.world.adapter
+        for j, agent in enumerate(np.asarray(fc.ids).tolist()):  # every vehicle forecast, blocking or not
+            counts["vehicle forecasts"] += 1
+            if fc.guaranteed[0, j] or agent not in states:
+                continue
+            belief = captured["beliefs"].get(agent) or adapter.prior(agent, states[agent])
+            chi = _largest_heading_error(adapter.road, belief.lanes, states[agent])
+            counts["coarse at step 0"] += 1
+            counts["coarse at step 0, a lane beyond CHI_MAX"] += chi > CHI_MAX
+            CHI_RANGE.append(chi)
         hit = hes.box_overlaps(boxes, fc.boxes)
         hit[:, 0] = False
         first = np.where(hit.any(axis=1), hit.argmax(axis=1), hit.shape[1])
@@ -159,7 +173,6 @@ def trace(seed: int, lane_history: bool = False) -> tuple[str, collections.Count
         b = boxes[s, k]
         o = fc.boxes[k]
         meets = np.flatnonzero((o[:, 0] <= b[2]) & (b[0] <= o[:, 2]) & (o[:, 1] <= b[3]) & (b[1] <= o[:, 3]))
-        states = dict(zip(np.asarray(obs.ids).tolist(), np.asarray(obs.vehicles, dtype=float)))
         kinds = set()
         who = []
         for j in meets:
@@ -170,7 +183,6 @@ def trace(seed: int, lane_history: bool = False) -> tuple[str, collections.Count
             lost = np.flatnonzero(~np.asarray(fc.guaranteed[:, j], dtype=bool))
             since = f", coarse from {lost[0] * fc.dt:.1f} s" if lost.size else ""
             if lost.size and lost[0] == 0 and agent in states:
-                adapter = self.world.adapter
                 belief = captured["beliefs"].get(agent) or adapter.prior(agent, states[agent])
                 since += f" (its lanes' largest \\|chi\\| {_largest_heading_error(adapter.road, belief.lanes, states[agent]):.2f} rad)"
             at = f" at {states[agent][0]:.0f}, {states[agent][1]:.0f}" if agent in states else ""
@@ -248,12 +260,20 @@ def main() -> None:
         if args.lane_history
         else ""
     )
+    coarse = (
+        f"Vehicle forecasts coarse from the observation (step 0), blocking or not: {total['coarse at step 0']} of "
+        f"{total['vehicle forecasts']}; {total['coarse at step 0, a lane beyond CHI_MAX']} of them with a belief lane "
+        f"whose heading differs from the vehicle's by more than CHI_MAX = {CHI_MAX} rad"
+        + (f" ({min(CHI_RANGE):.2f}-{max(CHI_RANGE):.2f} rad)" if CHI_RANGE else "")
+        + ".\n\n"
+    )
     text = (
         f"# Robust on {ENV}: what blocks each decision{variant}\n\n"
         + "\n".join(summary)
         + f"\n\n{len(args.seeds)} episodes, {time.time() - start:.0f} s wall "
         + f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}).\n\n"
         + removed
+        + coarse
         + "\n".join(detail)
         + "\n"
     )
