@@ -45,6 +45,7 @@ import numpy as np
 from minimaxplan.analysis import highway_env_scenario as hes
 from minimaxplan.analysis.arguments import count_list
 from minimaxplan.analysis.episode import run_episode
+from minimaxplan.scenarios.road import wrap_to_pi
 from minimaxplan.scenarios.traffic_models import CHI_MAX
 
 ENV = "highway-env:intersection-v0"
@@ -72,20 +73,13 @@ def _largest_heading_error(road, lanes, state: np.ndarray) -> float:
     for lane in lanes:
         s, _ = road.frenet(np.array([lane]), np.array([state[0]]), np.array([state[1]]))
         heading = float(road.heading_at(lane, float(np.clip(s[0], 0.0, road.lengths[lane]))))
-        errors.append(abs(float(np.angle(np.exp(1j * (state[3] - heading))))))
+        errors.append(abs(float(wrap_to_pi(state[3] - heading))))
     return max(errors, default=0.0)
 
 
 def _neighbour_lanes(road, lanes) -> set:
     """``lanes``, their successors and their predecessors."""
-    out = set(lanes)
-    for lane in range(len(road)):
-        following = set(road.successors(lane))
-        if lane in lanes:
-            out |= following
-        if following & set(lanes):
-            out.add(lane)
-    return out
+    return set(lanes) | {b for a, b in road.connections if a in lanes} | {a for a, b in road.connections if b in lanes}
 
 
 def _lane_history_beliefs(method, observation) -> dict:

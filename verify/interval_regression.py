@@ -207,6 +207,7 @@ class IntervalRows:
 
 
 def _check_prior(rows: IntervalRows, prior: Box) -> np.ndarray:
+    """The prior's largest modulus per coordinate, after checking its size and its sign on interval regressors."""
     check_instance("prior", prior, Box)
     if prior.dim != rows.nparams:
         raise DimensionError(f"prior has dimension {prior.dim}, but the rows have {rows.nparams} parameters")
@@ -217,19 +218,18 @@ def _check_prior(rows: IntervalRows, prior: Box) -> np.ndarray:
             f"parameters {bad} have interval regressors but a prior reaching below 0: the interval rows "
             "g_lo . theta <= y_hi, g_hi . theta >= y_lo are exact only for theta >= 0 there"
         )
-    theta_max = np.maximum(np.abs(prior.low), np.abs(prior.high))
-    return np.where(theta_max > 0, theta_max, 1.0)
+    return np.maximum(np.abs(prior.low), np.abs(prior.high))
 
 
 class _Scaled:
     """The 2k inequalities ``a . t <= b`` in the scaled variables ``t = theta / theta_scale``."""
 
     def __init__(self, rows: IntervalRows, prior: Box, allowance: float) -> None:
-        self.theta_scale = _check_prior(rows, prior)
+        theta_max = _check_prior(rows, prior)
+        self.theta_scale = np.where(theta_max > 0, theta_max, 1.0)
         glo, ghi, ylo, yhi = rows.regressor_low, rows.regressor_high, rows.target_low, rows.target_high
         y_abs = np.maximum(np.where(np.isfinite(ylo), np.abs(ylo), 0.0), np.where(np.isfinite(yhi), np.abs(yhi), 0.0))
         # a coordinate fixed at 0 adds nothing to a row's magnitude, whatever its regressor's units
-        theta_max = np.maximum(np.abs(prior.low), np.abs(prior.high))
         beta = np.maximum(np.abs(glo), np.abs(ghi)) @ theta_max + y_abs
         self.beta = np.where(beta > 0, beta, 1.0)
         upper, lower = np.isfinite(yhi), np.isfinite(ylo)

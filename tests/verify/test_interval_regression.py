@@ -224,3 +224,8 @@ def test_a_parameter_fixed_at_zero_leaves_the_margin_unit_free():
     b = interval_consistency(rows.scaled(np.ones(rows.nrows), c), Box(prior.low * c, prior.high * c))
     assert a.margin > 1e-3  # shifted rows: a margin worth comparing
     assert a.status == b.status and a.margin == pytest.approx(b.margin, rel=1e-9)
+    consistent = IntervalRows(rows.regressor_low, rows.regressor_high, rows.target_low - 3.0, rows.target_high - 3.0)
+    box_a = interval_parameter_box(consistent, prior)
+    box_b = interval_parameter_box(consistent.scaled(np.ones(rows.nrows), c), Box(prior.low * c, prior.high * c))
+    np.testing.assert_allclose(box_b.low / c, box_a.low, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(box_b.high / c, box_a.high, rtol=1e-6, atol=1e-9)
