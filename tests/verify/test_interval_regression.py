@@ -1,5 +1,8 @@
 """The interval-regression LP: sound verdicts proven both ways, sound parameter boxes, units invariance."""
 
+from types import SimpleNamespace
+from unittest.mock import patch
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -11,6 +14,7 @@ from minimaxplan.verify import (
     IntervalRows,
     interval_consistency,
     interval_parameter_box,
+    interval_regression,
 )
 from minimaxplan.verify.interval_regression import INTERVAL_ELIMINATION_MARGIN, WITNESS_DEPTH, witness_margin
 
@@ -229,3 +233,72 @@ def test_a_parameter_fixed_at_zero_leaves_the_margin_unit_free():
     box_b = interval_parameter_box(consistent.scaled(np.ones(rows.nrows), c), Box(prior.low * c, prior.high * c))
     np.testing.assert_allclose(box_b.low / c, box_a.low, rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(box_b.high / c, box_a.high, rtol=1e-6, atol=1e-9)
+
+
+def _box_with_and_without_the_shortcut(rows, prior, verdict):
+    """The box, and the box with an LP for every side; and how many LPs the first solved."""
+    solved = []
+    solve = interval_regression._solve
+
+    def counting(*args):
+        solved.append(args)
+        return solve(*args)
+
+    with patch.object(interval_regression, "_solve", counting):
+        box = interval_parameter_box(rows, prior, verdict=verdict)
+    with patch.object(interval_regression, "_meets_every_inequality", return_value=False):
+        every_side = interval_parameter_box(rows, prior, verdict=verdict)
+    return box, every_side, len(solved)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    k=st.integers(1, 40),
+    extreme=st.booleans(),
+    width=st.sampled_from([0.05, 0.5, 3.0]),
+    noise=st.sampled_from([0.01, 0.2, 5.0]),
+    shift=st.sampled_from([0.0, 1e-3, 0.3]),
+    units=st.floats(-2.0, 2.0),
+)
+def test_a_side_the_witness_attains_is_the_lps_side_bit_for_bit(seed, k, extreme, width, noise, shift, units):
+    """Skipping the LP of a side the shifted witness attains gives the box the 2d LPs give, to the bit.
+
+    Rows from a parameter of the prior (regressors and targets at their interval's ends when
+    ``extreme``), narrow to wide, shifted off it up to an inconsistency within the tolerance or
+    beyond (then nothing to compare), in units 1e-2..1e2.
+    """
+    rng = np.random.default_rng(seed)
+    c = np.full(PRIOR.dim, 10.0**units)
+    prior = Box(PRIOR.low * c, PRIOR.high * c)
+    theta = rng.uniform(prior.low, prior.high)
+    rows = _rows(rng, theta, k, extreme=extreme, width=width * 10.0**-units, noise=noise)
+    rows = IntervalRows(rows.regressor_low, rows.regressor_high, rows.target_low + shift, rows.target_high + shift)
+    verdict = interval_consistency(rows, prior)
+    if verdict.eliminated:
+        return
+    box, every_side, solved = _box_with_and_without_the_shortcut(rows, prior, verdict)
+    assert box.low.tobytes() == every_side.low.tobytes() and box.high.tobytes() == every_side.high.tobytes()
+    # a side that is not the prior's was solved for
+    constrained = int(np.sum(box.low > prior.low) + np.sum(box.high < prior.high))
+    assert constrained <= solved <= 2 * prior.dim
+
+
+def test_the_shortcut_skips_the_sides_the_rows_do_not_bound():
+    """Two rows bound few sides: most are the prior's and need no LP; the box is the same."""
+    rng = np.random.default_rng(5)
+    rows = _rows(rng, np.array([0.3, 0.3, 2.0]), 2, extreme=False, width=2.0, noise=3.0)
+    verdict = interval_consistency(rows, PRIOR)
+    box, every_side, solved = _box_with_and_without_the_shortcut(rows, PRIOR, verdict)
+    assert solved < 2 * PRIOR.dim
+    assert box.low.tobytes() == every_side.low.tobytes() and box.high.tobytes() == every_side.high.tobytes()
+
+
+def test_a_point_is_not_taken_to_meet_a_row_that_only_rounding_satisfies():
+    """1 + 1e-17 <= 1 holds in floating point, not in exact arithmetic: not proven."""
+    meets = interval_regression._meets_every_inequality
+    row = SimpleNamespace(a=np.array([[1.0, 1e-17]]), b=np.array([1.0]))
+    assert float(row.a[0] @ np.ones(2) - row.b[0]) <= 0.0  # what an unguarded check would accept
+    assert not meets(row, np.ones(2), 0.0)
+    assert meets(row, np.array([1.0 - 1e-9, 1.0]), 0.0)
+    assert not meets(row, np.array([1.0 - 1e-9, 1.0]), -1e-8)  # a negative slack tightens the row
