@@ -139,8 +139,8 @@ def vertex_bound(structure, lower, upper, p_lower, p_upper):
 
 
 @njit(cache=True)
-def contraction_vertex_factor(metric, lower, upper, corners, dt, length):
-    """``max_k ||C A_k C^-1||_2^2`` per row over the vertices of the contraction bound's matrix, not rounded.
+def contraction_vertex_factor(metric, lower, upper, dt, length):
+    """``max_k ||C A_k C^-1||_2^2`` per row over the 64 vertices of the contraction bound's matrix, not rounded.
 
     Parameters
     ----------
@@ -148,8 +148,6 @@ def contraction_vertex_factor(metric, lower, upper, corners, dt, length):
         Symmetric positive definite ``P = C' C`` per row (C upper triangular).
     lower, upper : ndarray, shape (n, 6)
         The box of ``(s1, s2, g, v, b1, q)`` per row (`minimaxplan.scenarios.lateral_contraction`).
-    corners : ndarray of bool, shape (k, 6)
-        The vertices: True takes the upper end.
     dt, length : float
         The step (s) and the wheelbase L (m).
 
@@ -162,6 +160,14 @@ def contraction_vertex_factor(metric, lower, upper, corners, dt, length):
                  [  - 2 dt s2 g q,   1 - 2 dt s2 g b1  ]]
 
         (the closed form ``(f + sqrt(f^2 - 4 det^2)) / 2``, f the squared Frobenius norm).
+
+    Notes
+    -----
+    The vertices are visited in nested loops, each product computed in the loop of the
+    last coordinate it depends on (``(s2, g, q)`` outermost, ``v`` innermost), so that a
+    vertex costs the operations of ``v`` alone. Every value is the same floating-point
+    expression, evaluated left to right, as the formula above written per vertex (tested
+    to the bit), and the maximum does not depend on the order of the vertices.
     """
     n = metric.shape[0]
     if (
@@ -170,34 +176,50 @@ def contraction_vertex_factor(metric, lower, upper, corners, dt, length):
         or upper.shape[0] != n
         or lower.shape[1] != 6
         or upper.shape[1] != 6
-        or corners.shape[1] != 6
     ):
-        raise ValueError("contraction_vertex_factor: metric (n, 2, 2), lower and upper (n, 6), corners (k, 6)")
+        raise ValueError("contraction_vertex_factor: metric (n, 2, 2), lower and upper (n, 6)")
     out = np.empty(n)
     for r in range(n):
         p11, p12, p22 = metric[r, 0, 0], metric[r, 0, 1], metric[r, 1, 1]
         c11, c12, c22 = np.sqrt(p11), p12 / np.sqrt(p11), np.sqrt(p22 - p12 * p12 / p11)
         best = 0.0
-        for k in range(corners.shape[0]):
-            s1 = upper[r, 0] if corners[k, 0] else lower[r, 0]
-            s2 = upper[r, 1] if corners[k, 1] else lower[r, 1]
-            g = upper[r, 2] if corners[k, 2] else lower[r, 2]
-            v = upper[r, 3] if corners[k, 3] else lower[r, 3]
-            b1 = upper[r, 4] if corners[k, 4] else lower[r, 4]
-            q = upper[r, 5] if corners[k, 5] else lower[r, 5]
-            a11 = 1.0 - dt * s1 * g * length * q
-            a12 = dt * s1 * (v - g * length * b1)
-            a21 = -2.0 * dt * s2 * g * q
-            a22 = 1.0 - 2.0 * dt * s2 * g * b1
-            # C A = [[c11 a11 + c12 a21, c11 a12 + c12 a22], [c22 a21, c22 a22]]; C^-1 = [[1/c11, -c12/(c11 c22)], [0, 1/c22]]
-            u11, u12, u21, u22 = c11 * a11 + c12 * a21, c11 * a12 + c12 * a22, c22 * a21, c22 * a22
-            m00 = u11 / c11
-            m01 = (u12 - u11 * c12 / c11) / c22
-            m10 = u21 / c11
-            m11 = (u22 - u21 * c12 / c11) / c22
-            f = m00 * m00 + m01 * m01 + m10 * m10 + m11 * m11
-            det = m00 * m11 - m01 * m10
-            value = 0.5 * (f + np.sqrt(maximum(f * f - 4.0 * (det * det), 0.0)))
-            best = value if k == 0 else maximum(best, value)
+        first = True
+        for i_s2 in range(2):
+            s2 = upper[r, 1] if i_s2 else lower[r, 1]
+            minus_2dt_s2 = -2.0 * dt * s2
+            plus_2dt_s2 = 2.0 * dt * s2
+            for i_g in range(2):
+                g = upper[r, 2] if i_g else lower[r, 2]
+                minus_2dt_s2_g, plus_2dt_s2_g, g_length = minus_2dt_s2 * g, plus_2dt_s2 * g, g * length
+                for i_q in range(2):
+                    q = upper[r, 5] if i_q else lower[r, 5]
+                    a21 = minus_2dt_s2_g * q
+                    # C A = [[c11 a11 + c12 a21, c11 a12 + c12 a22], [c22 a21, c22 a22]];
+                    # C^-1 = [[1/c11, -c12/(c11 c22)], [0, 1/c22]]
+                    u21 = c22 * a21
+                    m10 = u21 / c11
+                    u21_c = u21 * c12 / c11
+                    for i_s1 in range(2):
+                        s1 = upper[r, 0] if i_s1 else lower[r, 0]
+                        dt_s1 = dt * s1
+                        a11 = 1.0 - dt_s1 * g * length * q
+                        u11 = c11 * a11 + c12 * a21
+                        m00 = u11 / c11
+                        u11_c = u11 * c12 / c11
+                        for i_b1 in range(2):
+                            b1 = upper[r, 4] if i_b1 else lower[r, 4]
+                            a22 = 1.0 - plus_2dt_s2_g * b1
+                            m11 = (c22 * a22 - u21_c) / c22
+                            g_length_b1 = g_length * b1
+                            c12_a22 = c12 * a22
+                            for i_v in range(2):
+                                v = upper[r, 3] if i_v else lower[r, 3]
+                                a12 = dt_s1 * (v - g_length_b1)
+                                m01 = (c11 * a12 + c12_a22 - u11_c) / c22
+                                f = m00 * m00 + m01 * m01 + m10 * m10 + m11 * m11
+                                det = m00 * m11 - m01 * m10
+                                value = 0.5 * (f + np.sqrt(maximum(f * f - 4.0 * (det * det), 0.0)))
+                                best = value if first else maximum(best, value)
+                                first = False
         out[r] = best
     return out

@@ -63,8 +63,6 @@ __all__ = [
 #: floating-point error of the few operations of one vertex).
 CONTRACTION_MARGIN = 1e-9
 _DEFAULT_BEHAVIOUR = BehaviourParameters()
-#: The 64 corners of the box of (s1, s2, g, v, b1, q): 0 the lower end, 1 the upper.
-_CORNERS = np.array(np.meshgrid(*[[0, 1]] * 6, indexing="ij")).reshape(6, -1).T.astype(bool).copy()
 #: Speed ratio between neighbouring metrics of the table.
 _TABLE_RATIO = 1.25
 #: The box a metric is tuned on: speeds within this ratio of its node, |e| and |chi| up to these.
@@ -185,7 +183,7 @@ def unchecked_contraction_factor(metric, e, chi, v, b1, q, dt: float, vehicle: V
         As `contraction_factor`.
     """
     lower, upper = _vertex_box(vehicle.length, vehicle.max_steering, e, chi, v, b1, q)
-    lam = contraction_vertex_factor(metric, lower, upper, _CORNERS, float(dt), float(vehicle.length))
+    lam = contraction_vertex_factor(metric, lower, upper, float(dt), float(vehicle.length))
     lam = lam * (1.0 + CONTRACTION_MARGIN)
     beta_max = slip_angle(vehicle.max_steering)
     c_m = np.maximum(np.abs(chi[0]), np.abs(chi[1]))
@@ -309,7 +307,6 @@ def contraction_metrics(
             cand,
             np.repeat(lower, n_cand, axis=0),
             np.repeat(upper, n_cand, axis=0),
-            _CORNERS,
             float(dt),
             vehicle.length,
         )

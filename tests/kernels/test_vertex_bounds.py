@@ -8,6 +8,7 @@ down to points.
 """
 
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -110,12 +111,12 @@ def test_contraction_vertex_factor_is_the_largest_vertex_norm_by_svd(seed, n, dt
     upper = lower + rng.random((n, 6)) * np.array([0.0, 0.0, 0.3, 10.0, 1.0, 1.0])
     upper[:, :2] = 1.0
     corners = np.array(list(itertools.product([False, True], repeat=6)))
-    got = contraction_vertex_factor(metric, lower, upper, corners, dt, length)
+    got = contraction_vertex_factor(metric, lower, upper, dt, length)
     for r in range(n):
         c = np.linalg.cholesky(metric[r]).T  # upper triangular, P = C' C
-        worst = 0.0
+        worst, closed_form = 0.0, 0.0
         for corner in corners:
-            s1, s2, g, v, b1, q = np.where(corner, upper[r], lower[r])
+            s1, s2, g, v, b1, q = (float(x) for x in np.where(corner, upper[r], lower[r]))
             mat = np.array(
                 [
                     [1 - dt * s1 * g * length * q, dt * s1 * (v - g * length * b1)],
@@ -123,7 +124,26 @@ def test_contraction_vertex_factor_is_the_largest_vertex_norm_by_svd(seed, n, dt
                 ]
             )
             worst = max(worst, np.linalg.norm(c @ mat @ np.linalg.inv(c), 2) ** 2)
+            closed_form = max(closed_form, _vertex_value(metric[r], dt, length, s1, s2, g, v, b1, q))
         assert abs(got[r] - worst) <= 1e-9 * (1.0 + worst)
+        # and the same bits as the documented closed form, evaluated per vertex left to right
+        assert got[r] == closed_form
+
+
+def _vertex_value(p, dt, length, s1, s2, g, v, b1, q):
+    """One vertex of `contraction_vertex_factor`, in plain Python floats, in the order of its docstring."""
+    p11, p12, p22 = float(p[0, 0]), float(p[0, 1]), float(p[1, 1])
+    c11, c12, c22 = math.sqrt(p11), p12 / math.sqrt(p11), math.sqrt(p22 - p12 * p12 / p11)
+    a11 = 1.0 - dt * s1 * g * length * q
+    a12 = dt * s1 * (v - g * length * b1)
+    a21 = -2.0 * dt * s2 * g * q
+    a22 = 1.0 - 2.0 * dt * s2 * g * b1
+    u11, u12, u21, u22 = c11 * a11 + c12 * a21, c11 * a12 + c12 * a22, c22 * a21, c22 * a22
+    m00, m01 = u11 / c11, (u12 - u11 * c12 / c11) / c22
+    m10, m11 = u21 / c11, (u22 - u21 * c12 / c11) / c22
+    f = m00 * m00 + m01 * m01 + m10 * m10 + m11 * m11
+    det = m00 * m11 - m01 * m10
+    return 0.5 * (f + math.sqrt(max(f * f - 4.0 * (det * det), 0.0)))
 
 
 def test_rows_that_do_not_match_are_refused_not_read_past():
@@ -141,8 +161,9 @@ def test_rows_that_do_not_match_are_refused_not_read_past():
         vertex_bound(np.zeros((1, 3, 2, 2)), box, box, np.zeros((2, 3)), np.zeros((3, 3)))
     with pytest.raises(ValueError, match="3"):
         vertex_bound(np.zeros((1, 3, 2, 2)), box, box, np.zeros((3, 2)), np.zeros((3, 2)))
-    corners = np.ones((64, 6), dtype=bool)
-    with pytest.raises(ValueError, match="corners"):
-        contraction_vertex_factor(np.tile(np.eye(2), (3, 1, 1)), np.ones((2, 6)), np.ones((3, 6)), corners, 0.1, 5.0)
-    with pytest.raises(ValueError, match="corners"):
-        contraction_vertex_factor(np.ones((3, 2, 1)), np.ones((3, 6)), np.ones((3, 6)), corners, 0.1, 5.0)
+    with pytest.raises(ValueError, match="lower and upper"):
+        contraction_vertex_factor(np.tile(np.eye(2), (3, 1, 1)), np.ones((2, 6)), np.ones((3, 6)), 0.1, 5.0)
+    with pytest.raises(ValueError, match="lower and upper"):
+        contraction_vertex_factor(np.ones((3, 2, 1)), np.ones((3, 6)), np.ones((3, 6)), 0.1, 5.0)
+    with pytest.raises(ValueError, match="lower and upper"):
+        contraction_vertex_factor(np.tile(np.eye(2), (3, 1, 1)), np.ones((3, 5)), np.ones((3, 5)), 0.1, 5.0)
