@@ -652,8 +652,8 @@ def interval_parameter_box(
     with numpy and a rounding error bound). The LP's optimum is then the prior's side, and
     its rounded-down weak-duality bound lies below it, so the LP would return the prior's
     side too: the box is the same either way, bit for bit. In the traffic learner's rows
-    most sides are the prior's (the data bound few parameters); this skips about nine LPs
-    in ten there.
+    most sides are the prior's (the data bound few parameters): this skips 1,271 of 1,412
+    LPs at the T-junction and 318 of 408 on the highway (`benchmarks/bench_interval_rows.py`).
     """
     check_instance("rows", rows, IntervalRows)
     verdict = (
