@@ -201,7 +201,8 @@ def _box_rows(box_calls: dict) -> list:
                 and a.low.tobytes() == b.low.tobytes()
                 and a.high.tobytes() == b.high.tobytes()
             )
-            assert same, (a, b)
+            if not same:
+                raise AssertionError(f"{world}: a parameter box differs with an LP for every side: {a} against {b}")
         sides = sum(2 * (p.dim if c is None else len(c)) for _, p, c in cases)
         # each call solves its verdict's margin LP too (one row: in closed form, both sides)
         margin_lps = sum(r.nrows > 1 for r, _, _ in cases)
