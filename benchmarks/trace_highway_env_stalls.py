@@ -145,12 +145,13 @@ def trace(seed: int, lane_history: bool = False) -> tuple[str, collections.Count
         boxes, fc, obs = captured["boxes"], captured["forecast"], captured["observation"]
         states = dict(zip(np.asarray(obs.ids).tolist(), np.asarray(obs.vehicles, dtype=float)))
         adapter = self.world.adapter
+        chi_at_step_0 = {}  # the largest heading error of each vehicle coarse from the observation
         for j, agent in enumerate(np.asarray(fc.ids).tolist()):  # every vehicle forecast, blocking or not
             counts["vehicle forecasts"] += 1
             if fc.guaranteed[0, j] or agent not in states:
                 continue
             belief = captured["beliefs"].get(agent) or adapter.prior(agent, states[agent])
-            chi = _largest_heading_error(adapter.road, belief.lanes, states[agent])
+            chi = chi_at_step_0[agent] = _largest_heading_error(adapter.road, belief.lanes, states[agent])
             counts["coarse at step 0"] += 1
             counts["coarse at step 0, a lane beyond CHI_MAX"] += chi > CHI_MAX
             CHI_RANGE.append(chi)
@@ -176,9 +177,8 @@ def trace(seed: int, lane_history: bool = False) -> tuple[str, collections.Count
             kinds.add(f"{role}, {grade}")
             lost = np.flatnonzero(~np.asarray(fc.guaranteed[:, j], dtype=bool))
             since = f", coarse from {lost[0] * fc.dt:.1f} s" if lost.size else ""
-            if lost.size and lost[0] == 0 and agent in states:
-                belief = captured["beliefs"].get(agent) or adapter.prior(agent, states[agent])
-                since += f" (its lanes' largest \\|chi\\| {_largest_heading_error(adapter.road, belief.lanes, states[agent]):.2f} rad)"
+            if agent in chi_at_step_0:
+                since += f" (its lanes' largest \\|chi\\| {chi_at_step_0[agent]:.2f} rad)"
             at = f" at {states[agent][0]:.0f}, {states[agent][1]:.0f}" if agent in states else ""
             who.append(
                 f"{agent}{at} {role} {grade}{since}, v [{fc.state_lower[k, j, 2]:.1f}, {fc.state_upper[k, j, 2]:.1f}]"

@@ -285,8 +285,7 @@ def _solve(scaled: _Scaled, objective: np.ndarray, margin: float | None) -> tupl
         bounds = np.vstack([bounds, [-WITNESS_DEPTH, np.inf]])
     b = scaled.b if margin is None else scaled.b + margin
     if m == 0:
-        t = np.where(c[:d] > 0, scaled.low, np.where(c[:d] < 0, scaled.high, (scaled.low + scaled.high) / 2))
-        return t, 0.0, np.zeros(0)
+        return _box_minimiser(scaled, c[:d]), 0.0, np.zeros(0)
     res = linprog(c, A_ub=sp.csr_matrix(A), b_ub=b, bounds=bounds, method="highs", options=HIGHS_OPTIONS)
     if res.status != LinprogStatus.OPTIMAL:
         try:
@@ -302,6 +301,11 @@ def _solve(scaled: _Scaled, objective: np.ndarray, margin: float | None) -> tupl
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(mu))):
         raise SolverFailure(f"HiGHS returned non-finite values on the interval-regression LP over {m} inequalities")
     return x[:d], (float(x[d]) if margin is None else float(margin)), mu[:m]
+
+
+def _box_minimiser(scaled: _Scaled, c: np.ndarray) -> np.ndarray:
+    """A minimiser of ``c . t`` over the scaled prior box (the midpoint where ``c_i = 0``)."""
+    return np.where(c > 0, scaled.low, np.where(c < 0, scaled.high, (scaled.low + scaled.high) / 2))
 
 
 def _meets_every_inequality(scaled: _Scaled, t: np.ndarray, slack: float) -> bool:
@@ -370,7 +374,7 @@ def _solve_single_row(scaled: _Scaled) -> tuple[np.ndarray, float, np.ndarray]:
     low, high = scaled.low, scaled.high
     if scaled.a.shape[0] == 1:
         c = scaled.a[0]
-        t = np.where(c > 0, low, np.where(c < 0, high, (low + high) / 2))
+        t = _box_minimiser(scaled, c)
         return t, max(float(c @ t - scaled.b[0]), -WITNESS_DEPTH), np.ones(1)
     a0, a1 = scaled.a
     diff = a0 - a1
@@ -603,6 +607,17 @@ def interval_consistency(
     return IntervalVerdict(status, witness, margin, upper, float(max(lower, -WITNESS_DEPTH)), certificate)
 
 
+def _coordinates(coordinates, d: int) -> list[int]:
+    """``coordinates`` as a list of ints in ``[0, d)``, or a typed error (no wrap-around of negatives)."""
+    given = list(coordinates)
+    values = np.asarray(given)
+    if values.ndim != 1 or not (values.size == 0 or np.issubdtype(values.dtype, np.integer)):
+        raise InputError(f"coordinates must be integers, got {given!r}")
+    if np.any(values < 0) or np.any(values >= d):
+        raise InputError(f"coordinates must lie in [0, {d}), got {values.tolist()}")
+    return [int(c) for c in values]
+
+
 def interval_parameter_box(
     rows: IntervalRows,
     prior: Box,
@@ -625,7 +640,8 @@ def interval_parameter_box(
     verdict : IntervalVerdict, optional
         The verdict of `interval_consistency` on the same rows, if known (saves an LP).
     coordinates : iterable of int, optional
-        Bound only these coordinates (the others keep the prior's sides); default all.
+        Bound only these coordinates, each in ``[0, d)`` (the others keep the prior's
+        sides); default all.
 
     Returns
     -------
@@ -639,6 +655,8 @@ def interval_parameter_box(
         If the rows are proven inconsistent with the prior.
     SolverFailure
         If HiGHS returns any status but optimal.
+    InputError, DimensionError
+        Coordinates that are not integers in ``[0, d)``, or a verdict whose witness is not of size d.
 
     Notes
     -----
@@ -656,22 +674,27 @@ def interval_parameter_box(
     LPs at the T-junction and 318 of 408 on the highway (`benchmarks/bench_interval_rows.py`).
     """
     check_instance("rows", rows, IntervalRows)
-    verdict = (
-        interval_consistency(rows, prior, tolerance=tolerance, rounding_allowance=rounding_allowance)
-        if verdict is None
-        else verdict
-    )
+    d = rows.nparams
+    indices = list(range(d)) if coordinates is None else _coordinates(coordinates, d)
+    if verdict is None:
+        verdict = interval_consistency(rows, prior, tolerance=tolerance, rounding_allowance=rounding_allowance)
+    else:
+        check_instance("verdict", verdict, IntervalVerdict)
+        if verdict.witness.shape != (d,):
+            raise DimensionError(
+                f"verdict.witness has shape {verdict.witness.shape}, but the rows have {d} parameters: "
+                "a verdict of other rows"
+            )
     if verdict.eliminated:
         raise NoConsistentModel("the interval rows are proven inconsistent with the prior box")
     allowance = max(float(rounding_allowance), INTERVAL_BOX_ALLOWANCE)
     scaled = _Scaled(rows, prior, allowance)
     slack = float(max(verdict.upper, 0.0))
-    d = rows.nparams
     low, high = prior.low.copy(), prior.high.copy()
     if scaled.a.shape[0] == 0:
         return Box(low, high)
     witness = verdict.witness / scaled.theta_scale
-    for i in range(d) if coordinates is None else [int(c) for c in coordinates]:
+    for i in indices:
         for sign in (1.0, -1.0):
             # the side is the prior's if the witness moved onto it along theta_i still meets every row
             attained = witness.copy()

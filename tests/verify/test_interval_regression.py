@@ -302,3 +302,19 @@ def test_a_point_is_not_taken_to_meet_a_row_that_only_rounding_satisfies():
     assert not meets(row, np.ones(2), 0.0)
     assert meets(row, np.array([1.0 - 1e-9, 1.0]), 0.0)
     assert not meets(row, np.array([1.0 - 1e-9, 1.0]), -1e-8)  # a negative slack tightens the row
+
+
+def test_bad_coordinates_and_a_verdict_of_other_rows_are_refused():
+    """A negative coordinate would wrap round to the last one; a verdict of other rows has another size."""
+    rng = np.random.default_rng(6)
+    rows = _rows(rng, np.array([0.3, 0.3, 2.0]), 5, extreme=False)
+    for bad in ((-1,), (3,), (0.5,), ((0, 1),)):
+        with pytest.raises(InputError, match="coordinates"):
+            interval_parameter_box(rows, PRIOR, coordinates=bad)
+    other = _rows(rng, np.array([0.3, 2.0]), 5, extreme=False)
+    verdict = interval_consistency(other, Box([0.15, 1.0], [0.45, 3.0]))
+    with pytest.raises(DimensionError, match="verdict.witness"):
+        interval_parameter_box(rows, PRIOR, verdict=verdict)
+    full = interval_parameter_box(rows, PRIOR)
+    some = interval_parameter_box(rows, PRIOR, coordinates=iter([np.int64(2), 0]))
+    assert some.low[[0, 2]].tobytes() == full.low[[0, 2]].tobytes() and some.low[1] == PRIOR.low[1]
