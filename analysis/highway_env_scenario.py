@@ -1,8 +1,9 @@
 """highway-env's highway-fast-v0 and intersection-v0 as registered scenarios (the ``vehicle`` extra).
 
 Importing this module registers the scenarios ``highway-env:highway-fast-v0`` and
-``highway-env:intersection-v0`` and their methods ``robust``, ``nominal`` and ``oracle``
-when highway-env is installed (it checks with `importlib.util.find_spec`, without
+``highway-env:intersection-v0`` (and `HIGHWAY_ENV_VARIANTS`: highway-fast-v0 with the ego's
+target speeds extended down to standstill) and their methods ``robust``, ``nominal``,
+``oracle`` and ``idm`` when highway-env is installed (it checks with `importlib.util.find_spec`, without
 importing it; highway-env is imported when a world is made). The road worlds' ``dwa``
 and ``teb`` do not support these scenarios, so a run of every registered scenario and
 method must leave them out unless it names them.
@@ -85,6 +86,8 @@ from .road_planning import conservative_first
 
 __all__ = [
     "HIGHWAY_ENV_SCENARIOS",
+    "HIGHWAY_ENV_VARIANTS",
+    "EXTENDED_TARGET_SPEEDS",
     "HORIZON",
     "SEARCH_DECISIONS",
     "HighwayEnvScenario",
@@ -102,6 +105,7 @@ __all__ = [
     "learner_scenario",
     "LEARNER_NOISE",
     "LANE_KEEPING_NAMES",
+    "checked_target_speeds",
 ]
 
 #: Registered scenario name -> highway-env id.
@@ -109,12 +113,50 @@ HIGHWAY_ENV_SCENARIOS = {
     "highway-env:highway-fast-v0": "highway-fast-v0",
     "highway-env:intersection-v0": "intersection-v0",
 }
+#: The ego's target speeds of the extended variant, m/s: 0 to 30, 5 apart. highway-fast-v0's
+#: own (``MDPVehicle.DEFAULT_TARGET_SPEEDS``) are 20, 25 and 30, so SLOWER cannot brake
+#: below 20 m/s; the robust ego's collisions there happen at that floor (README).
+EXTENDED_TARGET_SPEEDS = (0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)
+#: Registered scenario name -> (highway-env id, the ego's target speeds): the same
+#: environment with its ``DiscreteMetaAction``'s ``target_speeds`` configured.
+HIGHWAY_ENV_VARIANTS = {
+    "highway-env:highway-fast-v0-speeds-0-30": ("highway-fast-v0", EXTENDED_TARGET_SPEEDS),
+}
 #: The forecast's horizon, s (the planner's 5 s).
 HORIZON = 5.0
 #: Decisions whose meta-actions are enumerated (then IDLE until the horizon).
 SEARCH_DECISIONS = 2
 #: highway-env's meta-action names that move the ego's target lane or speed.
 _IDLE = "IDLE"
+
+
+def checked_target_speeds(target_speeds) -> tuple[float, ...] | None:
+    """``target_speeds`` as a tuple of floats, or None; refused unless at least two, finite and increasing.
+
+    Parameters
+    ----------
+    target_speeds : sequence of float or None
+        An ego's target speeds, m/s.
+
+    Raises
+    ------
+    DimensionError
+        If they are not one-dimensional with at least two values.
+    InputError
+        If one is not finite or negative, or they do not increase strictly.
+    """
+    if target_speeds is None:
+        return None
+    speeds = np.asarray(target_speeds, dtype=float)
+    if speeds.ndim != 1 or speeds.size < 2:
+        raise DimensionError(
+            f"target_speeds must be one-dimensional with at least two values, got shape {speeds.shape}"
+        )
+    if not np.all(np.isfinite(speeds)) or np.any(speeds < 0):
+        raise InputError(f"target_speeds must be finite and non-negative, got {speeds.tolist()}")
+    if np.any(np.diff(speeds) <= 0):
+        raise InputError(f"target_speeds must increase strictly, got {speeds.tolist()}")
+    return tuple(float(v) for v in speeds)
 
 
 class _StubRoad:
@@ -181,6 +223,9 @@ class HighwayEnvWorld:
         A value of `HIGHWAY_ENV_SCENARIOS`.
     seed : int
         highway-env's seed.
+    target_speeds : sequence of float, optional
+        The ego's target speeds (m/s, increasing, at least two), configured as the
+        environment's ``DiscreteMetaAction`` ``target_speeds``; by default highway-env's.
 
     Attributes
     ----------
@@ -190,14 +235,19 @@ class HighwayEnvWorld:
         The planner's actions (`HIGHWAY_ACTIONS` or `TJUNCTION_ACTIONS`).
     """
 
-    def __init__(self, env_id: str, seed: int) -> None:
+    def __init__(self, env_id: str, seed: int, *, target_speeds=None) -> None:
         from minimaxplan.scenarios.highway_env_adapter import HighwayEnvAdapter, meta_action
 
+        speeds = checked_target_speeds(target_speeds)
         self._meta_action = meta_action
         self.adapter = HighwayEnvAdapter(env_id, config={"normalize_reward": True})
-        hz = int(self.adapter.env.unwrapped.config["simulation_frequency"])
+        base = self.adapter.env.unwrapped
+        hz = int(base.config["simulation_frequency"])
         # one env.step per simulation step; the decision period stays highway-env's 1 s
-        self.adapter.env.unwrapped.configure({"policy_frequency": hz})
+        base.configure({"policy_frequency": hz})
+        if speeds is not None:
+            # highway-env's configure replaces a key's value: keep the action type's other settings
+            base.configure({"action": {**base.config["action"], "target_speeds": list(speeds)}})
         self.seed = int(seed)
         self.adapter.reset(self.seed)
         self._substeps = hz
@@ -317,9 +367,20 @@ class HighwayEnvWorld:
         return states
 
     def to_dict(self) -> dict:
-        """The environment id, seed and highway-env configuration, and the ego's final state."""
-        config = {k: v for k, v in self.adapter.env.unwrapped.config.items() if isinstance(v, (int, float, str, bool))}
-        return {"env_id": self.adapter.env_id, "seed": self.seed, "config": config, "ego": self.state.tolist()}
+        """The environment id, seed and highway-env configuration, the meta-actions' target speeds, and the ego's final state.
+
+        ``target_speeds`` are those of the environment's action type (m/s), which an
+        ``MDPVehicle`` ego tracks; an ego driven by IDM (`drive_ego_by_idm`) ignores them.
+        """
+        base = self.adapter.env.unwrapped
+        config = {k: v for k, v in base.config.items() if isinstance(v, (int, float, str, bool))}
+        return {
+            "env_id": self.adapter.env_id,
+            "seed": self.seed,
+            "config": config,
+            "target_speeds": [float(v) for v in base.action_type.target_speeds],
+            "ego": self.state.tolist(),
+        }
 
 
 class HighwayEnvScenario(Scenario[HighwayEnvWorld]):
@@ -329,15 +390,20 @@ class HighwayEnvScenario(Scenario[HighwayEnvWorld]):
     ----------
     env_id : str
         A value of `HIGHWAY_ENV_SCENARIOS`.
+    target_speeds : sequence of float, optional
+        The ego's target speeds (`HighwayEnvWorld`); by default highway-env's.
     """
 
-    def __init__(self, env_id: str) -> None:
+    def __init__(self, env_id: str, *, target_speeds=None) -> None:
         if env_id not in HIGHWAY_ENV_SCENARIOS.values():
             raise InputError(f"env_id must be one of {sorted(HIGHWAY_ENV_SCENARIOS.values())}, got {env_id!r}")
         self.env_id = env_id
+        self.target_speeds = checked_target_speeds(target_speeds)
 
     def __repr__(self) -> str:
-        return f"HighwayEnvScenario({self.env_id!r})"
+        if self.target_speeds is None:
+            return f"HighwayEnvScenario({self.env_id!r})"
+        return f"HighwayEnvScenario({self.env_id!r}, target_speeds={self.target_speeds!r})"
 
     def make_world(self, seed: int, config: LoopConfig) -> HighwayEnvWorld:
         """The episode's environment, reset with ``seed`` (after restoring highway-env's class constants).
@@ -351,7 +417,7 @@ class HighwayEnvScenario(Scenario[HighwayEnvWorld]):
         """
         if config.measurement != "uniform":
             raise InputError(f"highway-env worlds are measured exactly, got measurement {config.measurement!r}")
-        return HighwayEnvWorld(self.env_id, seed)
+        return HighwayEnvWorld(self.env_id, seed, target_speeds=self.target_speeds)
 
 
 # ------------------------------------------------------------------ methods
@@ -964,6 +1030,10 @@ def highway_env_installed() -> bool:
 if highway_env_installed():
     for _name, _env_id in HIGHWAY_ENV_SCENARIOS.items():
         register_scenario(_name, functools.partial(HighwayEnvScenario, _env_id), in_default_runs=False)
+    for _name, (_env_id, _speeds) in HIGHWAY_ENV_VARIANTS.items():
+        register_scenario(
+            _name, functools.partial(HighwayEnvScenario, _env_id, target_speeds=_speeds), in_default_runs=False
+        )
     register_method("robust", HighwayEnvRobustMethod)
     register_method("nominal", HighwayEnvNominalMethod)
     register_method("oracle", HighwayEnvOracleMethod)

@@ -61,8 +61,9 @@ is not in its observation) to the missed sub-step (`classify_miss`):
 Writes benchmarks/results/highway_env_misses.md and .json (kind -> misses and
 episodes, per environment; every unexplained miss in full). Needs the ``vehicle``
 extra. Usage: ``python benchmarks/highway_env_misses.py [--episodes N] [--workers W]
-[--env ID]`` (default 50 episodes, seeds 0..N-1, 2 workers, both environments; with
-``--env`` only that one is run, the other's results in the files are kept).
+[--scenario NAME]`` (default 50 episodes, seeds 0..N-1, 2 workers, highway-fast-v0 and
+intersection-v0; with ``--scenario`` only the registered scenarios it names are run, such
+as ``highway-env:highway-fast-v0-speeds-0-30``, the others' results in the files are kept).
 """
 
 from __future__ import annotations
@@ -83,7 +84,12 @@ import numpy as np
 
 from minimaxplan.analysis import episode as episode_module
 from minimaxplan.analysis.episode import EpisodeJob, LoopConfig, run_job
-from minimaxplan.analysis.highway_env_scenario import HighwayEnvScenario, HighwayEnvWorld
+from minimaxplan.analysis.highway_env_scenario import (
+    HIGHWAY_ENV_SCENARIOS,
+    HIGHWAY_ENV_VARIANTS,
+    HighwayEnvScenario,
+    HighwayEnvWorld,
+)
 from minimaxplan.analysis.registry import method_factory
 from minimaxplan.models.errors import InputError
 
@@ -102,8 +108,13 @@ KINDS = (
     "curved lane",
     "unexplained",
 )
-#: highway-env id -> the registered scenario name.
-SCENARIOS = {"highway-fast-v0": "highway-env:highway-fast-v0", "intersection-v0": "highway-env:intersection-v0"}
+#: The registered scenario name -> (highway-env id, the ego's target speeds or None for highway-env's).
+SCENARIOS = {
+    **{name: (env_id, None) for name, env_id in HIGHWAY_ENV_SCENARIOS.items()},
+    **HIGHWAY_ENV_VARIANTS,
+}
+#: The scenarios run when ``--scenario`` names none (the README's table).
+DEFAULT_SCENARIOS = tuple(HIGHWAY_ENV_SCENARIOS)
 #: How far ahead a lane-changing vehicle counts as a leader, m.
 LEADER_RANGE = 150.0
 #: A front vehicle whose heading differs from the follower's by more than this (rad) is a crossing leader.
@@ -181,10 +192,12 @@ class DiagnosedWorld(HighwayEnvWorld):
         A highway-env id of `minimaxplan.analysis.highway_env_scenario.HIGHWAY_ENV_SCENARIOS`.
     seed : int
         highway-env's seed.
+    target_speeds : sequence of float, optional
+        The ego's target speeds (`HighwayEnvWorld`).
     """
 
-    def __init__(self, env_id: str, seed: int) -> None:
-        super().__init__(env_id, seed)
+    def __init__(self, env_id: str, seed: int, *, target_speeds=None) -> None:
+        super().__init__(env_id, seed, target_speeds=target_speeds)
         self.facts: list[dict[str, dict]] = [self._facts()]
 
     def _facts(self) -> dict[str, dict]:
@@ -234,7 +247,7 @@ class DiagnosedScenario(HighwayEnvScenario):
         """
         if config.measurement != "uniform":
             raise InputError(f"highway-env worlds are measured exactly, got measurement {config.measurement!r}")
-        return DiagnosedWorld(self.env_id, seed)
+        return DiagnosedWorld(self.env_id, seed, target_speeds=self.target_speeds)
 
 
 def _changing(fact: Mapping) -> bool:
@@ -397,7 +410,8 @@ def markdown(summary: Mapping, runs: Mapping) -> str:
     lines = ["# highway-env: every missed box of the robust method, attributed", ""]
     for scenario, meta in sorted(runs.items()):
         lines.append(
-            f"* {scenario}: `python benchmarks/highway_env_misses.py --episodes {meta['episodes']}` "
+            f"* {scenario}: `python benchmarks/highway_env_misses.py --episodes {meta['episodes']}"
+            f"{'' if scenario in DEFAULT_SCENARIOS else ' --scenario ' + scenario}` "
             f"(seeds 0-{meta['episodes'] - 1}), {meta['date']}, {meta['workers']} workers, "
             f"{meta['wall_time_s']:.0f} s wall, load {meta['load']}"
         )
@@ -427,18 +441,19 @@ def main(argv: Sequence[str] | None = None) -> dict:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=pathlib.Path, default=RESULTS)
     parser.add_argument(
-        "--env",
+        "--scenario",
         action="append",
         choices=sorted(SCENARIOS),
-        help="run only this environment (repeatable); the others' results in --out are kept",
+        help="run only this registered scenario (repeatable; by default highway-fast-v0 and intersection-v0); "
+        "the others' results in --out are kept",
     )
     args = parser.parse_args(argv)
     _init_worker()
     config = LoopConfig()
     jobs = []
-    for env_id in args.env or sorted(SCENARIOS):
-        name = SCENARIOS[env_id]
-        factory = functools.partial(DiagnosedScenario, env_id)
+    for name in args.scenario or DEFAULT_SCENARIOS:
+        env_id, speeds = SCENARIOS[name]
+        factory = functools.partial(DiagnosedScenario, env_id, target_speeds=speeds)
         scenario = factory()
         for seed in range(args.episodes):
             jobs.append(EpisodeJob(name, "robust", seed, config, factory, method_factory("robust", scenario, config)))
@@ -459,7 +474,7 @@ def main(argv: Sequence[str] | None = None) -> dict:
     }
     path = args.out / "highway_env_misses.json"
     runs = {scenario: meta for scenario in {job.scenario for job in jobs}}
-    if args.env and path.exists():  # keep the other environments' episodes and runs
+    if args.scenario and path.exists():  # keep the other environments' episodes and runs
         previous = json.loads(path.read_text())
         ran = set(runs)
         episodes = [e for e in previous["episodes"] if e["scenario"] not in ran] + episodes

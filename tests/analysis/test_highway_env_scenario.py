@@ -22,6 +22,7 @@ highway_env = _require_highway_env()
 
 from minimaxplan.analysis.episode import LoopConfig, make_job, run_job  # noqa: E402
 from minimaxplan.analysis.highway_env_scenario import (  # noqa: E402
+    EXTENDED_TARGET_SPEEDS,
     HIGHWAY_ENV_SCENARIOS,
     HighwayEnvNominalMethod,
     HighwayEnvRobustMethod,
@@ -34,10 +35,11 @@ from minimaxplan.analysis.registry import (  # noqa: E402
     UnsupportedScenario,
     method_factory,
     resolve,
+    scenario_factory,
     scenario_names,
 )
 from minimaxplan.analysis.road_scenario import RoadScenario  # noqa: E402
-from minimaxplan.models import InputError  # noqa: E402
+from minimaxplan.models import DimensionError, InputError  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
@@ -628,3 +630,78 @@ def test_stall_trace_lane_history_keeps_neighbours_and_measures_heading_errors(b
     assert module._neighbour_lanes(road, {3}) == {3}
     assert module._largest_heading_error(road, [0], np.array([5.0, 0.0, 5.0, 0.0])) == pytest.approx(0.0)
     assert module._largest_heading_error(road, [0, 3], np.array([5.0, 0.0, 5.0, np.pi])) == pytest.approx(np.pi)
+
+
+def _targets_under_slower(world, decisions: int) -> list[float]:
+    """The ego's target speed now and after each of ``decisions`` decisions that brake (SLOWER, then IDLE)."""
+    names = [action[0] for action in world.actions]
+    ego = world.adapter.env.unwrapped.vehicle
+    targets = [float(ego.target_speeds[ego.speed_index])]
+    for _ in range(decisions):
+        for k in range(world.substeps):
+            world.apply(np.array([names.index("SLOWER" if k == 0 else "IDLE")]))
+        ego = world.adapter.env.unwrapped.vehicle
+        targets.append(float(ego.target_speeds[ego.speed_index]))
+    return targets
+
+
+def test_extended_target_speeds_let_slower_brake_below_highway_envs_floor():
+    """The registered variant configures the ego's target speeds (0-30 m/s) and keeps the action type's
+    other settings; SLOWER then steps the target below 20 m/s, which highway-fast-v0's own cannot."""
+    scenario = resolve(scenario_factory("highway-env:highway-fast-v0-speeds-0-30"))()
+    assert isinstance(scenario, HighwayEnvScenario) and scenario.target_speeds == EXTENDED_TARGET_SPEEDS
+    world = scenario.make_world(3, LoopConfig())
+    np.testing.assert_array_equal(world.adapter.env.unwrapped.vehicle.target_speeds, EXTENDED_TARGET_SPEEDS)
+    assert world.to_dict()["target_speeds"] == list(EXTENDED_TARGET_SPEEDS)
+    assert _targets_under_slower(world, 3) == [25.0, 20.0, 15.0, 10.0]
+    default = HighwayEnvWorld("highway-fast-v0", 3)
+    assert default.to_dict()["target_speeds"] == [20.0, 25.0, 30.0]
+    assert _targets_under_slower(default, 3) == [25.0, 20.0, 20.0, 20.0]
+    # the intersection's action type is longitudinal only: configuring its speeds keeps that
+    crossing = HighwayEnvWorld("intersection-v0", 3, target_speeds=(0.0, 3.0, 6.0, 9.0))
+    action = crossing.adapter.env.unwrapped.config["action"]
+    assert action["longitudinal"] and not action["lateral"] and action["target_speeds"] == [0.0, 3.0, 6.0, 9.0]
+    np.testing.assert_array_equal(crossing.adapter.env.unwrapped.vehicle.target_speeds, [0.0, 3.0, 6.0, 9.0])
+
+
+@pytest.mark.parametrize(
+    "speeds, error, match",
+    [
+        ([20.0], DimensionError, r"at least two values, got shape \(1,\)"),
+        ([[0.0, 5.0]], DimensionError, r"got shape \(1, 2\)"),
+        ([0.0, float("nan")], InputError, "finite and non-negative"),
+        ([-5.0, 5.0], InputError, "finite and non-negative"),
+        ([0.0, 10.0, 10.0], InputError, "increase strictly"),
+        ([30.0, 20.0], InputError, "increase strictly"),
+    ],
+)
+def test_target_speeds_are_refused_with_a_typed_error_naming_them(speeds, error, match):
+    with pytest.raises(error, match=match):
+        HighwayEnvScenario("highway-fast-v0", target_speeds=speeds)
+    with pytest.raises(error, match="target_speeds"):
+        HighwayEnvWorld("highway-fast-v0", 0, target_speeds=speeds)
+
+
+@pytest.mark.slow
+def test_seed_21_collides_at_the_20_m_s_floor_and_reaches_the_goal_with_lower_targets(replay_records):
+    """The committed robust records of highway-fast-v0's seed 21 (a collision at 20 m/s, SLOWER at every
+    one of its last decisions) and of the same seed with the extended target speeds (the goal) come back
+    the same from a fresh run: the only difference between the two episodes is the action set."""
+    import csv
+    import pathlib
+
+    results = pathlib.Path(__file__).parents[2] / "benchmarks/results/experiments"
+    committed = {}
+    for folder in ("highway-env", "highway-env-speeds-0-30"):
+        with (results / folder / "episodes.csv").open(newline="") as handle:
+            committed.update({(r["scenario"], r["method"], r["seed"]): r for r in csv.DictReader(handle)})
+    names = ["highway-env:highway-fast-v0", "highway-env:highway-fast-v0-speeds-0-30"]
+    rows, environment = replay_records(names, ["robust"], 21)
+    assert environment["matches_records"], environment
+    outcomes = {}
+    for got in rows:
+        want = committed[(got["scenario"], got["method"], got["seed"])]
+        mismatches = {k: (got.get(k), want[k]) for k in want if k != "wall_time_s" and got.get(k) != want[k]}
+        assert not mismatches, f"{got['scenario']}: {mismatches}"
+        outcomes[got["scenario"]] = got["outcome"]
+    assert outcomes == dict(zip(names, ["collision", "goal"]))
