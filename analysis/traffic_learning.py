@@ -72,11 +72,12 @@ between refits the last box stays valid (more rows, smaller set). A hypothesis'
 witness is checked on its new rows in numpy at every sub-step; the LP is re-solved
 only when the witness fails.
 
-Measured (`elimination_study`, seeds 0-19, `hold_lane_control`; transitions from the
-moment the intention was wrong to its elimination, median [min, max], eliminated / wrong
-cases): highway, the lane being left in a lane change 1 [1, 2] (39/39), a lane two away
-4 [4, 4] (226/227), a side neighbour of the lane kept 4 [4, 4] (1/386: by design, see
-above); T-junction, the straight route of a turning vehicle 133 [77, 285] (31/83, the
+Measured (`elimination_study`, seeds 0-19, `hold_lane_control`, by
+``benchmarks/elimination_times.py``; transitions from the moment the intention was wrong
+to its elimination, median [min, max], eliminated / wrong cases): highway, the lane being
+left in a lane change 1 [1, 2] (39/39), a lane two away 4 [4, 4] (226/227), a side
+neighbour of the lane kept 4 [4, 4] (1/386: by design not while the vehicle is settled;
+the one was mid-change, when no change to that lane can start); T-junction, the straight route of a turning vehicle 133 [77, 285] (31/83, the
 rest left view first: until the stop line a courteous vehicle may be yielding), the
 turn of a vehicle going straight 86 [6, 276] (101/168). No miss in 30000 + 44942
 vehicle-steps (true intention among the survivors, true theta in both boxes). Cost:

@@ -1,4 +1,4 @@
-"""The per-episode explanations of Table 4's failures (`benchmarks/explain_table4_failures.py`) hold on the records.
+"""Table 4's diagnostics: the per-episode explanations of its failures (`benchmarks/explain_table4_failures.py`) hold on the records.
 
 Each explained episode is re-run and must equal its committed record (the script raises
 otherwise); these cases are the ones the README and docs/baselines.md quote. Only
@@ -54,3 +54,23 @@ def test_a_re_run_that_is_not_the_record_is_refused(benchmark_script):
     wrong = {**_record("highway", "nominal", 5), "time_s": "99.0"}
     with pytest.raises(RuntimeError, match="is not the record"):
         module.explain("highway", "nominal", 5, module.LoopConfig(), wrong)
+
+
+@pytest.mark.slow
+def test_the_elimination_times_script_checks_every_belief_against_the_truth(benchmark_script, tmp_path):
+    """`benchmarks/elimination_times.py` on one seed per world: every vehicle-step checked, no true intention or
+    parameter lost, the statistics and their table written."""
+    module = benchmark_script("elimination_times")
+    studies = module.main(["--seeds", "0", "--out", str(tmp_path)])
+    for kind in ("highway", "tjunction"):
+        study = studies[kind]
+        assert study["vehicle_steps"] > 0
+        assert study["intention_misses"] == study["theta_a_misses"] == study["theta_b_misses"] == 0
+        assert study["solver_failures"] == 0
+    assert "lane being left (mid lane change)" in studies["highway"]["statistics"]
+    text = (tmp_path / "elimination_times.md").read_text()
+    assert "| highway | lane being left (mid lane change) |" in text and "--seeds 0`" in text
+    with pytest.raises(SystemExit):
+        module.main(["--seeds", "5-2", "--out", str(tmp_path)])
+    with pytest.raises(SystemExit):
+        module.main(["--seeds", "x", "--out", str(tmp_path)])
