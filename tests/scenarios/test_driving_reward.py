@@ -93,6 +93,95 @@ def test_the_box_minimum_at_a_fixed_heading_is_exact_against_brute_force():
     assert 50 < hits < 280  # both cases exercised
 
 
+_COORDINATE = st.floats(-4.0, 4.0)
+_SIDE = st.floats(0.5, 5.0)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    centre=st.tuples(st.floats(-8.0, 8.0), st.floats(-8.0, 8.0)),
+    size=st.tuples(_SIDE, _SIDE),
+    psi=st.floats(-np.pi, np.pi),
+    p_lo=st.tuples(_COORDINATE, _COORDINATE),
+    width=st.tuples(st.floats(0.0, 3.0), st.floats(0.0, 3.0)),
+)
+def test_property_the_box_minimum_at_a_fixed_heading_is_exact_against_fcl(centre, size, psi, p_lo, width):
+    """Hypothesis form of the brute-force test above: a box of positions reported clear has no sampled position
+    (its corners included) whose rectangle fcl finds meeting the obstacle; one reported colliding has a witness
+    position inside it whose rectangle fcl finds meeting it, and the value is then exactly 0."""
+    half = np.array(size) / 2
+    box = np.concatenate([np.array(centre) - half, np.array(centre) + half])
+    lo, hi = np.array(p_lo), np.array(p_lo) + np.array(width)
+    lower, upper = np.array([*lo, 20.0, psi]), np.array([*hi, 25.0, psi])
+    reward = _obstacle_reward(box)
+    value, collided = reward.box_minimum(lower, upper)
+    if collided:
+        assert value == 0.0
+        witness = reward.box_argmin(lower, upper)
+        assert np.all(witness >= lower) and np.all(witness <= upper)
+        assert _fcl_rectangle_meets_box(witness[:2], psi, box, 1e-6)
+    else:
+        xs, ys = np.meshgrid(np.linspace(lo[0], hi[0], 7), np.linspace(lo[1], hi[1], 7))
+        assert not any(_fcl_rectangle_meets_box((x, y), psi, box, -1e-7) for x, y in zip(xs.ravel(), ys.ravel()))
+        assert value == pytest.approx((1 + 0.4 * 20 / 30) / 1.4)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    centre=st.tuples(st.floats(-8.0, 8.0), st.floats(-8.0, 8.0)),
+    size=st.tuples(_SIDE, _SIDE),
+    psi_lo=st.floats(-np.pi, np.pi),
+    psi_width=st.floats(0.0, 1.5),
+    p_lo=st.tuples(_COORDINATE, _COORDINATE),
+    width=st.tuples(st.floats(0.0, 2.0), st.floats(0.0, 2.0)),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_property_over_a_heading_interval_a_clear_box_has_no_colliding_pose(
+    centre, size, psi_lo, psi_width, p_lo, width, seed
+):
+    """Over a heading interval the box minimum is sound: no pose of a clear box, its extreme headings and
+    corners included, meets the obstacle (fcl)."""
+    half = np.array(size) / 2
+    box = np.concatenate([np.array(centre) - half, np.array(centre) + half])
+    lo, hi = np.array(p_lo), np.array(p_lo) + np.array(width)
+    collided = _obstacle_reward(box).box_minimum([*lo, 20.0, psi_lo], [*hi, 20.0, psi_lo + psi_width])[1]
+    if not collided:
+        rng = np.random.default_rng(seed)
+        corners = [(x, y) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])]
+        poses = [(c, psi) for c in corners for psi in (psi_lo, psi_lo + psi_width)]
+        poses += [(rng.uniform(lo, hi), rng.uniform(psi_lo, psi_lo + psi_width)) for _ in range(24)]
+        assert not any(_fcl_rectangle_meets_box(c, psi, box, -1e-7) for c, psi in poses)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    kind=st.sampled_from(["highway", "tjunction", "goal region"]),
+    lower=st.tuples(st.floats(50.0, 60.0), st.floats(-1.5, 9.0), st.floats(0.0, 35.0)),
+    width=st.tuples(st.floats(0.0, 3.0), st.floats(0.0, 6.0), st.floats(0.0, 5.0)),
+)
+def test_property_the_free_minimum_over_a_box_is_exact_and_attained(kind, lower, width):
+    """Hypothesis form of the test above: the free value's minimum over a box is below every grid point of
+    it, and attained at `box_argmin`, inside the box."""
+    if kind == "highway":
+        reward = DrivingReward.highway(np.tile(EMPTY, (1, 1, 1)), 0, HIGHWAY)
+    else:
+        goal = TJUNCTION.position_at(TJUNCTION.index("west_out"), 25.0)
+        if kind == "goal region":
+            goal = np.array([53.0, 1.0, 56.0, 4.0])
+        reward = DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, None, goal_weight=0.4, goal=goal, goal_scale=80.0)
+    low = np.array([*lower, 0.0])
+    high = low + np.array([*width, 0.0])
+    high[1] = min(high[1], 9.5)
+    value, collided = reward.box_minimum(low, high)
+    if collided:
+        return
+    grid = np.stack(np.meshgrid(*[np.linspace(a, b, 7) for a, b in zip(low, high)]), -1).reshape(-1, 4)
+    assert reward.free_value(grid).min() >= value - 1e-12
+    point = reward.box_argmin(low, high)
+    assert np.all(point >= low) and np.all(point <= high)
+    assert reward.free_value(point) == pytest.approx(value, abs=1e-12)
+
+
 def test_over_a_heading_interval_the_minimum_is_a_sound_bound():
     rng = np.random.default_rng(3)
     for _ in range(200):

@@ -63,11 +63,41 @@ def _ego_control(kind, state):
     return np.array([np.clip(-1.0 * state[2], -6, 6), 0.0])
 
 
-def _episode(kind, seed, dt, length, rules=None, extreme=True):
-    """Run an episode; return the world, (true states, the ego's route lane) per sub-step, observations, lane changes."""
+def _prior_corners(world, pattern: int):
+    """The world's traffic with every other vehicle's theta_a, theta_b and target speed at a vertex of the prior.
+
+    ``pattern`` seeds which vertex each vehicle gets (each coordinate at its low or high end:
+    ``theta_a_nominal * theta_a_scale``, ``theta_b_nominal -+ theta_b_spread``, the
+    scenario's target-speed bounds), so that the forecast's prior beliefs are tested at
+    their extremes, not only at the parameters the world draws inside them.
+    """
+    rng = np.random.default_rng(pattern)
+    behaviour, traffic = world.scenario.behaviour, world.traffic
+    others = np.arange(1, len(traffic))
+    high = rng.integers(0, 2, size=(len(traffic), 6)).astype(bool)
+    theta_a, theta_b = np.array(traffic.theta_a), np.array(traffic.theta_b)
+    target = np.array(traffic.target_speed)
+    low_a, high_a = (np.array(behaviour.theta_a_nominal) * s for s in behaviour.theta_a_scale)
+    spread = np.array(behaviour.theta_b_spread)
+    nominal_b = np.array(behaviour.theta_b_nominal)
+    speeds = world.scenario.target_speeds
+    theta_a[others] = np.where(high[others, :3], high_a, low_a)
+    theta_b[others] = np.where(high[others, 3:5], nominal_b + spread, nominal_b - spread)
+    target[others] = np.where(high[others, 5], speeds[1], speeds[0])
+    return traffic.evolve(theta_a=theta_a, theta_b=theta_b, target_speed=target)
+
+
+def _episode(kind, seed, dt, length, rules=None, extreme=True, corners=None):
+    """Run an episode; return the world, (true states, the ego's route lane) per sub-step, observations, lane changes.
+
+    ``corners``: if given, the seed of `_prior_corners`' vertex pattern (every other
+    vehicle's parameters at a vertex of the prior).
+    """
     base = HighwayScenario() if kind == "highway" else TJunctionScenario()
     scenario = dataclasses.replace(base, dt=dt, rules=rules or base.rules)
     world = make_road_world(kind, seed, scenario=scenario)
+    if corners is not None:
+        world.traffic = _prior_corners(world, corners)
     if extreme:
         world._dynamics_rng = ExtremeDisturbances(world._dynamics_rng.bit_generator)
     states, observations, ego_lanes = [], [], []
@@ -145,6 +175,34 @@ def test_forecast_contains_every_vehicle(kind, seed, dt, when):
     assert checked > 0
     assert misses == 0
     assert forecast.boxes.shape == (steps + 1, len(observations[t0].ids), 4)
+
+
+@settings(max_examples=20)
+@given(
+    kind=st.sampled_from(["highway", "tjunction"]),
+    seed=st.integers(0, 10_000),
+    dt=st.sampled_from([0.05, 0.1, 0.2]),
+    when=st.floats(0.0, 1.0),
+    pattern=st.integers(0, 2**32 - 1),
+)
+def test_forecast_contains_vehicles_whose_parameters_are_at_the_priors_vertices(kind, seed, dt, when, pattern):
+    """As `test_forecast_contains_every_vehicle`, with every other vehicle's theta_a, theta_b and target speed
+    at a vertex of the prior box the beliefs hold (the world draws them inside it), disturbances at their
+    extremes, random dt, the T-junction's arcs."""
+    steps = 30
+    start = int(round(when * 30))
+    world, run, observations, _ = _episode(kind, seed, dt, start + steps + 1, corners=pattern)
+    behaviour = world.scenario.behaviour
+    theta_a = np.asarray(world.traffic.theta_a)[1:]
+    low_a, high_a = (np.array(behaviour.theta_a_nominal) * s for s in behaviour.theta_a_scale)
+    assert np.all(np.isclose(theta_a, low_a) | np.isclose(theta_a, high_a))  # the vertices are in force
+    states = run[0]
+    t0 = min(start, len(states) - 1 - steps)
+    if t0 < 0:
+        t0, steps = 0, len(states) - 1
+    misses, checked, _ = _check(world, run, observations, t0, steps)
+    assert checked > 0
+    assert misses == 0
 
 
 @pytest.mark.parametrize("kind", ["highway", "tjunction"])
@@ -561,6 +619,66 @@ def test_footprint_box_contains_sampled_rectangles(x, y, wx, wy, psi, wpsi, seed
     c = vehicle_corners(dense, VEHICLE).reshape(-1, 2)
     assert box[0] >= c[:, 0].min() - 1e-2 and box[1] >= c[:, 1].min() - 1e-2
     assert box[2] <= c[:, 0].max() + wx + 1e-2 and box[3] <= c[:, 1].max() + wy + 1e-2
+
+
+#: How far outside a footprint box the fcl slabs of its complement start, m: fcl reports a touching
+#: contact as a collision, and the box is tight (a corner reaches each side at an extreme heading).
+FCL_CLEARANCE = 1e-6
+
+
+@settings(max_examples=60)
+@given(
+    x=st.floats(-50, 50),
+    y=st.floats(-50, 50),
+    wx=st.floats(0, 3),
+    wy=st.floats(0, 3),
+    psi=st.floats(-7, 7),
+    wpsi=st.floats(0, 4),
+    seed=st.integers(0, 2**31),
+)
+def test_footprint_box_contains_the_worlds_fcl_rectangles(x, y, wx, wy, psi, wpsi, seed):
+    """The world's own collision geometry (`road_world._fcl_rectangle`, an fcl box rotated by psi) of every
+    pose in the centre box and heading interval, its corners and extreme headings included, meets none of the
+    four fcl slabs that make up the complement of the planner's footprint box: the box contains it."""
+    import fcl
+
+    from minimaxplan.scenarios.geometry import _fcl_box
+    from minimaxplan.scenarios.road_world import _fcl_rectangle
+
+    rng = np.random.default_rng(seed)
+    lo, hi = np.array([x, y]), np.array([x + wx, y + wy])
+    box = footprint_box(lo, hi, np.array(psi), np.array(psi + wpsi), VEHICLE)
+    far, gap = 100.0, FCL_CLEARANCE
+    slabs = [
+        _fcl_box([box[0] - far, box[1] - far], [box[0] - gap, box[3] + far]),  # west of the box
+        _fcl_box([box[2] + gap, box[1] - far], [box[2] + far, box[3] + far]),  # east
+        _fcl_box([box[0] - far, box[1] - far], [box[2] + far, box[1] - gap]),  # south
+        _fcl_box([box[0] - far, box[3] + gap], [box[2] + far, box[3] + far]),  # north
+    ]
+    k = 60
+    poses = np.stack(
+        [rng.uniform(x, x + wx, k), rng.uniform(y, y + wy, k), np.zeros(k), rng.uniform(psi, psi + wpsi, k)], 1
+    )
+    poses[:4, :2] = [[x, y], [x + wx, y], [x, y + wy], [x + wx, y + wy]]
+    poses[:4, 3] = [psi, psi + wpsi, psi, psi + wpsi]
+    request = fcl.CollisionRequest()
+    for pose in poses:
+        rectangle = _fcl_rectangle(pose, VEHICLE)
+        for slab in slabs:
+            assert not fcl.collide(rectangle, slab, request, fcl.CollisionResult()), (pose, box)
+
+
+def test_the_fcl_containment_check_sees_a_rectangle_outside_a_box():
+    """The check above can fail: a box one decimetre short of the rectangle on its east side meets the east slab."""
+    import fcl
+
+    from minimaxplan.scenarios.geometry import _fcl_box
+    from minimaxplan.scenarios.road_world import _fcl_rectangle
+
+    box = footprint_box(np.zeros(2), np.zeros(2), np.array(0.0), np.array(0.0), VEHICLE)
+    east = _fcl_box([box[2] - 0.1 + FCL_CLEARANCE, box[1] - 100.0], [box[2] + 100.0, box[3] + 100.0])
+    rectangle = _fcl_rectangle(np.zeros(4), VEHICLE)
+    assert fcl.collide(rectangle, east, fcl.CollisionRequest(), fcl.CollisionResult())
 
 
 @given(lo=st.floats(-20, 20), width=st.floats(0, 8))
