@@ -67,51 +67,14 @@ def test_the_rectangle_box_test_at_points_is_fcls():
     assert agree > 1400
 
 
-def test_the_box_minimum_at_a_fixed_heading_is_exact_against_brute_force():
-    """No sampled position of a box without collision collides; a colliding box has a witness (checked by fcl)."""
-    rng = np.random.default_rng(2)
-    hits = 0
-    for _ in range(300):
-        box = _random_box(rng, 8.0)
-        psi = rng.uniform(-np.pi, np.pi)
-        p_lo = rng.uniform(-4, 4, 2)
-        p_hi = p_lo + rng.uniform(0.0, 3.0, 2)
-        lower, upper = np.array([*p_lo, 20.0, psi]), np.array([*p_hi, 25.0, psi])
-        reward = _obstacle_reward(box)
-        value, collided = reward.box_minimum(lower, upper)
-        xs, ys = np.meshgrid(np.linspace(p_lo[0], p_hi[0], 9), np.linspace(p_lo[1], p_hi[1], 9))
-        samples = [np.array([x, y]) for x, y in zip(xs.ravel(), ys.ravel())]
-        if collided:
-            hits += 1
-            assert value == 0.0
-            witness = reward.box_argmin(lower, upper)
-            assert np.all(witness >= lower) and np.all(witness <= upper)
-            assert _fcl_rectangle_meets_box(witness[:2], psi, box, 1e-6)
-        else:
-            assert not any(_fcl_rectangle_meets_box(c, psi, box, -1e-7) for c in samples)
-            assert value == pytest.approx((1 + 0.4 * 20 / 30) / 1.4)
-    assert 50 < hits < 280  # both cases exercised
+def _check_fixed_heading(box, psi, lo, hi) -> bool:
+    """The box minimum over positions ``[lo, hi]`` at heading ``psi`` against python-fcl; returns whether it collided.
 
-
-_COORDINATE = st.floats(-4.0, 4.0)
-_SIDE = st.floats(0.5, 5.0)
-
-
-@settings(max_examples=150, deadline=None)
-@given(
-    centre=st.tuples(st.floats(-8.0, 8.0), st.floats(-8.0, 8.0)),
-    size=st.tuples(_SIDE, _SIDE),
-    psi=st.floats(-np.pi, np.pi),
-    p_lo=st.tuples(_COORDINATE, _COORDINATE),
-    width=st.tuples(st.floats(0.0, 3.0), st.floats(0.0, 3.0)),
-)
-def test_property_the_box_minimum_at_a_fixed_heading_is_exact_against_fcl(centre, size, psi, p_lo, width):
-    """Hypothesis form of the brute-force test above: a box of positions reported clear has no sampled position
-    (its corners included) whose rectangle fcl finds meeting the obstacle; one reported colliding has a witness
-    position inside it whose rectangle fcl finds meeting it, and the value is then exactly 0."""
-    half = np.array(size) / 2
-    box = np.concatenate([np.array(centre) - half, np.array(centre) + half])
-    lo, hi = np.array(p_lo), np.array(p_lo) + np.array(width)
+    Clear: no position of a 7 x 7 grid over the box (its corners included) has a rectangle
+    that fcl finds meeting the obstacle, and the value is the free one. Colliding: the value
+    is exactly 0 and `box_argmin` gives a witness inside the box whose rectangle fcl finds
+    meeting it.
+    """
     lower, upper = np.array([*lo, 20.0, psi]), np.array([*hi, 25.0, psi])
     reward = _obstacle_reward(box)
     value, collided = reward.box_minimum(lower, upper)
@@ -124,77 +87,67 @@ def test_property_the_box_minimum_at_a_fixed_heading_is_exact_against_fcl(centre
         xs, ys = np.meshgrid(np.linspace(lo[0], hi[0], 7), np.linspace(lo[1], hi[1], 7))
         assert not any(_fcl_rectangle_meets_box((x, y), psi, box, -1e-7) for x, y in zip(xs.ravel(), ys.ravel()))
         assert value == pytest.approx((1 + 0.4 * 20 / 30) / 1.4)
+    return bool(collided)
+
+
+def _box_of(centre, size):
+    half = np.asarray(size, dtype=float) / 2
+    return np.concatenate([np.asarray(centre, dtype=float) - half, np.asarray(centre, dtype=float) + half])
+
+
+_CENTRE = st.tuples(st.floats(-8.0, 8.0), st.floats(-8.0, 8.0))
+_SIZE = st.tuples(st.floats(0.5, 5.0), st.floats(0.5, 5.0))
+_CORNER = st.tuples(st.floats(-4.0, 4.0), st.floats(-4.0, 4.0))
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    centre=_CENTRE,
+    size=_SIZE,
+    psi=st.floats(-np.pi, np.pi),
+    p_lo=_CORNER,
+    width=st.tuples(st.floats(0.0, 3.0), st.floats(0.0, 3.0)),
+)
+def test_the_box_minimum_at_a_fixed_heading_is_exact_against_fcl(centre, size, psi, p_lo, width):
+    lo = np.array(p_lo)
+    _check_fixed_heading(_box_of(centre, size), psi, lo, lo + np.array(width))
+
+
+def test_the_fixed_heading_check_sees_both_cases():
+    """The geometry of the test above exercises both verdicts: of 300 seeded draws, both clear and colliding boxes."""
+    rng = np.random.default_rng(2)
+    hits = 0
+    for _ in range(300):
+        lo = rng.uniform(-4, 4, 2)
+        hits += _check_fixed_heading(
+            _random_box(rng, 8.0), rng.uniform(-np.pi, np.pi), lo, lo + rng.uniform(0.0, 3.0, 2)
+        )
+    assert 50 < hits < 280
 
 
 @settings(max_examples=100, deadline=None)
 @given(
-    centre=st.tuples(st.floats(-8.0, 8.0), st.floats(-8.0, 8.0)),
-    size=st.tuples(_SIDE, _SIDE),
+    centre=_CENTRE,
+    size=_SIZE,
     psi_lo=st.floats(-np.pi, np.pi),
     psi_width=st.floats(0.0, 1.5),
-    p_lo=st.tuples(_COORDINATE, _COORDINATE),
+    p_lo=_CORNER,
     width=st.tuples(st.floats(0.0, 2.0), st.floats(0.0, 2.0)),
     seed=st.integers(0, 2**32 - 1),
 )
-def test_property_over_a_heading_interval_a_clear_box_has_no_colliding_pose(
-    centre, size, psi_lo, psi_width, p_lo, width, seed
-):
-    """Over a heading interval the box minimum is sound: no pose of a clear box, its extreme headings and
-    corners included, meets the obstacle (fcl)."""
-    half = np.array(size) / 2
-    box = np.concatenate([np.array(centre) - half, np.array(centre) + half])
-    lo, hi = np.array(p_lo), np.array(p_lo) + np.array(width)
-    collided = _obstacle_reward(box).box_minimum([*lo, 20.0, psi_lo], [*hi, 20.0, psi_lo + psi_width])[1]
-    if not collided:
+def test_over_a_heading_interval_the_minimum_is_a_sound_bound(centre, size, psi_lo, psi_width, p_lo, width, seed):
+    """No pose of a box reported clear over a heading interval (its corners at both extreme headings, 24 random)
+    has a rectangle that fcl finds meeting the obstacle."""
+    box = _box_of(centre, size)
+    lo = np.array(p_lo)
+    hi = lo + np.array(width)
+    psi_hi = psi_lo + psi_width
+    if not _obstacle_reward(box).box_minimum([*lo, 20.0, psi_lo], [*hi, 20.0, psi_hi])[1]:
         rng = np.random.default_rng(seed)
         corners = [(x, y) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])]
-        poses = [(c, psi) for c in corners for psi in (psi_lo, psi_lo + psi_width)]
-        poses += [(rng.uniform(lo, hi), rng.uniform(psi_lo, psi_lo + psi_width)) for _ in range(24)]
+        poses = [(c, psi) for c in corners for psi in (psi_lo, psi_hi)]
+        poses += [(rng.uniform(lo, hi), rng.uniform(psi_lo, psi_hi)) for _ in range(24)]
         assert not any(_fcl_rectangle_meets_box(c, psi, box, -1e-7) for c, psi in poses)
-
-
-@settings(max_examples=100, deadline=None)
-@given(
-    kind=st.sampled_from(["highway", "tjunction", "goal region"]),
-    lower=st.tuples(st.floats(50.0, 60.0), st.floats(-1.5, 9.0), st.floats(0.0, 35.0)),
-    width=st.tuples(st.floats(0.0, 3.0), st.floats(0.0, 6.0), st.floats(0.0, 5.0)),
-)
-def test_property_the_free_minimum_over_a_box_is_exact_and_attained(kind, lower, width):
-    """Hypothesis form of the test above: the free value's minimum over a box is below every grid point of
-    it, and attained at `box_argmin`, inside the box."""
-    if kind == "highway":
-        reward = DrivingReward.highway(np.tile(EMPTY, (1, 1, 1)), 0, HIGHWAY)
-    else:
-        goal = TJUNCTION.position_at(TJUNCTION.index("west_out"), 25.0)
-        if kind == "goal region":
-            goal = np.array([53.0, 1.0, 56.0, 4.0])
-        reward = DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, None, goal_weight=0.4, goal=goal, goal_scale=80.0)
-    low = np.array([*lower, 0.0])
-    high = low + np.array([*width, 0.0])
-    high[1] = min(high[1], 9.5)
-    value, collided = reward.box_minimum(low, high)
-    if collided:
-        return
-    grid = np.stack(np.meshgrid(*[np.linspace(a, b, 7) for a, b in zip(low, high)]), -1).reshape(-1, 4)
-    assert reward.free_value(grid).min() >= value - 1e-12
-    point = reward.box_argmin(low, high)
-    assert np.all(point >= low) and np.all(point <= high)
-    assert reward.free_value(point) == pytest.approx(value, abs=1e-12)
-
-
-def test_over_a_heading_interval_the_minimum_is_a_sound_bound():
-    rng = np.random.default_rng(3)
-    for _ in range(200):
-        box = _random_box(rng, 8.0)
-        psi_lo = rng.uniform(-np.pi, np.pi)
-        psi_hi = psi_lo + rng.uniform(0.0, 1.5)
-        p_lo = rng.uniform(-4, 4, 2)
-        p_hi = p_lo + rng.uniform(0.0, 2.0, 2)
-        collided = _obstacle_reward(box).box_minimum([*p_lo, 20.0, psi_lo], [*p_hi, 20.0, psi_hi])[1]
-        if not collided:
-            for _ in range(40):
-                c, psi = rng.uniform(p_lo, p_hi), rng.uniform(psi_lo, psi_hi)
-                assert not _fcl_rectangle_meets_box(c, psi, box, -1e-7)
 
 
 @settings(max_examples=200, deadline=None)
@@ -271,28 +224,36 @@ def test_tjunction_reward_is_progress_to_the_goal():
     assert reward.box_minimum(start, start)[0] == pytest.approx((1 + 0.4 * (1 - min(d / 80, 1))) / 1.4)
 
 
-@pytest.mark.parametrize("kind", ["highway", "tjunction", "goal region"])
-def test_the_free_minimum_over_a_box_is_exact_and_attained(kind):
-    rng = np.random.default_rng(6)
+def _free_reward(kind: str) -> DrivingReward:
     if kind == "highway":
-        reward = DrivingReward.highway(np.tile(EMPTY, (1, 1, 1)), 0, HIGHWAY)
-    else:
-        goal = TJUNCTION.position_at(TJUNCTION.index("west_out"), 25.0)
-        if kind == "goal region":  # a region that the random boxes straddle, enter and miss
-            goal = np.array([53.0, 1.0, 56.0, 4.0])
-        reward = DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, None, goal_weight=0.4, goal=goal, goal_scale=80.0)
-    for _ in range(100):
-        lower = np.array([rng.uniform(50, 60), rng.uniform(-1.5, 9.0), rng.uniform(0, 35), 0.0])
-        upper = lower + np.array([rng.uniform(0, 3), rng.uniform(0, 6), rng.uniform(0, 5), 0.0])
-        upper[1] = min(upper[1], 9.5)
-        value, collided = reward.box_minimum(lower, upper)
-        if collided:
-            continue
-        grid = np.stack(np.meshgrid(*[np.linspace(lo, hi, 7) for lo, hi in zip(lower, upper)]), -1).reshape(-1, 4)
-        assert reward.free_value(grid).min() >= value - 1e-12
-        point = reward.box_argmin(lower, upper)
-        assert np.all(point >= lower) and np.all(point <= upper)
-        assert reward.free_value(point) == pytest.approx(value, abs=1e-12)
+        return DrivingReward.highway(np.tile(EMPTY, (1, 1, 1)), 0, HIGHWAY)
+    goal = TJUNCTION.position_at(TJUNCTION.index("west_out"), 25.0)
+    if kind == "goal region":  # a region that the random boxes straddle, enter and miss
+        goal = np.array([53.0, 1.0, 56.0, 4.0])
+    return DrivingReward(np.tile(EMPTY, (1, 1, 1)), 0, None, goal_weight=0.4, goal=goal, goal_scale=80.0)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    kind=st.sampled_from(["highway", "tjunction", "goal region"]),
+    lower=st.tuples(st.floats(50.0, 60.0), st.floats(-1.5, 9.0), st.floats(0.0, 35.0)),
+    width=st.tuples(st.floats(0.0, 3.0), st.floats(0.0, 6.0), st.floats(0.0, 5.0)),
+)
+def test_the_free_minimum_over_a_box_is_exact_and_attained(kind, lower, width):
+    """The free value's minimum over a box is below every point of a 7^3 grid over it, and attained at
+    `box_argmin`, inside the box."""
+    reward = _free_reward(kind)
+    low = np.array([*lower, 0.0])
+    high = low + np.array([*width, 0.0])
+    high[1] = min(high[1], 9.5)
+    value, collided = reward.box_minimum(low, high)
+    if collided:
+        return
+    grid = np.stack(np.meshgrid(*[np.linspace(a, b, 7) for a, b in zip(low, high)]), -1).reshape(-1, 4)
+    assert reward.free_value(grid).min() >= value - 1e-12
+    point = reward.box_argmin(low, high)
+    assert np.all(point >= low) and np.all(point <= high)
+    assert reward.free_value(point) == pytest.approx(value, abs=1e-12)
 
 
 @settings(max_examples=100, deadline=None)

@@ -156,17 +156,26 @@ def _check(world, run, observations, t0, steps, intentions=None, *, lateral_cont
 
 
 # ------------------------------------------------------------------ containment
-@settings(max_examples=25)
+@settings(max_examples=40)
 @given(
     kind=st.sampled_from(["highway", "tjunction"]),
     seed=st.integers(0, 10_000),
     dt=st.sampled_from([0.05, 0.1, 0.2]),
     when=st.floats(0.0, 1.0),
+    corners=st.none() | st.integers(0, 2**32 - 1),
 )
-def test_forecast_contains_every_vehicle(kind, seed, dt, when):
+def test_forecast_contains_every_vehicle(kind, seed, dt, when, corners):
+    """The forecast from prior beliefs contains every vehicle over 3 s: its parameters as the world draws them
+    inside the prior, or (``corners``) every other vehicle's theta_a, theta_b and target speed at a vertex of
+    the prior box (`_prior_corners`); disturbances at their extremes, random dt, the T-junction's arcs."""
     steps = 30
     start = int(round(when * 30))
-    world, run, observations, _ = _episode(kind, seed, dt, start + steps + 1)
+    world, run, observations, _ = _episode(kind, seed, dt, start + steps + 1, corners=corners)
+    if corners is not None:  # the vertices are in force
+        behaviour = world.scenario.behaviour
+        theta_a = np.asarray(world.traffic.theta_a)[1:]
+        low_a, high_a = (np.array(behaviour.theta_a_nominal) * s for s in behaviour.theta_a_scale)
+        assert np.all(np.isclose(theta_a, low_a) | np.isclose(theta_a, high_a))
     states = run[0]
     t0 = min(start, len(states) - 1 - steps)
     if t0 < 0:  # the episode ended early (the ego reached the goal): forecast from its start
@@ -175,34 +184,6 @@ def test_forecast_contains_every_vehicle(kind, seed, dt, when):
     assert checked > 0
     assert misses == 0
     assert forecast.boxes.shape == (steps + 1, len(observations[t0].ids), 4)
-
-
-@settings(max_examples=20)
-@given(
-    kind=st.sampled_from(["highway", "tjunction"]),
-    seed=st.integers(0, 10_000),
-    dt=st.sampled_from([0.05, 0.1, 0.2]),
-    when=st.floats(0.0, 1.0),
-    pattern=st.integers(0, 2**32 - 1),
-)
-def test_forecast_contains_vehicles_whose_parameters_are_at_the_priors_vertices(kind, seed, dt, when, pattern):
-    """As `test_forecast_contains_every_vehicle`, with every other vehicle's theta_a, theta_b and target speed
-    at a vertex of the prior box the beliefs hold (the world draws them inside it), disturbances at their
-    extremes, random dt, the T-junction's arcs."""
-    steps = 30
-    start = int(round(when * 30))
-    world, run, observations, _ = _episode(kind, seed, dt, start + steps + 1, corners=pattern)
-    behaviour = world.scenario.behaviour
-    theta_a = np.asarray(world.traffic.theta_a)[1:]
-    low_a, high_a = (np.array(behaviour.theta_a_nominal) * s for s in behaviour.theta_a_scale)
-    assert np.all(np.isclose(theta_a, low_a) | np.isclose(theta_a, high_a))  # the vertices are in force
-    states = run[0]
-    t0 = min(start, len(states) - 1 - steps)
-    if t0 < 0:
-        t0, steps = 0, len(states) - 1
-    misses, checked, _ = _check(world, run, observations, t0, steps)
-    assert checked > 0
-    assert misses == 0
 
 
 @pytest.mark.parametrize("kind", ["highway", "tjunction"])
@@ -595,7 +576,8 @@ def test_lateral_remainder_bounds_the_bicycle(e, chi, v, dt, seed):
 
 
 # ------------------------------------------------------------------- footprints
-@given(
+#: A centre box ``[x, x + wx] x [y, y + wy]`` and heading interval ``[psi, psi + wpsi]``, and a sampling seed.
+FOOTPRINT_POSES = dict(
     x=st.floats(-50, 50),
     y=st.floats(-50, 50),
     wx=st.floats(0, 3),
@@ -604,6 +586,9 @@ def test_lateral_remainder_bounds_the_bicycle(e, chi, v, dt, seed):
     wpsi=st.floats(0, 4),
     seed=st.integers(0, 2**31),
 )
+
+
+@given(**FOOTPRINT_POSES)
 def test_footprint_box_contains_sampled_rectangles(x, y, wx, wy, psi, wpsi, seed):
     rng = np.random.default_rng(seed)
     box = footprint_box(np.array([x, y]), np.array([x + wx, y + wy]), np.array(psi), np.array(psi + wpsi), VEHICLE)
@@ -627,15 +612,7 @@ FCL_CLEARANCE = 1e-6
 
 
 @settings(max_examples=60)
-@given(
-    x=st.floats(-50, 50),
-    y=st.floats(-50, 50),
-    wx=st.floats(0, 3),
-    wy=st.floats(0, 3),
-    psi=st.floats(-7, 7),
-    wpsi=st.floats(0, 4),
-    seed=st.integers(0, 2**31),
-)
+@given(**FOOTPRINT_POSES)
 def test_footprint_box_contains_the_worlds_fcl_rectangles(x, y, wx, wy, psi, wpsi, seed):
     """The world's own collision geometry (`road_world._fcl_rectangle`, an fcl box rotated by psi) of every
     pose in the centre box and heading interval, its corners and extreme headings included, meets none of the
