@@ -72,6 +72,7 @@ from minimaxplan.planners.bicycle_model import (
     ego_controller,
 )
 from minimaxplan.scenarios.driving_reward import world_reward
+from minimaxplan.scenarios.forecast_intersection import intersect_forecasts
 from minimaxplan.scenarios.road import lane_geometry
 from minimaxplan.scenarios.road_world import HighwayScenario, Observation, RoadWorld
 from minimaxplan.scenarios.traffic_models import TrafficForecast, VehicleBelief, forecast_traffic
@@ -677,6 +678,9 @@ class RoadRobustMethod(_LearningMethod):
         self.guaranteed_lost = 0
         # the latest-collision rule needs a place to wait: a speed level that stops the ego
         self.can_wait = min(self.ego.speeds) == 0.0
+        # the previous decision's forecast for any ego (intersected in turn): (its sub-step, forecast)
+        self._earlier: tuple[int, TrafficForecast] | None = None
+        self.inconsistent_boxes = 0
 
     def obstacles(self, observation: Observation) -> ObstacleTables:
         """`forecast_traffic` under the learner's beliefs, for any ego and for an ego that keeps its lane.
@@ -700,13 +704,32 @@ class RoadRobustMethod(_LearningMethod):
         v = float(observation.ego[2])
         bounds = (min(v, float(speeds.min())), max(v, float(speeds.max())))
         reach = ego_reach(self.model, root, bounds, FORECAST_STEPS, scenario.dt, scenario.vehicle)
-        table, checked = self._forecast(observation, beliefs, reach, count=True)
+        step = int(road_world.step_index)
+        forecast = self._intersected(self._forecast(observation, beliefs, reach), step)
+        table, checked = self._tables(forecast, count=True)
         keeping = lane_keeping_actions(self.ego.actions)
         if len(keeping) == self.model.n_actions:
+            self._earlier = (step, forecast)
             return ObstacleTables(table, checked)
         keep_reach = lane_keeping_reach(self.model, root, keeping, FORECAST_STEPS, scenario.vehicle)
-        keep_table, keep_checked = self._forecast(observation, beliefs, keep_reach, count=False)
+        keep_forecast = self._intersected(self._forecast(observation, beliefs, keep_reach), step)
+        self._earlier = (step, forecast)
+        keep_table, keep_checked = self._tables(keep_forecast, count=False)
         return ObstacleTables(table, checked, keep_table, keep_checked)
+
+    def _intersected(self, forecast: TrafficForecast, step: int) -> TrafficForecast:
+        """``forecast`` intersected with the previous decision's forecast for any ego (`intersect_forecasts`).
+
+        Both contain the true traffic: the previous one was made from the ego's reach
+        over every action sequence, which every plan of this decision continues. Disjoint
+        boxes (a forecast that is not sound) are counted in `inconsistent_boxes`.
+        """
+        if self._earlier is None:
+            return forecast
+        earlier_step, earlier = self._earlier
+        met = intersect_forecasts(forecast, step, earlier, earlier_step)
+        self.inconsistent_boxes += met.inconsistent
+        return met.forecast
 
     def _choose(self, model: BicycleModel, root: BicycleState, decision) -> tuple[int, list[int] | None]:
         """`latest_collision_action` over the forecast where the ego can stop (a target speed of 0), else the tree's.
@@ -721,18 +744,17 @@ class RoadRobustMethod(_LearningMethod):
             return int(decision.action), None
         return latest_collision_action(model, root, decision, horizon=FORECAST_STEPS)
 
-    def _forecast(self, observation: Observation, beliefs, ego: tuple, *, count: bool):
-        """One forecast from the ego's ``(reach, speed, heading)``: its boxes and the state boxes to check."""
+    def _forecast(self, observation: Observation, beliefs, ego: tuple) -> TrafficForecast:
+        """One forecast from the ego's ``(reach, speed, heading)``."""
         road_world = self.world.world
-        scenario = road_world.scenario
         reach, speed, heading = ego
         # the ego's route lanes from the one it is on (its own route position: a route index never
         # decreases, so the lanes it may occupy by the route rule over the horizon are among these)
         route = self.ego.route[int(road_world.traffic.route_index[0]) :] if self.ego.route else ()
-        forecast: TrafficForecast = forecast_traffic(
+        return forecast_traffic(
             observation,
             road_world.road,
-            scenario,
+            road_world.scenario,
             beliefs,
             steps=FORECAST_STEPS,
             ego_reach=reach,
@@ -740,6 +762,11 @@ class RoadRobustMethod(_LearningMethod):
             ego_heading=heading,
             ego_route=route or None,
         )
+
+    def _tables(self, forecast: TrafficForecast, *, count: bool):
+        """A forecast's boxes and the state boxes to check over the decision's sub-steps."""
+        road_world = self.world.world
+        scenario = road_world.scenario
         if count:
             self.guaranteed_lost += int(
                 (~np.asarray(forecast.guaranteed[: self.world.substeps + 1], dtype=bool)).any(axis=0).sum()
@@ -773,6 +800,7 @@ class RoadRobustMethod(_LearningMethod):
             "lp_solves": learner.lp_solves,
             "solver_failures": learner.solver_failures,
             "coarse_vehicle_decisions": self.guaranteed_lost,
+            "inconsistent_forecast_boxes": self.inconsistent_boxes,
         }
 
 

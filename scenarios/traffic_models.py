@@ -324,8 +324,12 @@ class TrafficForecast:
     dt: float
 
     def __post_init__(self) -> None:
-        for name in ("boxes", "state_lower", "state_upper", "guaranteed", "ids"):
+        for name in ("boxes", "state_lower", "state_upper"):
             object.__setattr__(self, name, frozen_copy(np.asarray(getattr(self, name))))
+        for name, dtype in (("guaranteed", bool), ("ids", int)):  # as documented (frozen_copy makes floats)
+            value = np.array(getattr(self, name), dtype=dtype, copy=True)
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
         h1, m = self.guaranteed.shape
         for name in ("boxes", "state_lower", "state_upper"):
             if getattr(self, name).shape != (h1, m, 4):
