@@ -130,8 +130,26 @@ def test_a_robust_road_episode_checks_its_boxes_and_misses_none(kind):
     assert record.boxes_checked == kinds["ego"]["checked"] + kinds["vehicle"]["checked"]
     assert record.boxes_missed == 0, record.extra["runtime_check"]["misses"]
     assert record.extra["solver_failures"] == 0
+    assert record.extra["inconsistent_forecast_boxes"] == 0  # consecutive forecasts never disjoint
     for decision in record.extra["decisions"]:  # Theorem 3's bracket, recorded per decision
         assert 0.0 <= decision["lower"] <= decision["upper"] and decision["depth"] >= 1
+
+
+@pytest.mark.slow
+def test_intersecting_consecutive_forecasts_keeps_held_out_highway_seed_30060_clear(monkeypatch):
+    """Held-out highway seed 30060 collided at 7.0 s when each decision planned on its own forecast alone: the
+    plan of 6.0 s (FASTER, then a lane change) met vehicle 8 on the 6.5 s forecast, whose box was 0.09 m wider
+    on the side the ego pulled out to. On the intersection of the two (both sound) it stays clear, and the
+    episode reaches the goal; the boxes still contain the world, and no two forecasts were ever disjoint."""
+    record = run_job(make_job("highway", "robust", 30060, LoopConfig()))
+    assert record.outcome == "goal", record.outcome
+    assert record.boxes_missed == 0 and record.boxes_checked > 0
+    assert record.extra["inconsistent_forecast_boxes"] == 0
+    import minimaxplan.analysis.road_planning as road_planning
+
+    monkeypatch.setattr(road_planning.RoadRobustMethod, "_intersected", lambda self, forecast, step: forecast)
+    alone = run_job(make_job("highway", "robust", 30060, LoopConfig()))
+    assert alone.outcome == "collision" and alone.time_s == pytest.approx(7.0) and alone.boxes_missed == 0
 
 
 def test_the_ego_reach_refuses_bad_input():
