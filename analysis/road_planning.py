@@ -28,8 +28,10 @@ robust
     up to a sub-step read the reach only up to it (tested): a path that keeps its lane
     up to sub-step n is, up to n, a lane-keeping trajectory. Without the second one
     the ego, whose reach may leave its lane within a second, could never rule out a
-    cut-in beside it, and every plan would end in a possible collision. Where the ego
-    can stop (the T-junction), when the tree's best plan may collide within the
+    cut-in beside it, and every plan would end in a possible collision. Each forecast
+    is intersected with the previous decision's forecast for any ego at the sub-steps
+    they share (`intersect_forecasts`: both contain the true traffic, and they are not
+    nested). Where the ego can stop (the T-junction), when the tree's best plan may collide within the
     forecast, the executed first action is the one whose examined plans stay clear of
     every box longest (`latest_collision_action`): the tree's, unless speeding first
     would meet a box sooner than another first action.
@@ -790,7 +792,7 @@ class RoadRobustMethod(_LearningMethod):
         return forecast.boxes, checked
 
     def report(self) -> dict:
-        """The decisions, the learner's eliminations and LP counts, and the coarse-box count."""
+        """The decisions, the learner's eliminations and LP counts, the coarse-box count and the disjoint consecutive boxes."""
         learner = self.learner
         return {
             "decisions": self.decisions,
