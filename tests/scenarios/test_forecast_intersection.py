@@ -9,30 +9,11 @@ from minimaxplan.models import InputError
 from minimaxplan.scenarios.forecast_intersection import intersect_forecasts
 from minimaxplan.scenarios.traffic_models import TrafficForecast
 
-from .test_traffic_models import TOL, VEHICLE, _check, _episode, vehicle_corners
-
-
-def _misses(forecast, states, t0, ids_steps):
-    """Vehicle-steps of ``forecast`` (made at t0) whose true state or rectangle leaves its boxes."""
-    misses = 0
-    for n in range(ids_steps):
-        true = states[t0 + n][forecast.ids]
-        inside = np.all((true >= forecast.state_lower[n] - TOL) & (true <= forecast.state_upper[n] + TOL), axis=1)
-        corners = vehicle_corners(true, VEHICLE)
-        box = forecast.boxes[n]
-        covered = np.all((corners >= box[:, None, :2] - TOL) & (corners <= box[:, None, 2:] + TOL), axis=(1, 2))
-        misses += int(np.sum(~(inside & covered)))
-    return misses
+from .test_traffic_models import SCENES, _check, _episode, _misses
 
 
 @settings(max_examples=20)
-@given(
-    kind=st.sampled_from(["highway", "tjunction"]),
-    seed=st.integers(0, 10_000),
-    dt=st.sampled_from([0.05, 0.1, 0.2]),
-    lag=st.integers(1, 12),
-    corners=st.none() | st.integers(0, 2**32 - 1),
-)
+@given(**SCENES, lag=st.integers(1, 12))
 def test_the_intersection_of_two_forecasts_contains_the_world_and_is_inside_both(kind, seed, dt, lag, corners):
     """Forecasts made ``lag`` sub-steps apart from prior beliefs (disturbances at their extremes, parameters in
     the prior or at its vertices): their intersection contains every vehicle at every shared sub-step, is inside
