@@ -327,7 +327,11 @@ class TrafficForecast:
         for name in ("boxes", "state_lower", "state_upper"):
             object.__setattr__(self, name, frozen_copy(np.asarray(getattr(self, name))))
         for name, dtype in (("guaranteed", bool), ("ids", int)):  # as documented (frozen_copy makes floats)
-            value = np.array(getattr(self, name), dtype=dtype, copy=True)
+            raw = np.asarray(getattr(self, name))
+            value = np.array(raw, dtype=dtype, copy=True)
+            if raw.size and not np.array_equal(value, raw):
+                kind = "booleans (or 0 and 1)" if dtype is bool else "integers"
+                raise InputError(f"{name} must hold {kind}, got {raw.ravel()[:5].tolist()}...")
             value.setflags(write=False)
             object.__setattr__(self, name, value)
         h1, m = self.guaranteed.shape

@@ -136,6 +136,65 @@ def test_a_robust_road_episode_checks_its_boxes_and_misses_none(kind):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("kind", ["highway", "tjunction"])
+def test_every_intersected_forecast_contains_the_world_over_its_whole_horizon(kind, monkeypatch):
+    """The method's intersected forecasts for any ego (each tightened by the previous decision's, in turn) contain
+    the true state of every vehicle at every sub-step of their horizon that the episode reaches, not only at the
+    executed decision's sub-steps that the run-time check reads; no two consecutive boxes are disjoint."""
+    import minimaxplan.analysis.road_planning as road_planning
+    from minimaxplan.analysis.episode import EpisodeJob
+    from minimaxplan.analysis.registry import method_factory
+    from minimaxplan.analysis.road_scenario import DrivingWorld, RoadScenario
+    from minimaxplan.scenarios.road_world import RoadWorld
+
+    history: list = []
+
+    class Recording(RoadWorld):
+        def apply(self, control=None):
+            outcome = super().apply(control)
+            history.append((self.step_index, self.traffic.states.copy(), self.traffic.active.copy()))
+            return outcome
+
+    class Scenario(RoadScenario):
+        def make_world(self, seed, config):
+            world = Recording(self.kind, seed)
+            history.append((0, world.traffic.states.copy(), world.traffic.active.copy()))
+            return DrivingWorld(world)
+
+    made: list = []
+    intersected = road_planning.RoadRobustMethod._intersected
+
+    def keep(self, forecast, step):
+        out = intersected(self, forecast, step)
+        made.append((step, out))
+        return out
+
+    monkeypatch.setattr(road_planning.RoadRobustMethod, "_intersected", keep)
+    config = LoopConfig(max_decisions=16)
+    scenario = Scenario(kind)
+    record = run_job(
+        EpisodeJob(kind, "robust", 3, config, lambda: Scenario(kind), method_factory("robust", scenario, config))
+    )
+    assert record.extra["inconsistent_forecast_boxes"] == 0 and record.boxes_missed == 0
+    truth = {step: (states, active) for step, states, active in history}
+    checked = 0
+    per_decision = 2 if kind == "highway" else 1  # any ego first, then the lane-keeping one (not checked here)
+    for step, forecast in made[::per_decision]:
+        for n in range(forecast.steps + 1):
+            if step + n not in truth:
+                break
+            states, active = truth[step + n]
+            for j, agent in enumerate(forecast.ids):
+                if active[agent]:
+                    x = states[agent]
+                    assert np.all(x >= forecast.state_lower[n, j] - 1e-9) and np.all(
+                        x <= forecast.state_upper[n, j] + 1e-9
+                    )
+                    checked += 1
+    assert checked > 1000
+
+
+@pytest.mark.slow
 def test_intersecting_consecutive_forecasts_keeps_held_out_highway_seed_30060_clear(monkeypatch):
     """Held-out highway seed 30060 collided at 7.0 s when each decision planned on its own forecast alone: the
     plan of 6.0 s (FASTER, then a lane change) met vehicle 8 on the 6.5 s forecast, whose box was 0.09 m wider

@@ -104,3 +104,14 @@ def test_bad_steps_are_refused_with_a_typed_error(later_step, earlier_step, matc
         intersect_forecasts(one, later_step, one, earlier_step)
     with pytest.raises(InputError, match="TrafficForecasts"):
         intersect_forecasts(one, 1, "not a forecast", 0)
+
+
+def test_a_forecast_refuses_ids_that_are_not_integers_and_flags_that_are_not_booleans():
+    with pytest.raises(InputError, match="ids must hold integers"):
+        _forecast([[[0, 0, 1, 1]]], [[np.zeros(4)]], [[np.ones(4)]], [1.5])
+    with pytest.raises(InputError, match="guaranteed must hold booleans"):
+        TrafficForecast(
+            np.zeros((1, 1, 4)), np.zeros((1, 1, 4)), np.zeros((1, 1, 4)), np.full((1, 1), 0.5), np.array([1]), 0.1
+        )
+    ok = _forecast([[[0, 0, 1, 1]]], [[np.zeros(4)]], [[np.ones(4)]], [3.0])
+    assert ok.ids.dtype.kind == "i" and ok.guaranteed.dtype == bool
