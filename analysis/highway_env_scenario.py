@@ -102,6 +102,7 @@ __all__ = [
     "kept_substeps",
     "box_overlaps",
     "latest_clear_sequence",
+    "normalised_reward",
     "learner_scenario",
     "LEARNER_NOISE",
     "LANE_KEEPING_NAMES",
@@ -621,6 +622,45 @@ def latest_clear_sequence(alive: np.ndarray, values: np.ndarray, *, speeds: np.n
     return int(candidates[np.argmax(values[candidates])])
 
 
+def normalised_reward(config: Mapping[str, Any], states, *, highway: bool, lane_width: float) -> np.ndarray:
+    """highway-env's reward of ego states without a collision, normalised to [0, 1] as highway-env does.
+
+    Highway: ``high_speed_reward`` times the forward speed ``v cos(psi)`` scaled over
+    ``reward_speed_range`` (clipped to [0, 1]) plus ``right_lane_reward`` times the lane
+    index (``round(y / lane_width)``) over the last lane's; intersection: the speed term
+    alone. Both are then mapped from ``[collision_reward, top]`` to [0, 1], ``top`` the
+    largest reward without arrival (highway) or ``arrived_reward`` (intersection).
+
+    Parameters
+    ----------
+    config : mapping
+        The environment's ``config``.
+    states : array_like, shape (n, 4)
+        Ego states ``(x, y, v, psi)``.
+    highway : bool
+        highway-fast-v0's reward (else intersection-v0's).
+    lane_width : float
+        The lanes' width, m (highway only).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,)
+    """
+    states = np.asarray(states, dtype=float)
+    lo, hi = config["reward_speed_range"]
+    if highway:
+        speed = np.clip((states[:, 2] * np.cos(states[:, 3]) - lo) / (hi - lo), 0.0, 1.0)
+        lanes = int(config["lanes_count"])
+        lane = np.clip(np.round(states[:, 1] / lane_width), 0, lanes - 1) / max(lanes - 1, 1)
+        raw = config["high_speed_reward"] * speed + config["right_lane_reward"] * lane
+        top = config["high_speed_reward"] + config["right_lane_reward"]
+        return (raw - config["collision_reward"]) / (top - config["collision_reward"])
+    speed = np.clip((states[:, 2] - lo) / (hi - lo), 0.0, 1.0)
+    return (config["high_speed_reward"] * speed - config["collision_reward"]) / (
+        config["arrived_reward"] - config["collision_reward"]
+    )
+
+
 class _HighwayEnvMethod(Method[HighwayEnvWorld]):
     """A method of the highway-env scenarios only (any other raises `UnsupportedScenario`)."""
 
@@ -660,21 +700,10 @@ class _SearchMethod(_HighwayEnvMethod):
 
     def _reward(self, states: np.ndarray) -> np.ndarray:
         """highway-env's normalised reward of predicted ego states without collision."""
-        base = self.world.adapter.env.unwrapped
-        config = base.config
-        if "highway" in self.world.adapter.env_id:
-            lo, hi = config["reward_speed_range"]
-            speed = np.clip((states[:, 2] * np.cos(states[:, 3]) - lo) / (hi - lo), 0.0, 1.0)
-            lanes = int(config["lanes_count"])
-            width = float(self.world.adapter.road.widths[0]) if self.world.adapter.road is not None else 4.0
-            lane = np.clip(np.round(states[:, 1] / width), 0, lanes - 1) / max(lanes - 1, 1)
-            raw = config["high_speed_reward"] * speed + config["right_lane_reward"] * lane
-            top = config["high_speed_reward"] + config["right_lane_reward"]
-            return (raw - config["collision_reward"]) / (top - config["collision_reward"])
-        lo, hi = config["reward_speed_range"]
-        speed = np.clip((states[:, 2] - lo) / (hi - lo), 0.0, 1.0)
-        return (config["high_speed_reward"] * speed - config["collision_reward"]) / (
-            config["arrived_reward"] - config["collision_reward"]
+        adapter = self.world.adapter
+        width = float(adapter.road.widths[0]) if adapter.road is not None else 4.0
+        return normalised_reward(
+            adapter.env.unwrapped.config, states, highway="highway" in adapter.env_id, lane_width=width
         )
 
     def decide(self, measurement: Observation) -> Policy:

@@ -58,7 +58,14 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["INTERVAL_VEHICLE", "interval_root", "ReferenceDecision", "HighwayEnvReferencePlanner", "driving_reward_of"]
+__all__ = [
+    "INTERVAL_VEHICLE",
+    "interval_root",
+    "ReferenceDecision",
+    "HighwayEnvReferencePlanner",
+    "state_reward_of",
+    "driving_reward_of",
+]
 
 #: highway-env's interval-predicting vehicle class (the reference of the paper's eq. (9)).
 INTERVAL_VEHICLE = "highway_env.vehicle.uncertainty.prediction.IntervalVehicle"
@@ -92,20 +99,20 @@ def interval_root(env: Any, *, simplify: bool = True) -> Any:
     return twin
 
 
-def driving_reward_of(reward: Any) -> Callable[[Any], tuple[float, bool]]:
-    """The reference's transition reward from the library's `DrivingReward`.
+def state_reward_of(free_value: Callable[[np.ndarray], np.ndarray]) -> Callable[[Any], tuple[float, bool]]:
+    """The reference's transition reward from a reward of ego states without collision.
 
     Parameters
     ----------
-    reward : minimaxplan.scenarios.DrivingReward
-        The library's planner's reward (its obstacle table is not read).
+    free_value : callable
+        ``states (n, 4) -> values (n,)`` in [0, 1], the ego's ``(x, y, v, psi)``.
 
     Returns
     -------
     callable
         ``env -> (value, terminal)``: ``(0, True)`` when the copy's ego crashed
         (highway-env's interval check) or left the road (its ``on_road``), else
-        ``reward.free_value`` of the ego's ``(x, y, v, psi)`` and False.
+        ``free_value`` of the ego's state and False.
     """
 
     def value(env: Any) -> tuple[float, bool]:
@@ -113,9 +120,20 @@ def driving_reward_of(reward: Any) -> Callable[[Any], tuple[float, bool]]:
         if ego.crashed or not ego.on_road:
             return 0.0, True
         state = np.array([[ego.position[0], ego.position[1], ego.speed, ego.heading]], dtype=float)
-        return float(reward.free_value(state)[0]), False
+        return float(free_value(state)[0]), False
 
     return value
+
+
+def driving_reward_of(reward: Any) -> Callable[[Any], tuple[float, bool]]:
+    """`state_reward_of` the library's `DrivingReward` (its ``free_value``; the obstacle table is not read).
+
+    Parameters
+    ----------
+    reward : minimaxplan.scenarios.DrivingReward
+        The library's planner's reward.
+    """
+    return state_reward_of(reward.free_value)
 
 
 class _Node:

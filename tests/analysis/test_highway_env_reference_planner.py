@@ -135,3 +135,41 @@ def test_depth_rule_and_crash_reward(scene, reference):
     assert not terminal and 0 < free <= 1
     crashed.vehicle.crashed = True
     assert value(crashed) == (0.0, True)
+
+
+def test_the_reference_method_plans_from_the_episodes_environment_and_holds_its_action(benchmark_script):
+    # the reference as a controller (benchmarks/highway_env_reference_episodes.py): one decision
+    # from the episode's environment, the root action at the first simulation step, IDLE after
+    from minimaxplan.analysis.episode import LoopConfig
+    from minimaxplan.analysis.highway_env_scenario import HighwayEnvScenario, normalised_reward
+    from minimaxplan.analysis.registry import UnsupportedScenario
+    from minimaxplan.analysis.road_scenario import RoadScenario
+
+    episodes = benchmark_script("highway_env_reference_episodes")
+    warnings.simplefilter("ignore")
+    scenario = HighwayEnvScenario("highway-fast-v0")
+    with pytest.raises(UnsupportedScenario):
+        episodes.HighwayEnvReferenceMethod(RoadScenario("highway"), LoopConfig())
+    method = episodes.HighwayEnvReferenceMethod(scenario, LoopConfig(), budget=2)
+    world = scenario.make_world(0, LoopConfig())
+    try:
+        method.start(world)
+        before = _snapshot(world.adapter.env.unwrapped)
+        policy = method.decide(world.measure())
+        assert _same(_snapshot(world.adapter.env.unwrapped), before)  # planning stepped copies only
+        (decision,) = method.report()["decisions"]
+        assert decision["expansions"] <= 2 and decision["env_steps"] <= 2 * len(world.actions)
+        chosen = [a[0] for a in world.actions].index(decision["action"])
+        controls = [int(policy.control(None)[0]) for _ in range(world.substeps)]
+        assert controls == [chosen] + [[a[0] for a in world.actions].index("IDLE")] * (world.substeps - 1)
+        # its transition value is the search's reward of the copy's ego state, 0 and terminal on a crash
+        twin = episodes.reference.interval_root(world.adapter.env)
+        ego = twin.vehicle
+        state = np.array([[ego.position[0], ego.position[1], ego.speed, ego.heading]])
+        config = world.adapter.env.unwrapped.config
+        width = float(world.adapter.road.widths[0])
+        assert method.value(twin) == (float(normalised_reward(config, state, highway=True, lane_width=width)[0]), False)
+        twin.vehicle.crashed = True
+        assert method.value(twin) == (0.0, True)
+    finally:
+        world.adapter.close()

@@ -28,6 +28,7 @@ from minimaxplan.analysis.highway_env_scenario import (  # noqa: E402
     HighwayEnvRobustMethod,
     HighwayEnvScenario,
     HighwayEnvWorld,
+    normalised_reward,
     simulate_ego,
 )
 from minimaxplan.analysis.registry import (  # noqa: E402
@@ -89,6 +90,30 @@ def test_world_steps_highway_env_one_simulation_step_at_a_time():
     assert 0.0 <= world.reward() <= 1.0
     with pytest.raises(InputError, match="action index"):
         world.apply(np.array([len(world.actions)]))
+
+
+@pytest.mark.parametrize("env_id", ["highway-fast-v0", "intersection-v0"])
+def test_normalised_reward_is_highway_envs_own_reward_of_the_egos_state(env_id):
+    # the search's reward of a predicted state is highway-env's reward of that state, while the
+    # ego is on the road, has not crashed or arrived, and keeps its lane (no target lane ahead)
+    world = HighwayEnvWorld(env_id, 1)
+    names = [a[0] for a in world.actions]
+    config = world.adapter.env.unwrapped.config
+    width = float(world.adapter.road.widths[0])
+    compared = 0
+    for k in range(3 * world.substeps):
+        action = (
+            names.index("FASTER" if k < world.substeps else "SLOWER")
+            if k % world.substeps == 0
+            else names.index("IDLE")
+        )
+        if world.apply(np.array([action])) != "running":
+            break
+        ours = normalised_reward(config, world.state[None, :], highway="highway" in env_id, lane_width=width)
+        assert ours.shape == (1,)
+        assert ours[0] == world.reward(), (k, ours, world.reward())
+        compared += 1
+    assert compared >= 2 * world.substeps
 
 
 @pytest.mark.parametrize("env_id", ["highway-fast-v0", "intersection-v0"])
