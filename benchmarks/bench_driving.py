@@ -21,8 +21,10 @@ minimum, road test). Measured in the same run, on the same roots:
   scored on that forecast; same budget, on `REFERENCE_ROOTS` roots (it is slow).
 
 Model building: the robust road method's per-decision cost of the traffic learner (LP
-elimination, `TrafficLearner`) and the forecast (`forecast_traffic`) next to the
-planning itself and the latest-collision rule (`latest_collision_action`), timed inside real episodes of both worlds (`MODEL_SEEDS`).
+elimination, `TrafficLearner`), the forecast (`forecast_traffic`) and its intersection with
+the previous decision's (`intersect_forecasts`) next to the planning itself and the
+latest-collision rule (`latest_collision_action`), timed inside real episodes of both
+worlds (`MODEL_SEEDS`).
 
 Median and 90th percentile over the roots (each planned 3 times, the median kept),
 after one warm-up plan (compilation, reported separately). Every figure is CPU time of
@@ -186,6 +188,7 @@ def _model_building() -> dict:
         road_planning.ego_reach,
         road_planning.lane_keeping_reach,
         road_planning.latest_collision_action,
+        road_planning.intersect_forecasts,
     )
 
     def timed(key, function):
@@ -207,8 +210,9 @@ def _model_building() -> dict:
         road_planning.ego_reach = timed("reach", originals[4])
         road_planning.lane_keeping_reach = timed("reach", originals[5])
         road_planning.latest_collision_action = timed("latest_collision", originals[6])
+        road_planning.intersect_forecasts = timed("intersection", originals[7])
         for world in ("highway", "tjunction"):
-            per = {"forecast": [], "learner": [], "planning": [], "reach": [], "latest_collision": []}
+            per = {key: [] for key in ("forecast", "intersection", "learner", "planning", "reach", "latest_collision")}
             for seed in MODEL_SEEDS:
                 timings.clear()
                 record = run_episode(world, "robust", seed)
@@ -218,7 +222,8 @@ def _model_building() -> dict:
     finally:
         road_planning.forecast_traffic = originals[0]
         TrafficLearner.observe, TrafficLearner.beliefs, RobustTreePlanner.plan = originals[1:4]
-        road_planning.ego_reach, road_planning.lane_keeping_reach, road_planning.latest_collision_action = originals[4:]
+        road_planning.ego_reach, road_planning.lane_keeping_reach = originals[4:6]
+        road_planning.latest_collision_action, road_planning.intersect_forecasts = originals[6:]
     return result
 
 
@@ -318,14 +323,14 @@ def main() -> dict:
         "",
         f"Model building per decision inside robust episodes (seeds {', '.join(map(str, MODEL_SEEDS))}), ms:",
         "",
-        "| world | learner (LP elimination) | ego reach | forecast (highway: two, any ego and lane keeping) | planning "
-        "| latest-collision rule (T-junction only) |",
-        "|---|---:|---:|---:|---:|---:|",
+        "| world | learner (LP elimination) | ego reach | forecast (highway: two, any ego and lane keeping) "
+        "| forecasts intersected with the previous decision's | planning | latest-collision rule (T-junction only) |",
+        "|---|---:|---:|---:|---:|---:|---:|",
     ]
     for world, row in building.items():
         lines.append(
-            f"| {world} | {row['learner']:.1f} | {row['reach']:.1f} | {row['forecast']:.1f} | {row['planning']:.1f} "
-            f"| {row['latest_collision']:.1f} |"
+            f"| {world} | {row['learner']:.1f} | {row['reach']:.1f} | {row['forecast']:.1f} "
+            f"| {row['intersection']:.2f} | {row['planning']:.1f} | {row['latest_collision']:.1f} |"
         )
     lines.append("")
     RESULTS.mkdir(parents=True, exist_ok=True)
