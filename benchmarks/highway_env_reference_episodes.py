@@ -57,6 +57,7 @@ from minimaxplan.analysis.highway_env_scenario import (
     normalised_reward,
 )
 from minimaxplan.analysis.registry import Method, UnsupportedScenario, register_method
+from minimaxplan.models.errors import InputError
 from minimaxplan.scenarios.highway_env_adapter import meta_action
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
@@ -168,7 +169,10 @@ def main(argv: Sequence[str] | None = None) -> dict:
         parser.error(f"--budget must be >= 1, got {args.budget}")
     register_method("reference", functools.partial(HighwayEnvReferenceMethod, budget=args.budget))
     scenarios = [s for s in args.scenarios.split(",") if s]
-    result = run_experiment(scenarios, ["reference"], episodes=args.episodes, seed=args.seed, workers=args.workers)
+    try:
+        result = run_experiment(scenarios, ["reference"], episodes=args.episodes, seed=args.seed, workers=args.workers)
+    except InputError as error:  # an unknown scenario, a count out of range: one line, exit 2
+        parser.error(str(error))
     out = write_outputs(result, args.out)
     decisions = [
         {"scenario": r.scenario, "seed": r.seed, "outcome": r.outcome, "decisions": r.extra.get("decisions", [])}
