@@ -27,6 +27,11 @@ successors and their predecessors (sound while highway-env's vehicles move along
 lanes' successions, reversing included, by less than a lane per sub-step), to measure
 what the crossing lanes cost.
 
+``--true-routes`` (diagnosis only, privileged) cuts each vehicle's prior routes to those
+that end on the last lane of its true highway-env route (``vehicle.route``, which the
+registered method never reads) and its lanes to that route's and its current lane, to
+measure what not knowing the routes costs.
+
 Usage::
 
     python benchmarks/trace_highway_env_stalls.py --seeds 0,1,2 [--out benchmarks/results/trace_highway_env_stalls.md]
@@ -53,6 +58,8 @@ ENV = "highway-env:intersection-v0"
 CHI_RANGE: list = []
 #: Every removal made by ``--lane-history`` (lanes taken out of a prior; priors left whole).
 LANE_HISTORY = collections.Counter()
+#: What ``--true-routes`` did to the priors (cut to the true route; left whole).
+TRUE_ROUTES = collections.Counter()
 #: A vehicle is the ego's follower when its heading is within this of the ego's (rad) ...
 SAME_HEADING = 0.3
 #: ... and its centre within this of the ego's line (m: half of highway-env's 4 m lane).
@@ -105,7 +112,31 @@ def _lane_history_beliefs(method, observation) -> dict:
     return beliefs
 
 
-def trace(seed: int, lane_history: bool = False) -> tuple[str, collections.Counter, list[str]]:
+def _true_route_beliefs(method, observation) -> dict:
+    """The priors of ``observation`` cut to each vehicle's true highway-env route (diagnosis, privileged)."""
+    adapter = method.world.adapter
+    base = adapter.env.unwrapped
+    vehicles = {adapter.agent_id(v): v for v in base.road.vehicles if v is not base.vehicle}
+    beliefs = {}
+    for agent, state in zip(np.asarray(observation.ids).tolist(), np.asarray(observation.vehicles, dtype=float)):
+        prior = adapter.prior(agent, state)
+        vehicle = vehicles[agent]
+        route = [adapter.lane_index[(a, b, 0 if i is None else i)] for a, b, i in (vehicle.route or [])]
+        on_route = set(route) | {adapter.lane_index[tuple(vehicle.lane_index)]}
+        routes = tuple(r for r in prior.routes if route and r[-1] == route[-1])
+        lanes = tuple(lane for lane in prior.lanes if lane in on_route)
+        if routes and lanes:
+            TRUE_ROUTES["priors cut to the true route"] += 1
+            beliefs[agent] = dataclasses.replace(prior, lanes=lanes, routes=routes)
+        else:
+            TRUE_ROUTES["priors left whole"] += 1
+            beliefs[agent] = prior
+    return beliefs
+
+
+def trace(
+    seed: int, lane_history: bool = False, true_routes: bool = False
+) -> tuple[str, collections.Counter, list[str]]:
     """One robust episode: its outcome, the counts of verdicts per decision, and one line per decision."""
     counts: collections.Counter = collections.Counter()
     lines: list[str] = []
@@ -119,6 +150,10 @@ def trace(seed: int, lane_history: bool = False) -> tuple[str, collections.Count
 
     def history_beliefs(self, observation):
         captured["beliefs"] = _lane_history_beliefs(self, observation)
+        return captured["beliefs"]
+
+    def route_beliefs(self, observation):
+        captured["beliefs"] = _true_route_beliefs(self, observation)
         return captured["beliefs"]
 
     def prior_beliefs(self, observation):
@@ -198,6 +233,8 @@ def trace(seed: int, lane_history: bool = False) -> tuple[str, collections.Count
     if lane_history:
         hes.HighwayEnvRobustMethod.observe = observe_lanes
         hes.HighwayEnvRobustMethod._beliefs = history_beliefs
+    elif true_routes:
+        hes.HighwayEnvRobustMethod._beliefs = route_beliefs
     else:
         hes.HighwayEnvRobustMethod._beliefs = prior_beliefs
     try:
@@ -220,7 +257,14 @@ def main() -> None:
         action="store_true",
         help="diagnosis only: restrict each vehicle's prior lanes by its previous sub-step's (see the docstring)",
     )
+    parser.add_argument(
+        "--true-routes",
+        action="store_true",
+        help="diagnosis only: cut each vehicle's prior routes to its true highway-env route (see the docstring)",
+    )
     args = parser.parse_args()
+    if args.lane_history and args.true_routes:
+        parser.error("--lane-history and --true-routes are two diagnoses: give one")
     start = time.time()
     total: collections.Counter = collections.Counter()
     summary = [
@@ -232,7 +276,7 @@ def main() -> None:
         "|---:|---:|---|---|---|",
     ]
     for seed in args.seeds:
-        outcome, counts, lines = trace(seed, args.lane_history)
+        outcome, counts, lines = trace(seed, args.lane_history, args.true_routes)
         total.update(counts)
         n = counts["free"] + counts["blocked"]
         cells = [
@@ -247,11 +291,20 @@ def main() -> None:
     n = total["free"] + total["blocked"]
     cells = [total[f"blocked: {k}"] for k in ("follower, fine", "follower, coarse", "other, fine", "other, coarse")]
     summary.append(f"| all | | {n} | {total['free']} | {total['blocked']} | " + " | ".join(map(str, cells)) + " |")
-    variant = " (diagnosis: lanes restricted by their history)" if args.lane_history else ""
+    variant = (
+        " (diagnosis: lanes restricted by their history)"
+        if args.lane_history
+        else " (diagnosis: priors cut to the true routes)"
+        if args.true_routes
+        else ""
+    )
     removed = (
         f"Lane history: {LANE_HISTORY['lanes removed']} lanes removed from priors, "
         f"{LANE_HISTORY['priors left whole']} priors left whole.\n\n"
         if args.lane_history
+        else f"True routes: {TRUE_ROUTES['priors cut to the true route']} priors cut to the true route, "
+        f"{TRUE_ROUTES['priors left whole']} left whole.\n\n"
+        if args.true_routes
         else ""
     )
     coarse = (

@@ -641,6 +641,32 @@ def test_stall_trace_counts_every_decision_and_restores_the_method(benchmark_scr
     assert all(("blocked at" in line) == (" free " not in line) for line in lines)
 
 
+def test_stall_trace_true_routes_cut_each_prior_to_the_vehicles_own_route(benchmark_script):
+    """`--true-routes` (a privileged diagnosis) keeps, of each vehicle's prior, the routes that end where
+    its highway-env route ends and the lanes on that route; nothing it keeps is outside the prior."""
+    import types
+
+    module = benchmark_script("trace_highway_env_stalls")
+    world = HighwayEnvWorld("intersection-v0", 2)
+    idle = np.array([[a[0] for a in world.actions].index("IDLE")])
+    for _ in range(2 * world.substeps):  # let vehicles enter the junction
+        world.apply(idle)
+    adapter = world.adapter
+    observation = world.measure()
+    cut = module._true_route_beliefs(types.SimpleNamespace(world=world), observation)
+    base = adapter.env.unwrapped
+    vehicles = {adapter.agent_id(v): v for v in base.road.vehicles if v is not base.vehicle}
+    narrowed = 0
+    for agent, state in zip(np.asarray(observation.ids).tolist(), observation.vehicles):
+        prior, belief = adapter.prior(agent, state), cut[agent]
+        assert set(belief.routes) <= set(prior.routes) and set(belief.lanes) <= set(prior.lanes)
+        route = [adapter.lane_index[(a, b, 0 if i is None else i)] for a, b, i in (vehicles[agent].route or [])]
+        if belief.routes != prior.routes:
+            assert route and all(r[-1] == route[-1] for r in belief.routes)
+            narrowed += 1
+    assert narrowed > 0  # at the intersection a prior holds several routes; the cut keeps the true one's
+
+
 def test_stall_trace_lane_history_keeps_neighbours_and_measures_heading_errors(benchmark_script):
     """`--lane-history` keeps a lane, its successors and its predecessors, nothing else; the heading
     error of a state against a lane is 0 along it and pi against it."""
