@@ -440,12 +440,20 @@ class TrafficLearner:
         if not cands or not np.all(np.isfinite(se[cands])):
             return None
         road = self.road
+        switch = self.behaviour.route_switch_distance
         glo, ghi = np.full(2, np.inf), np.full(2, -np.inf)
         for k in cands:
             lane = hyp.route[k]
             a_lo, a_hi = s[k] - se[k] + tau * v_lo, s[k] + se[k] + tau * v_hi
             length = road.lengths[lane]
             has_next = k + 1 < len(hyp.route)
+            if (
+                switch > 0
+                and has_next
+                and s[k] + se[k] > length - switch
+                and (road.kinds[lane] == ARC or road.kinds[hyp.route[k + 1]] == ARC)
+            ):
+                return None  # the world may steer by the next lane's frame here (an early route switch)
             pts = []
             if not has_next or a_lo <= length:
                 pts += [(lane, a_lo), (lane, min(a_hi, length) if has_next else a_hi)]

@@ -308,7 +308,8 @@ def highway_env_scenario(env) -> HighwayScenario | TJunctionScenario:
         ``MAX_SPEED`` and ``MAX_STEERING_ANGLE``; ``behaviour`` the ``LinearVehicle``
         family (its nominal gains and ranges, ``d0 = DISTANCE_WANTED - LENGTH`` since
         highway-env measures centre to centre, ``T = TIME_WANTED``, ``TAU_PURSUIT``,
-        ``ACC_MAX``) with no disturbance (highway-env has none); no measurement noise (the
+        ``ACC_MAX``, the route switch ``AbstractLane.VEHICLE_LENGTH / 2`` before a lane's
+        end, ``follow_road``'s) with no disturbance (highway-env has none); no measurement noise (the
         adapter reads exact states); the target-speed range (``vehicle_speed`` on the
         highway: ``[0.7, 0.8]`` of the lanes' speed limit, ``create_random``'s draw;
         ``main_speed`` = `INTERSECTION_TARGET_SPEED` at the intersection); MOBIL's timer
@@ -334,6 +335,7 @@ def highway_env_scenario(env) -> HighwayScenario | TJunctionScenario:
         standstill_distance=float(cls.DISTANCE_WANTED - cls.LENGTH),
         time_headway=float(cls.TIME_WANTED),
         pursuit_time=float(cls.TAU_PURSUIT),
+        route_switch_distance=float(hw.road.lane.AbstractLane.VEHICLE_LENGTH) / 2,
         acceleration_bound=float(cls.ACC_MAX),
         disturbance_bound=0.0,
     )

@@ -667,6 +667,93 @@ def _arc_offset_bounds(center, radius, sign, x_lo, x_hi, y_lo, y_hi):
     return _out(np.where(sign > 0, radius - far, near - radius), np.where(sign > 0, radius - near, far - radius))
 
 
+#: A steering term (rad) that no law's clip can exceed: the bound given where a switch window's
+#: geometry is outside its validity (a box reaching the arc's centre).
+SWITCH_STEERING_UNBOUNDED = 1e9
+
+
+def _route_switch_steering(s, e, pursuit, speed, b1, q, *, start, end, radius, sign, switch: float, length: float):
+    """Bounds of the steering added when the world may steer by the next route lane early.
+
+    For rows whose route passes one arc (`_route_pieces`): from ``switch`` m before the
+    arc's start the world may steer by the arc's lane, and from ``switch`` m before its end
+    by the straight lane after it (highway-env's ``follow_road``: ``switch`` = L/2). Its
+    steering features are then those of that next lane's Frenet frame, extended before
+    the lane's start, instead of the route frame's: ``delta_r`` gains
+    ``Delta = (L / v)(theta_b1 Delta_h - q Delta_e)``, ``Delta_h`` the change of the pursuit
+    heading and ``Delta_e`` of the offset. With ``x = B - s`` the distance to the lane's
+    end ``B`` (``0 <= x <= switch``), ``sigma`` the arc's sign and ``A = R - sigma e``:
+
+    * before the arc (the arc's lane): ``sigma Delta_e = A - sqrt(x^2 + A^2)`` and
+      ``Delta_h = (sigma / R)(min(tau v, x) - R atan(x / A))`` (the arc's heading is linear
+      in its arc length, ``-R atan(x / A)`` at the centre's projection);
+    * on the arc, before its end (the straight lane): ``sigma Delta_e = A (1 - cos(x / R))``
+      and ``Delta_h = (sigma / R) max(0, x - tau v)``.
+
+    Each is monotone in ``x`` and ``A`` (and ``tau v``), so its range over the box is that
+    of its corners. 0 is always included (the switch may not have happened: the forecast
+    allows any switch point in the window, the library's world at the end). Valid while
+    the arc is at least ``switch`` and ``tau v`` long, ``x / R <= pi`` and ``A > 0``;
+    elsewhere (never on the roads here) ``+-SWITCH_STEERING_UNBOUNDED``.
+
+    Parameters
+    ----------
+    s, e : tuple of 2 ndarray
+        ``(lo, hi)`` of the route distance and the offset (the frame of the lane the
+        centre is in).
+    pursuit : tuple of 2 ndarray
+        ``(lo, hi)`` of the pursuit distance ``tau v`` (the true speed).
+    speed : tuple of 2 ndarray
+        ``(lo, hi)`` of the features' speed ``max(v, speed_epsilon)`` (> 0).
+    b1, q : tuple of 2 ndarray
+        ``(lo, hi)`` of theta_b1 and ``q = theta_b2 / v``.
+    start, end, radius, sign : ndarray
+        The arc's route-distance range (``-inf`` / ``inf`` where the route starts or ends
+        on it), radius and turning sign.
+    switch : float
+        The window's length, m (> 0).
+    length : float
+        L, m.
+
+    Returns
+    -------
+    tuple of 2 ndarray
+        ``(lo, hi)`` of ``Delta``, rounded outward.
+    """
+    lo = np.zeros(np.shape(s[0]))
+    hi = np.zeros(np.shape(s[0]))
+    se_lo = np.where(sign > 0, e[0], -e[1])
+    se_hi = np.where(sign > 0, e[1], -e[0])
+    a_lo, a_hi = radius - se_hi, radius - se_lo
+    inv_v = (length / speed[1], length / speed[0])
+    arc_ok = (end - start >= np.maximum(switch, pursuit[1])) & (switch <= np.pi * radius)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        for bound, entering in ((start, True), (end, False)):
+            met = (s[1] >= bound - switch) & (s[0] <= bound)
+            if not met.any():
+                continue
+            x_lo, x_hi = np.maximum(bound - s[1], 0.0), np.minimum(bound - s[0], switch)
+            if entering:
+                de = (a_lo - np.hypot(x_hi, a_lo), a_hi - np.hypot(x_lo, a_hi))
+                f = (
+                    np.minimum(pursuit[0], x_lo) - radius * np.arctan(x_hi / a_lo),
+                    np.minimum(pursuit[1], x_hi) - radius * np.arctan(x_lo / a_hi),
+                )
+            else:
+                de = (a_lo * (1.0 - np.cos(x_lo / radius)), a_hi * (1.0 - np.cos(x_hi / radius)))
+                f = (np.maximum(0.0, x_lo - pursuit[1]), np.maximum(0.0, x_hi - pursuit[0]))
+            dh = (np.where(sign > 0, f[0], -f[1]) / radius, np.where(sign > 0, f[1], -f[0]) / radius)
+            de = (np.where(sign > 0, de[0], -de[1]), np.where(sign > 0, de[1], -de[0]))
+            t_h = interval_product(b1[0], b1[1], dh[0], dh[1])
+            t_e = interval_product(q[0], q[1], de[0], de[1])
+            d_lo, d_hi = interval_product(inv_v[0], inv_v[1], t_h[0] - t_e[1], t_h[1] - t_e[0])
+            valid = arc_ok & (a_lo > 0.0) & np.isfinite(d_lo) & np.isfinite(d_hi)
+            d_lo = np.where(valid, d_lo, -SWITCH_STEERING_UNBOUNDED)
+            d_hi = np.where(valid, d_hi, SWITCH_STEERING_UNBOUNDED)
+            lo, hi = np.where(met, np.minimum(lo, d_lo), lo), np.where(met, np.maximum(hi, d_hi), hi)
+    return _out(lo, hi)
+
+
 def _matvec(m, lo, hi):
     """Interval product of one matrix (n, 2, 2) per box (n, 2), rounded outward (`interval_matvec`)."""
     new_lo, new_hi = interval_matvec(_as_rows(m), _as_rows(lo), _as_rows(hi))
@@ -1272,7 +1359,10 @@ def forecast_traffic(
         # (unused) frame boxes are kept finite so that no inf * 0 reaches the bases
         loose = on_arc[~bounded]
         s_lo[loose] = s_hi[loose] = ch_lo[loose] = ch_hi[loose] = 0.0
-    fine &= (np.maximum(-ch_lo, ch_hi) <= CHI_MAX) & (s_hi + beh.pursuit_time * v_hi <= prefix_end)
+    ahead0 = beh.pursuit_time * v_hi
+    if beh.route_switch_distance > 0.0:  # the world may steer by the lane beyond the prefix from that far before it
+        ahead0 = np.maximum(ahead0, beh.route_switch_distance)
+    fine &= (np.maximum(-ch_lo, ch_hi) <= CHI_MAX) & (s_hi + ahead0 <= prefix_end)
     # one basis per vehicle (rows share it): the nominal matrix at the measured speed
     phi = _structure(dt, length)
     v0 = np.maximum(mv[:, 2], V_MIN)
@@ -1320,6 +1410,7 @@ def forecast_traffic(
     guaranteed = np.empty((H1, m), dtype=bool)
     half_w = widths / 2
     tau, settle = beh.pursuit_time, rules.lane_change_settled
+    switch = float(beh.route_switch_distance)
     vmax = vehicle.max_speed
     beta_max = float(slip_angle(vehicle.max_steering))
     eps = beh.speed_epsilon
@@ -1381,6 +1472,8 @@ def forecast_traffic(
         with np.errstate(invalid="ignore"):
             # the pursuit point may reach the arc before the motion does (tau > 1.5 dt, e.g. dt = 0.05)
             arc_in = has_arc & (arc_start <= np.maximum(m_hi, w_hi)) & (arc_end >= m_lo)
+            if switch > 0.0:  # the world may already steer by the arc's lane (`_route_switch_steering`)
+                arc_in |= has_arc & (arc_start - switch <= s_hi) & (arc_end >= m_lo)
             end_in = has_arc & (arc_end >= m_lo) & (arc_end <= m_hi)
         kw = (np.where(arc_in, kw[0], 0.0), np.where(arc_in, kw[1], 0.0))
         km = (np.where(arc_in, km[0], 0.0), np.where(arc_in, km[1], 0.0))
@@ -1432,6 +1525,23 @@ def forecast_traffic(
         big = np.where(bad, 4.0 * np.pi, 0.0)
         e_x, chi_x = _out(e_x[0] - big, e_x[1] + big), _out(chi_x[0] - big, chi_x[1] + big)
         return e_x, chi_x, _out(ds[0] - big, ds[1] + big), interval_product(km[0][rr_], km[1][rr_], *ds)
+
+    def switch_steering(rr_, e, pursuit, speed, q):
+        """`_route_switch_steering` for the units of rows rr_ (their row's s box, arc and gains)."""
+        return _route_switch_steering(
+            (s_lo[rr_], s_hi[rr_]),
+            e,
+            pursuit,
+            speed,
+            (tb_lo[rr_, 0], tb_hi[rr_, 0]),
+            q,
+            start=arc_start[rr_],
+            end=arc_end[rr_],
+            radius=arc_rad[rr_],
+            sign=arc_sgn[rr_],
+            switch=switch,
+            length=length,
+        )
 
     def lateral_step(idx, v_lo, v_hi):
         """One step of the units idx: vertex bound plus remainders (v >= V_MIN), hulled with the
@@ -1485,6 +1595,9 @@ def forecast_traffic(
                     ffs = (ff_row[0][rsub], ff_row[1][rsub])
                     e_s, c_s = (eb[0][sub], eb[1][sub]), (cb[0][sub], cb[1][sub])
                     vb = (bv_lo[sub], bv_hi[sub])
+                    if switch > 0.0:
+                        sw = switch_steering(rsub, e_s, (tau * vb[0], tau * vb[1]), vb, (q_lo[sub], q_hi[sub]))
+                        ffs = _out(ffs[0] + sw[0], ffs[1] + sw[1])
                     r_e2, r_c2, _, a_f2 = lateral_remainder(
                         e_s, c_s, vb, (b1s[0][sub], b1s[1][sub]), (q_lo[sub], q_hi[sub]), dt, vehicle, ff=ffs
                     )
@@ -1537,6 +1650,9 @@ def forecast_traffic(
                 e_s, c_s = (e_box[0][sub], e_box[1][sub]), (c_box[0][sub], c_box[1][sub])
                 vs = (vh_lo[sub], vh_hi[sub])
                 q_s = (tb_lo[rsub, 1] / vs[1], tb_hi[rsub, 1] / vs[0])
+                if switch > 0.0:
+                    sw = switch_steering(rsub, e_s, (tau * vl_lo[sub], tau * vl_hi[sub]), vs, q_s)
+                    ffd = _out(ffd[0] + sw[0], ffd[1] + sw[1])
                 _, _, d_s, a_s = lateral_remainder(e_s, c_s, vs, (b1[0][sub], b1[1][sub]), q_s, dt, vehicle, ff=ffd)
                 dd = (vl_lo[sub] * dt, vl_hi[sub] * dt)
                 de_s = interval_product(*dd, *sin_interval(*a_s))
@@ -1693,7 +1809,8 @@ def forecast_traffic(
                 break
 
             # ------------------------------------- leave the fine region -> coarse
-            leave = fine & alive & ((np.maximum(-ch_lo, ch_hi) > CHI_MAX) | (s_hi + tau * v_hi > prefix_end))
+            ahead = tau * v_hi if switch == 0.0 else np.maximum(tau * v_hi, switch)
+            leave = fine & alive & ((np.maximum(-ch_lo, ch_hi) > CHI_MAX) | (s_hi + ahead > prefix_end))
 
             # --------------------------------------- the other agents' boxes at step n
             vb_lo = np.where(alive[:, None], np.stack([cx_lo, cy_lo], 1), np.inf)

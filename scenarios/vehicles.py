@@ -128,6 +128,13 @@ class BehaviourParameters:
     pursuit_time : float
         tau, s (0.1, highway-env's TAU_PURSUIT): the steering aims at the route heading
         ``tau v`` ahead.
+    route_switch_distance : float
+        m (0): the steering may follow the next lane of the route from this distance
+        before the end of its lane on (0: at the end, as this library's world does;
+        highway-env's ``follow_road`` switches ``AbstractLane.VEHICLE_LENGTH / 2`` = 2.5 m
+        early). Read by the forecast only (`minimaxplan.scenarios.traffic_models`, which
+        then allows any switch point in that window); the library's world steers by the
+        lane its centre is in.
     acceleration_bound : float
         a_max, m/s^2 (6): the law's output is clipped to ``[-a_max, a_max]``.
     disturbance_bound : float
@@ -144,6 +151,7 @@ class BehaviourParameters:
     standstill_distance: float = 5.0
     time_headway: float = 1.5
     pursuit_time: float = 0.1
+    route_switch_distance: float = 0.0
     acceleration_bound: float = 6.0
     disturbance_bound: float = 0.1
     speed_epsilon: float = 0.01
@@ -167,6 +175,7 @@ class BehaviourParameters:
             "standstill_distance",
             "time_headway",
             "pursuit_time",
+            "route_switch_distance",
             "acceleration_bound",
             "disturbance_bound",
             "speed_epsilon",

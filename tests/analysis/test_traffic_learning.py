@@ -138,3 +138,27 @@ def test_the_learner_refuses_a_sub_step_it_has_already_learned_from():
             learner.observe(again)
     assert learner.step == 1
     assert {a: [h.lat_rows.n for h in t.hyps] for a, t in learner.tracks.items()} == rows
+
+
+def test_the_learner_skips_steering_rows_where_the_route_may_switch_early():
+    """With ``route_switch_distance`` > 0 the world may steer by the arc's lane before the
+    straight lane ends: no steering row is taken within that distance of a turn (the route
+    frame's features would not be the world's), and the same state farther back still gives one."""
+    from minimaxplan.analysis.traffic_learning import _Hypothesis
+    from minimaxplan.scenarios.road import ARC
+
+    world = make_road_world("tjunction", 0)
+    road = world.road
+    route = road.route("south_in", "south_west", "west_out")  # a left turn
+    before = next(k for k in range(len(route) - 1) if road.kinds[route[k + 1]] == ARC)
+    lane, length = route[before], float(road.lengths[route[before]])
+    behaviour = dataclasses.replace(world.scenario.behaviour, route_switch_distance=2.5)
+    for switch, learner in (
+        (0.0, TrafficLearner(road, world.scenario)),
+        (2.5, TrafficLearner(road, dataclasses.replace(world.scenario, behaviour=behaviour))),
+    ):
+        for back, usable in ((10.0, True), (1.0, switch == 0.0)):
+            x, y = road.position_at(lane, length - back)
+            state = np.array([x, y, 8.0, float(road.heading_at(lane, length - back))])
+            step = learner._lateral_step(_Hypothesis(route=tuple(route), tstar=0), state)
+            assert (step is not None) == usable, (switch, back)

@@ -113,8 +113,21 @@ def _episode(kind, seed, dt, length, rules=None, extreme=True, corners=None):
     return world, (states, ego_lanes), observations, changes
 
 
-def _check(world, run, observations, t0, steps, intentions=None, *, lateral_contraction=True, lateral_invariant=True):
+def _check(
+    world,
+    run,
+    observations,
+    t0,
+    steps,
+    intentions=None,
+    *,
+    lateral_contraction=True,
+    lateral_invariant=True,
+    route_switch_distance=0.0,
+):
     """Forecast at t0 with prior beliefs (or the true intention lanes at t0) and the exact ego.
+
+    ``route_switch_distance`` is the forecast's (the world's law switches at the lane's end).
 
     Returns (misses, checked vehicle-steps, forecast).
     """
@@ -130,10 +143,14 @@ def _check(world, run, observations, t0, steps, intentions=None, *, lateral_cont
     route = np.zeros((steps + 1, len(world.road)), dtype=bool)
     last = len(ego_lanes) - 1
     route[np.arange(steps + 1), [ego_lanes[min(t0 + n, last)] for n in range(steps + 1)]] = True
+    scenario = world.scenario
+    if route_switch_distance:
+        behaviour = dataclasses.replace(scenario.behaviour, route_switch_distance=route_switch_distance)
+        scenario = dataclasses.replace(scenario, behaviour=behaviour)
     forecast = forecast_traffic(
         obs,
         world.road,
-        world.scenario,
+        scenario,
         beliefs,
         steps=steps,
         ego_reach=reach,
@@ -335,17 +352,23 @@ def _on_arc(world, observation, t):
 
 
 @settings(max_examples=12, deadline=None)
-@given(seed=st.integers(0, 10_000), dt=st.sampled_from([0.05, 0.1, 0.2]), when=st.floats(0.0, 1.0))
-def test_forecast_contains_vehicles_on_the_arcs(seed, dt, when):
+@given(
+    seed=st.integers(0, 10_000),
+    dt=st.sampled_from([0.05, 0.1, 0.2]),
+    when=st.floats(0.0, 1.0),
+    switch=st.sampled_from([0.0, 2.5]),
+)
+def test_forecast_contains_vehicles_on_the_arcs(seed, dt, when, switch):
     """Forecasts made while a vehicle drives on an arc (the fine model's route frames, its
     feed-forward and frame terms): every vehicle stays in its boxes, disturbances at their
-    extremes, random dt."""
+    extremes, random dt; also when the forecast allows highway-env's early route switch
+    (``route_switch_distance``: any switch point in the window, this world's at the end)."""
     steps = int(round(3.0 / dt))
     world, run, observations, _ = _episode("tjunction", seed, dt, int(round(14.0 / dt)))
     times = [t for t in range(len(run[0]) - steps) if _on_arc(world, observations[t], t)]
     assume(times)
     t0 = times[int(when * (len(times) - 1))]
-    misses, checked, _ = _check(world, run, observations, t0, steps)
+    misses, checked, _ = _check(world, run, observations, t0, steps, route_switch_distance=switch)
     assert checked > 0
     assert misses == 0
 
