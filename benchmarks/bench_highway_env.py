@@ -46,7 +46,7 @@ import warnings
 
 import numpy as np
 
-from minimaxplan.scenarios.highway_env_adapter import HighwayEnvAdapter
+from minimaxplan.scenarios.highway_env_adapter import HighwayEnvAdapter, uncovered_reason
 from minimaxplan.scenarios.lateral_contraction import contraction_metrics
 from minimaxplan.scenarios.lateral_invariant import invariant_sets
 from minimaxplan.scenarios.vehicles import vehicle_corners
@@ -58,21 +58,6 @@ FREQUENCIES = (5, 15)
 #: Forecast times, s after the reset.
 STARTS = (0.0, 2.0)
 PREDICTORS = ("library", "IntervalVehicle partial", "IntervalVehicle predictor")
-
-
-def _truth(adapter):
-    base = adapter.env.unwrapped
-    out = {}
-    for v in base.road.vehicles:
-        if v is base.vehicle:
-            continue
-        lane, target = v.lane_index, v.target_lane_index
-        out[adapter.agent_id(v)] = {
-            "state": np.array([v.position[0], v.position[1], v.speed, v.heading]),
-            "lane_change": lane[:2] == target[:2] and lane[2] != target[2],
-            "crashed": bool(v.crashed),
-        }
-    return out
 
 
 def _reference(adapter, mode: str, steps: int, action: str):
@@ -126,12 +111,12 @@ def scene(env_id: str, hz: int, seed: int, start: float) -> dict:
     # the reference's copies of the environment at t0
     first_action = action if t0 == 0 else "IDLE"
     references = {mode: _reference(adapter, mode, steps, first_action) for mode in ("partial", "predictor")}
-    truth = [_truth(adapter)]
+    truth = [adapter.ground_truth()]
     observations = [observation]
     for k in range(steps):
         observation, terminated, truncated = adapter.step(first_action if k == 0 else "IDLE")
         observations.append(observation)
-        truth.append(_truth(adapter))
+        truth.append(adapter.ground_truth())
         if terminated or truncated:
             return {}
     t0 = 0  # indices into this scene's records
@@ -160,13 +145,12 @@ def scene(env_id: str, hz: int, seed: int, start: float) -> dict:
     for j, agent in enumerate(forecast.ids):
         agent = int(agent)
         first = truth[t0][agent]
-        covered = not first["lane_change"]
+        covered = True
         for n in range(1, steps + 1):
             now = truth[t0 + n].get(agent)
             if now is None:
                 break
-            # highway-env's MIN_SPEED is below 0, the model's speed floor 0
-            covered = covered and not now["lane_change"] and not now["crashed"] and now["state"][2] >= 0.0
+            covered = covered and uncovered_reason(first, now) is None
             h = n * adapter.dt
             match = [hh for hh in HORIZONS if abs(hh - h) < 1e-9]
             if not match:
@@ -308,4 +292,7 @@ def markdown(results: dict) -> str:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=4)
-    main(parser.parse_args().seeds)
+    args = parser.parse_args()
+    if args.seeds < 1:
+        parser.error(f"--seeds must be >= 1, got {args.seeds}")
+    main(args.seeds)

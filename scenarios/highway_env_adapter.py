@@ -61,6 +61,7 @@ __all__ = [
     "highway_env_scenario",
     "limits_of",
     "meta_action",
+    "uncovered_reason",
     "HighwayEnvAdapter",
 ]
 
@@ -416,6 +417,36 @@ def meta_action(env, name: str, lane_change: int = 0) -> int:
     return int(indexes[target])
 
 
+def uncovered_reason(first: dict, now: dict) -> str | None:
+    """Why the library's traffic model does not cover a vehicle at a step, or None where it does.
+
+    For evaluation (the containment tests and benchmarks): the forecast from an observation
+    holds a vehicle's true state while it keeps its lane, neither crashes nor reverses
+    (highway-env's ``MIN_SPEED`` is below 0, the model's speed floor 0). A switch to the next
+    route lane is covered (`BehaviourParameters.route_switch_distance`). Once a reason
+    applies, the vehicle stays uncovered for the rest of that forecast: callers keep the
+    first reason.
+
+    Parameters
+    ----------
+    first, now : dict
+        `HighwayEnvAdapter.ground_truth` entries of the vehicle at the forecast's start and
+        at the step.
+
+    Returns
+    -------
+    str or None
+        ``"lane_change"``, ``"crashed"``, ``"reversing"`` or None.
+    """
+    if first["lane_change"] or now["lane_change"]:
+        return "lane_change"
+    if now["crashed"]:
+        return "crashed"
+    if now["state"][2] < 0.0:
+        return "reversing"
+    return None
+
+
 # ------------------------------------------------------------------ the adapter
 @dataclass
 class _Ids:
@@ -514,6 +545,33 @@ class HighwayEnvAdapter:
         if vehicle is self.env.unwrapped.vehicle:
             return 0
         return self._ids.of(vehicle)
+
+    def ground_truth(self) -> dict[int, dict]:
+        """Every other vehicle's true state and lane facts, by agent id: for evaluation only.
+
+        It reads what the forecast never does (the target lane, the crash flag), to tell
+        which vehicle-steps the model covers (`uncovered_reason`).
+
+        Returns
+        -------
+        dict
+            ``id -> {"state": (x, y, v, psi), "lane_change": bool (its target lane is a
+            neighbour of its lane), "target": highway-env's target lane index, "crashed":
+            bool}``.
+        """
+        base = self.env.unwrapped
+        out = {}
+        for v in base.road.vehicles:
+            if v is base.vehicle:
+                continue
+            lane, target = v.lane_index, v.target_lane_index
+            out[self.agent_id(v)] = {
+                "state": np.array([v.position[0], v.position[1], v.speed, v.heading]),
+                "lane_change": lane[:2] == target[:2] and lane[2] != target[2],
+                "target": target,
+                "crashed": bool(v.crashed),
+            }
+        return out
 
     def observe(self) -> Observation:
         """The ego and every other vehicle's ``(x, y, v, psi)``, read from highway-env (exact).

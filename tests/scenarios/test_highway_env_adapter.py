@@ -32,6 +32,7 @@ from minimaxplan.scenarios.highway_env_adapter import (  # noqa: E402
     meta_action,
     restore_vehicle_classes,
     road_from_highway_env,
+    uncovered_reason,
 )
 from minimaxplan.scenarios.road_world import HighwayScenario, TJunctionScenario  # noqa: E402
 from minimaxplan.scenarios.traffic_models import _route_switch_steering  # noqa: E402
@@ -53,29 +54,13 @@ def _adapter(env_id, hz):
     return HighwayEnvAdapter(env_id, config={"simulation_frequency": hz, "policy_frequency": hz})
 
 
-def _truth(adapter):
-    base = adapter.env.unwrapped
-    out = {}
-    for v in base.road.vehicles:
-        if v is base.vehicle:
-            continue
-        lane, target = v.lane_index, v.target_lane_index
-        out[adapter.agent_id(v)] = {
-            "state": np.array([v.position[0], v.position[1], v.speed, v.heading]),
-            "lane_change": lane[:2] == target[:2] and lane[2] != target[2],
-            "target": target,
-            "crashed": bool(v.crashed),
-        }
-    return out
-
-
 def _record(adapter, seed, steps, action):
     observations = [adapter.reset(seed)]
-    truth = [_truth(adapter)]
+    truth = [adapter.ground_truth()]
     for _ in range(steps):
         observation, terminated, truncated = adapter.step(action)
         observations.append(observation)
-        truth.append(_truth(adapter))
+        truth.append(adapter.ground_truth())
         if terminated or truncated:
             break
     return observations, truth
@@ -101,12 +86,8 @@ def _containment(adapter, observations, truth, t0, steps):
             now = truth[t0 + n].get(int(agent))
             if now is None:
                 break  # left the road
-            if excluded is None and (first["lane_change"] or now["lane_change"]):
-                excluded = "lane_change"
-            if excluded is None and now["crashed"]:
-                excluded = "crashed"
-            if excluded is None and now["state"][2] < 0.0:
-                excluded = "reversing"  # highway-env's MIN_SPEED is below 0, the model's floor 0
+            if excluded is None:
+                excluded = uncovered_reason(first, now)
             if excluded is not None:
                 counts[excluded] += 1
                 continue
@@ -270,6 +251,15 @@ def test_forecast_contains_highway_envs_vehicles_at_the_intersection(hz):
     assert total["inside"] >= 1000 * hz // 5, total
     assert total["next_lane"] >= total["inside"] // 10, total  # the turns are in the test
     assert total["outside"] == 0, (total, misses[:3])
+
+
+def test_uncovered_reason_names_the_first_rule_that_applies():
+    fact = {"state": np.array([0.0, 0.0, 5.0, 0.0]), "lane_change": False, "target": ("a", "b", 0), "crashed": False}
+    assert uncovered_reason(fact, fact) is None
+    assert uncovered_reason(fact, {**fact, "target": ("b", "c", 0)}) is None  # the next route lane is covered
+    assert uncovered_reason({**fact, "lane_change": True}, fact) == "lane_change"
+    assert uncovered_reason(fact, {**fact, "crashed": True, "state": np.array([0.0, 0.0, -1.0, 0.0])}) == "crashed"
+    assert uncovered_reason(fact, {**fact, "state": np.array([0.0, 0.0, -0.1, 0.0])}) == "reversing"
 
 
 # ------------------------------------------------------------------ the early route switch
