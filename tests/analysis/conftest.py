@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import pytest
 
-from minimaxplan.analysis import cli
+from minimaxplan.analysis import cli, registry
 from minimaxplan.analysis.numerical_environment import RECORDS_ENVIRONMENT
 
 
@@ -56,3 +57,31 @@ def replay_records(tmp_path) -> Callable[..., tuple[list[dict[str, str]], dict]]
         return rows, json.loads((out / "environment.json").read_text())
 
     return replay
+
+
+@contextlib.contextmanager
+def _registries_as_they_were() -> Iterator[None]:
+    registry.scenario_names()  # the built-ins first, so that the snapshot holds them
+    registry.method_names()
+    scenarios, optional = dict(registry._SCENARIOS), set(registry._OPTIONAL_SCENARIOS)
+    methods = {name: list(factories) for name, factories in registry._METHODS.items()}
+    try:
+        yield
+    finally:
+        registry._SCENARIOS.clear()
+        registry._SCENARIOS.update(scenarios)
+        registry._OPTIONAL_SCENARIOS.clear()
+        registry._OPTIONAL_SCENARIOS.update(optional)
+        registry._METHODS.clear()
+        registry._METHODS.update(methods)
+
+
+@pytest.fixture(scope="session")
+def registries_restored() -> Callable[[], contextlib.AbstractContextManager[None]]:
+    """``with registries_restored(): ...`` registers scenarios and methods for a while.
+
+    On leaving the block the scenario and method registries (and which scenarios are
+    left out of default runs) are as they were on entering it (the built-ins loaded first), so that later tests in the same process see only the
+    built-ins. Session-scoped so that module-scoped fixtures may use it too.
+    """
+    return _registries_as_they_were

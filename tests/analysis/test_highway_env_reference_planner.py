@@ -175,7 +175,7 @@ def test_the_reference_method_plans_from_the_episodes_environment_and_holds_its_
         world.adapter.close()
 
 
-def test_a_committed_reference_record_re_runs_exactly(benchmark_script):
+def test_a_committed_reference_record_re_runs_exactly(benchmark_script, registries_restored):
     """Seed 46 of the highway's second reference run (benchmarks/results/experiments/
     highway-env-reference-seeds-20-49: a collision at 2.2 s after 3 decisions) comes back the same
     from a fresh run: outcome, time, return, and every decision's action and bounds."""
@@ -193,14 +193,9 @@ def test_a_committed_reference_record_re_runs_exactly(benchmark_script):
     (trees,) = [d for d in json.loads((records / "decisions.json").read_text()) if d["seed"] == 46]
     episodes = benchmark_script("highway_env_reference_episodes")
     warnings.simplefilter("ignore")
-    registry.method_names()  # the built-ins first, so that the snapshot holds them
-    methods = {k: list(v) for k, v in registry._METHODS.items()}
-    try:
+    with registries_restored():
         registry.register_method("reference", functools.partial(episodes.HighwayEnvReferenceMethod, budget=35))
         record = run_job(make_job("highway-env:highway-fast-v0", "reference", 46, LoopConfig()))
-    finally:
-        registry._METHODS.clear()
-        registry._METHODS.update(methods)
     assert row["outcome"] == "collision"
     assert record.outcome == row["outcome"] and record.decisions == int(row["decisions"])
     assert record.time_s == float(row["time_s"]) and record.discounted_return == float(row["discounted_return"])

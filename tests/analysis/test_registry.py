@@ -122,24 +122,17 @@ class ProportionalMethod(Method):
 
 
 @pytest.fixture(autouse=True, scope="module")
-def toy_registrations():
+def toy_registrations(registries_restored):
     """Register the toy world and methods for this module's tests, and leave the registries
     as they were afterwards (later tests in the same process see only the built-ins)."""
-    from minimaxplan.analysis import registry
-
-    registry.scenario_names()  # load the built-ins first, so that they are part of the snapshot
-    scenarios, methods = dict(registry._SCENARIOS), {k: list(v) for k, v in registry._METHODS.items()}
-    register_scenario("toy-line", LineScenario)
-    register_scenario("toy-line-far", functools.partial(LineScenario, 3.0))
-    register_method("toy-proportional", ProportionalMethod)
-    register_method("toy-quitter", functools.partial(ProportionalMethod, give_up=2))
-    # The same name serving a second world: the robot's "robust" still serves the robot worlds.
-    register_method("robust", ProportionalMethod)
-    yield
-    registry._SCENARIOS.clear()
-    registry._SCENARIOS.update(scenarios)
-    registry._METHODS.clear()
-    registry._METHODS.update(methods)
+    with registries_restored():
+        register_scenario("toy-line", LineScenario)
+        register_scenario("toy-line-far", functools.partial(LineScenario, 3.0))
+        register_method("toy-proportional", ProportionalMethod)
+        register_method("toy-quitter", functools.partial(ProportionalMethod, give_up=2))
+        # The same name serving a second world: the robot's "robust" still serves the robot worlds.
+        register_method("robust", ProportionalMethod)
+        yield
 
 
 def _comparable(result):
@@ -230,6 +223,19 @@ def test_a_scenario_left_out_of_default_runs_is_registered_but_not_run_by_defaul
     assert not any(name.startswith("highway-env:") for name in default_scenario_names())
     register_scenario("toy-optional", "minimaxplan.analysis.registry:Scenario")  # the same factory, now by default
     assert "toy-optional" in default_scenario_names()
+
+
+def test_registrations_made_inside_registries_restored_are_gone_after_it(registries_restored):
+    before = (scenario_names(), default_scenario_names(), method_names())
+    quitter = functools.partial(ProportionalMethod, give_up=1)
+    with registries_restored():
+        register_scenario("toy-passing", LineScenario, in_default_runs=False)
+        register_method("toy-passing", ProportionalMethod)
+        register_method("robust", quitter)  # a second factory under a known name
+        assert "toy-passing" in scenario_names() and "toy-passing" in method_names()
+        assert make_job("toy-line", "robust", 0).method_factory is quitter
+    assert (scenario_names(), default_scenario_names(), method_names()) == before
+    assert make_job("toy-line", "robust", 0).method_factory is ProportionalMethod
 
 
 def test_a_method_rejects_a_scenario_it_does_not_support():
