@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import importlib.util
 import json
 import os
 import pathlib
@@ -66,13 +65,8 @@ from minimaxplan.scenarios.road import lane_geometry
 
 HERE = pathlib.Path(__file__).parent
 RESULTS = HERE / "results"
-_spec = importlib.util.spec_from_file_location(
-    "highway_env_reference_planner", HERE / "highway_env_reference_planner.py"
-)
-assert _spec is not None and _spec.loader is not None
-reference = importlib.util.module_from_spec(_spec)
-sys.modules["highway_env_reference_planner"] = reference
-_spec.loader.exec_module(reference)
+sys.path.insert(0, str(HERE))
+import highway_env_reference_planner as reference  # noqa: E402  (a script beside this one, loaded once)
 
 BUDGETS = (35, 100, 200)
 GAMMA = 0.9
@@ -140,7 +134,7 @@ class Scene:
         controller = ego_controller(
             lane_geometry(road, route),
             speeds,
-            acceleration_bound=float(getattr(scenario, "ego_acceleration_bound", 6.0)),
+            acceleration_bound=scenario.ego_acceleration_bound,
             length=vehicle.length,
             max_speed=vehicle.max_speed,
             max_steering=vehicle.max_steering,
@@ -411,13 +405,29 @@ def render() -> dict:
     return results
 
 
-if __name__ == "__main__":
+def parse_arguments(argv: list[str] | None = None) -> argparse.Namespace:
+    """The command line: ``--seeds`` >= 1, ``--budgets`` a comma-separated list of integers >= 1
+    (``budgets`` is returned as a tuple), ``--render``; anything else exits 2 with argparse's message."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=2)
     parser.add_argument("--budgets", default=",".join(map(str, BUDGETS)))
     parser.add_argument("--render", action="store_true", help="re-render the tables of the saved run only")
-    arguments = parser.parse_args()
+    arguments = parser.parse_args(argv)
+    if arguments.seeds < 1:
+        parser.error(f"--seeds must be >= 1, got {arguments.seeds}")
+    try:
+        budgets = tuple(int(b) for b in arguments.budgets.split(","))
+    except ValueError:
+        budgets = ()
+    if not budgets or min(budgets) < 1:
+        parser.error(f"--budgets must be integers >= 1 separated by commas, got {arguments.budgets!r}")
+    arguments.budgets = budgets
+    return arguments
+
+
+if __name__ == "__main__":
+    arguments = parse_arguments()
     if arguments.render:
         print(markdown(render()))
     else:
-        main(arguments.seeds, tuple(int(b) for b in arguments.budgets.split(",")))
+        main(arguments.seeds, arguments.budgets)
