@@ -9,6 +9,8 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 BENCHMARKS = pathlib.Path(__file__).resolve().parents[1] / "benchmarks"
+# test modules import their shared helpers (`extras`) from this folder
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
 # CI: a fixed, derandomised profile so that a run is reproducible and bounded in time.
 settings.register_profile(

@@ -1,21 +1,10 @@
 """benchmarks/bench_highway_env_planner.py measures what its tables say (the ``vehicle`` extra:
 these tests fail, not skip, when CI=true)."""
 
-import os
-
 import pytest
+from extras import require_extra
 
-
-def _require_highway_env():
-    """highway_env, or a skip outside CI (a failure in CI, where the extra is installed)."""
-    if os.environ.get("CI") == "true":
-        import highway_env
-
-        return highway_env
-    return pytest.importorskip("highway_env")
-
-
-highway_env = _require_highway_env()
+highway_env = require_extra("highway_env")
 
 
 @pytest.fixture(scope="module")

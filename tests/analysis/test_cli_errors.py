@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import pathlib
 import socket
 import subprocess
@@ -10,6 +9,7 @@ import sys
 import time
 
 import pytest
+from extras import require_extra
 
 from minimaxplan.analysis import demo as demo_module
 from minimaxplan.analysis import experiment as experiment_module
@@ -101,16 +101,8 @@ def _closed_port() -> int:
         return sock.getsockname()[1]
 
 
-def require_cluster_extra() -> None:
-    """The 'cluster' extra (Dask): required when CI=true (the test fails, not skips), optional elsewhere."""
-    if os.environ.get("CI") == "true":
-        import distributed  # noqa: F401
-    else:
-        pytest.importorskip("distributed")
-
-
 def test_an_unreachable_dask_scheduler_fails_fast_on_one_line(run_cli, no_work, tmp_path):
-    require_cluster_extra()
+    require_extra("distributed")  # the cluster extra (Dask)
     assert experiment_module.DASK_CONNECT_TIMEOUT_S <= 5
     started = time.perf_counter()
     code, out, err = run_cli(
@@ -134,7 +126,7 @@ def test_an_unreachable_dask_scheduler_fails_fast_on_one_line(run_cli, no_work, 
 
 
 def test_a_malformed_dask_address_is_one_line(run_cli, no_work, tmp_path):
-    require_cluster_extra()
+    require_extra("distributed")  # the cluster extra (Dask)
     code, out, err = run_cli(
         "experiment",
         "--scenario",

@@ -5,11 +5,11 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 import pathlib
 
 import numpy as np
 import pytest
+from extras import require_extra
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
@@ -84,10 +84,7 @@ def test_a_real_episode_on_the_pool_reproduces_the_committed_record():
 
 @pytest.mark.slow
 def test_dask_local_cluster_gives_the_same_summary():
-    if os.environ.get("CI") == "true":
-        from distributed import LocalCluster  # the cluster extra must be installed in CI
-    else:
-        LocalCluster = pytest.importorskip("distributed").LocalCluster
+    LocalCluster = require_extra("distributed").LocalCluster  # the cluster extra (Dask)
     with LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
     ) as cluster:

@@ -2,23 +2,13 @@
 tests fail, not skip, when CI=true)."""
 
 import copy
-import os
 import warnings
 
 import numpy as np
 import pytest
+from extras import require_extra
 
-
-def _require_highway_env():
-    """highway_env, or a skip outside CI (a failure in CI, where the extra is installed)."""
-    if os.environ.get("CI") == "true":
-        import highway_env
-
-        return highway_env
-    return pytest.importorskip("highway_env")
-
-
-highway_env = _require_highway_env()
+highway_env = require_extra("highway_env")
 
 from highway_env.vehicle.uncertainty.prediction import IntervalVehicle  # noqa: E402
 

@@ -1,24 +1,14 @@
 """highway-env's scenarios and methods (the ``vehicle`` extra: these tests fail, not skip, when CI=true)."""
 
-import os
 import warnings
 
 import numpy as np
 import pytest
+from extras import require_extra
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-
-def _require_highway_env():
-    """highway_env, or a skip outside CI (a failure in CI, where the extra is installed)."""
-    if os.environ.get("CI") == "true":
-        import highway_env
-
-        return highway_env
-    return pytest.importorskip("highway_env")
-
-
-highway_env = _require_highway_env()
+highway_env = require_extra("highway_env")
 
 from minimaxplan.analysis.episode import LoopConfig, make_job, run_job  # noqa: E402
 from minimaxplan.analysis.highway_env_scenario import (  # noqa: E402

@@ -1,18 +1,15 @@
 """The Gymnasium interface (the ``gym`` extra: these tests fail, not skip, when CI=true)."""
 
 import dataclasses
-import os
 import warnings
 
 import numpy as np
 import pytest
+from extras import require_extra
 
 from minimaxplan.scenarios.driving_reward import true_reward, world_reward
 
-if os.environ.get("CI") == "true":
-    import gymnasium
-else:
-    gymnasium = pytest.importorskip("gymnasium")
+gymnasium = require_extra("gymnasium")
 
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 

@@ -5,25 +5,15 @@ vehicle-steps the library's model covers; the adapter itself reads positions, sp
 and headings only.
 """
 
-import os
 import warnings
 
 import numpy as np
 import pytest
+from extras import require_extra
 from hypothesis import given
 from hypothesis import strategies as st
 
-
-def _require_highway_env():
-    """highway_env, or a skip outside CI (a failure in CI, where the extra is installed)."""
-    if os.environ.get("CI") == "true":
-        import highway_env
-
-        return highway_env
-    return pytest.importorskip("highway_env")
-
-
-highway_env = _require_highway_env()
+highway_env = require_extra("highway_env")
 
 from minimaxplan.models import InputError  # noqa: E402
 from minimaxplan.scenarios.highway_env_adapter import (  # noqa: E402
