@@ -81,7 +81,15 @@ from minimaxplan.scenarios.traffic_models import TrafficForecast, VehicleBelief
 from minimaxplan.scenarios.vehicles import vehicle_corners
 
 from .episode import LoopConfig
-from .registry import Method, Policy, Scenario, UnsupportedScenario, register_method, register_scenario
+from .registry import (
+    Method,
+    Policy,
+    Scenario,
+    UnsupportedScenario,
+    register_method,
+    register_scenario,
+    register_unavailable,
+)
 from .road_planning import conservative_first
 
 __all__ = [
@@ -1051,6 +1059,10 @@ def _without_side_groups(road: Road) -> Road:
     )
 
 
+#: Why the highway-env scenarios and the ``idm`` method are not registered without the extra.
+MISSING_EXTRA = "it needs highway-env, the vehicle extra: pip install 'minimaxplan[vehicle]'"
+
+
 def highway_env_installed() -> bool:
     """Whether highway-env can be imported (checked without importing it)."""
     return importlib.util.find_spec("highway_env") is not None
@@ -1067,3 +1079,7 @@ if highway_env_installed():
     register_method("nominal", HighwayEnvNominalMethod)
     register_method("oracle", HighwayEnvOracleMethod)
     register_method("idm", HighwayEnvIDMMethod)
+else:
+    for _name in (*HIGHWAY_ENV_SCENARIOS, *HIGHWAY_ENV_VARIANTS):
+        register_unavailable("scenario", _name, MISSING_EXTRA)
+    register_unavailable("method", "idm", MISSING_EXTRA)

@@ -59,6 +59,7 @@ __all__ = [
     "EpisodeFailure",
     "register_scenario",
     "register_method",
+    "register_unavailable",
     "scenario_names",
     "default_scenario_names",
     "method_names",
@@ -419,6 +420,8 @@ _SCENARIOS: dict[str, Factory] = {}
 #: Registered scenarios left out of runs that name none (`register_scenario(..., in_default_runs=False)`).
 _OPTIONAL_SCENARIOS: set[str] = set()
 _METHODS: dict[str, list[Factory]] = {}
+#: ("scenario" or "method", name) -> why it is not registered here (`register_unavailable`).
+_UNAVAILABLE: dict[tuple[str, str], str] = {}
 _builtins_loaded = False
 _builtins_loading = False
 
@@ -522,6 +525,42 @@ def register_method(name: str, factory: Factory) -> None:
         factories.append(factory)
 
 
+def register_unavailable(kind: str, name: str, reason: str) -> None:
+    """Say why the scenario or method ``name`` is not registered in this installation.
+
+    A module whose names need an optional extra calls it when the extra is missing, so
+    that asking for such a name raises `UnknownScenario` or `UnknownMethod` with the
+    reason (e.g. the extra to install) after the list of the registered names. It
+    registers nothing: `scenario_names` and `method_names` do not list ``name``.
+
+    Parameters
+    ----------
+    kind : {"scenario", "method"}
+        Which registry the name belongs to.
+    name : str
+        The name, as it would be registered.
+    reason : str
+        One clause, e.g. ``"it needs highway-env: pip install 'minimaxplan[vehicle]'"``.
+
+    Raises
+    ------
+    InputError
+        If ``kind`` is neither, or ``name`` or ``reason`` is not a non-empty string.
+    """
+    if kind not in ("scenario", "method"):
+        raise InputError(f"kind must be 'scenario' or 'method', got {kind!r}")
+    for label, value in (("name", name), ("reason", reason)):
+        if not isinstance(value, str) or not value.strip():
+            raise InputError(f"{label} must be a non-empty string, got {value!r}")
+    _UNAVAILABLE[(kind, name)] = reason
+
+
+def _unknown(kind: str, name: str, known: list[str]) -> str:
+    message = f"{kind} must be one of the registered {kind}s {known}, got {name!r}"
+    reason = _UNAVAILABLE.get((kind, name))
+    return message if reason is None else f"{message} ({name!r} is not available: {reason})"
+
+
 def scenario_names() -> list[str]:
     """The registered scenario names, in registration order."""
     _load_builtins()
@@ -580,7 +619,7 @@ def scenario_factory(name: str) -> Factory:
     """
     _load_builtins()
     if name not in _SCENARIOS:
-        raise UnknownScenario(f"scenario must be one of the registered scenarios {list(_SCENARIOS)}, got {name!r}")
+        raise UnknownScenario(_unknown("scenario", name, list(_SCENARIOS)))
     return _SCENARIOS[name]
 
 
@@ -607,7 +646,7 @@ def method_factory(name: str, scenario: Scenario, config: Any) -> Factory:
     """
     _load_builtins()
     if name not in _METHODS:
-        raise UnknownMethod(f"method must be one of the registered methods {list(_METHODS)}, got {name!r}")
+        raise UnknownMethod(_unknown("method", name, list(_METHODS)))
     reasons = []
     for factory in reversed(_METHODS[name]):
         try:

@@ -65,6 +65,7 @@ def _registries_as_they_were() -> Iterator[None]:
     registry.method_names()
     scenarios, optional = dict(registry._SCENARIOS), set(registry._OPTIONAL_SCENARIOS)
     methods = {name: list(factories) for name, factories in registry._METHODS.items()}
+    unavailable = dict(registry._UNAVAILABLE)
     try:
         yield
     finally:
@@ -74,6 +75,8 @@ def _registries_as_they_were() -> Iterator[None]:
         registry._OPTIONAL_SCENARIOS.update(optional)
         registry._METHODS.clear()
         registry._METHODS.update(methods)
+        registry._UNAVAILABLE.clear()
+        registry._UNAVAILABLE.update(unavailable)
 
 
 @pytest.fixture(scope="session")
@@ -81,7 +84,7 @@ def registries_restored() -> Callable[[], contextlib.AbstractContextManager[None
     """``with registries_restored(): ...`` registers scenarios and methods for a while.
 
     On leaving the block the scenario and method registries (and which scenarios are
-    left out of default runs) are as they were on entering it (the built-ins loaded first), so that later tests in the same process see only the
+    left out of default runs, and the reasons given for names that are not available) are as they were on entering it (the built-ins loaded first), so that later tests in the same process see only the
     built-ins. Session-scoped so that module-scoped fixtures may use it too.
     """
     return _registries_as_they_were

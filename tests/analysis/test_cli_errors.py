@@ -248,6 +248,29 @@ def test_help_imports_neither_cvxpy_nor_numba():
     assert "HEAVY []" in done.stderr, done.stderr
 
 
+@pytest.mark.parametrize(
+    ("argv", "option"),
+    [
+        (["--scenario", "highway-env:intersection-v0", "--methods", "robust"], "--scenario"),
+        (["--scenario", "highway", "--methods", "idm"], "--methods"),
+    ],
+)
+def test_a_highway_env_name_without_the_vehicle_extra_says_what_to_install(tmp_path, argv, option):
+    """Run where highway-env cannot be imported (its entry in sys.modules set to None)."""
+    script = (
+        "import sys\n"
+        "sys.modules['highway_env'] = None\n"
+        "from minimaxplan.analysis import cli\n"
+        f"sys.exit(cli.main({['experiment', *argv, '--episodes', '1', '--out', str(tmp_path)]!r}))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert_one_line_error(done.returncode, done.stdout, done.stderr, "experiment", f"argument {option}: ")
+    assert (
+        "is not available: it needs highway-env, the vehicle extra: pip install 'minimaxplan[vehicle]'" in done.stderr
+    )
+    assert not any(tmp_path.iterdir())
+
+
 def test_the_constants_spelled_out_for_a_light_parser_match_the_library():
     from minimaxplan.analysis import episode, lmi_command, model_file
     from minimaxplan.scenarios import worlds

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 
 import numpy as np
 import pytest
@@ -29,6 +30,7 @@ from minimaxplan.analysis import (
 from minimaxplan.analysis.cli import main
 from minimaxplan.analysis.episode import LoopConfig, make_job, run_episode
 from minimaxplan.analysis.experiment import run_experiment
+from minimaxplan.analysis.registry import register_unavailable
 from minimaxplan.models import InputError
 
 
@@ -236,6 +238,43 @@ def test_registrations_made_inside_registries_restored_are_gone_after_it(registr
         assert make_job("toy-line", "robust", 0).method_factory is quitter
     assert (scenario_names(), default_scenario_names(), method_names()) == before
     assert make_job("toy-line", "robust", 0).method_factory is ProportionalMethod
+
+
+def test_an_unavailable_name_is_not_registered_and_its_error_says_why(registries_restored):
+    with registries_restored():
+        register_unavailable("scenario", "toy-elsewhere", "it needs the toy extra")
+        register_unavailable("method", "toy-elsewhere", "it needs the toy extra too")
+        assert "toy-elsewhere" not in scenario_names() and "toy-elsewhere" not in method_names()
+        with pytest.raises(
+            UnknownScenario,
+            match=r"^scenario must be one of the registered scenarios \['static', .*\], got 'toy-elsewhere' "
+            r"\('toy-elsewhere' is not available: it needs the toy extra\)$",
+        ):
+            run_experiment(["toy-elsewhere"], ["dwa"], episodes=1, progress=False)
+        with pytest.raises(
+            UnknownMethod,
+            match=r"got 'toy-elsewhere' \('toy-elsewhere' is not available: it needs the toy extra too\)$",
+        ):
+            run_experiment(["static"], ["toy-elsewhere"], episodes=1, progress=False)
+        # a name registered later is found, whatever was said of it before
+        register_scenario("toy-elsewhere", LineScenario)
+        assert "toy-elsewhere" in scenario_names()
+    with pytest.raises(UnknownScenario, match=r"got 'toy-elsewhere'$"):  # the reason went with the block
+        run_experiment(["toy-elsewhere"], ["dwa"], episodes=1, progress=False)
+
+
+@pytest.mark.parametrize(
+    ("kind", "name", "reason", "message"),
+    [
+        ("world", "x", "why", "kind must be 'scenario' or 'method', got 'world'"),
+        ("scenario", "", "why", "name must be a non-empty string, got ''"),
+        ("method", "x", " ", "reason must be a non-empty string, got ' '"),
+        ("method", "x", None, "reason must be a non-empty string, got None"),
+    ],
+)
+def test_register_unavailable_refuses_bad_arguments(kind, name, reason, message):
+    with pytest.raises(InputError, match=re.escape(message)):
+        register_unavailable(kind, name, reason)
 
 
 def test_a_method_rejects_a_scenario_it_does_not_support():
