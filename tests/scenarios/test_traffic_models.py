@@ -472,6 +472,43 @@ def test_the_arc_length_bound_holds_for_every_point_of_the_box(lane, s, off, wx,
 
 @settings(max_examples=60)
 @given(
+    lanes=st.lists(st.integers(0, 11), min_size=1, max_size=12),
+    boxes=st.lists(
+        st.tuples(
+            st.integers(0, 11), st.floats(-10.0, 110.0), st.floats(-8.0, 8.0), st.floats(-1.0, 6.0), st.floats(0.0, 6.0)
+        ),
+        min_size=1,
+        max_size=5,
+    ),
+    present=st.lists(st.booleans(), min_size=5, max_size=5),
+)
+def test_the_arc_length_bounds_of_a_box_on_a_lane_do_not_depend_on_the_other_boxes_and_lanes_asked_for(
+    lanes, boxes, present
+):
+    """Asked for many lanes (straight and arcs, repeated or not) and many boxes at once, each cell is
+    the bound of its box on its lane asked alone; rows not present, empty boxes (a negative width)
+    and lanes not asked for are unbounded."""
+    road = make_road_world("tjunction", 0).road
+    centres = [
+        road.position_at(np.array([lane]), np.array([min(s, float(road.lengths[lane]) + 10.0)]), np.array([off]))[0]
+        for lane, s, off, _, _ in boxes
+    ]
+    lo = np.array([c - [wx / 2, wy / 2] for c, (_, _, _, wx, wy) in zip(centres, boxes)])
+    hi = np.array([c + [wx / 2, wy / 2] for c, (_, _, _, wx, wy) in zip(centres, boxes)])
+    mask = np.array(present[: len(boxes)])
+    low, high = _centre_arc_length_bounds(road, lanes, lo, hi, mask)
+    assert low.shape == high.shape == (len(boxes), len(road))
+    for row in range(len(boxes)):
+        for lane in range(len(road)):
+            if lane not in lanes or not mask[row] or np.any(lo[row] > hi[row]):
+                assert np.isneginf(low[row, lane]) and np.isposinf(high[row, lane])
+                continue
+            alone = _centre_arc_length_bounds(road, [lane], lo[row : row + 1], hi[row : row + 1], np.array([True]))
+            assert low[row, lane] == alone[0][0, lane] and high[row, lane] == alone[1][0, lane]
+
+
+@settings(max_examples=60)
+@given(
     lane=st.sampled_from([8, 9, 10, 11]),
     s=st.floats(-5.0, 25.0),
     off=st.floats(-6.0, 6.0),
