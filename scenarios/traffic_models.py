@@ -630,35 +630,28 @@ def _centre_arc_length_bounds(road: Road, lanes, centre_lo, centre_hi, present) 
     rows = np.flatnonzero(np.asarray(present, dtype=bool) & np.all(centre_lo <= centre_hi, axis=1))
     if lanes.size == 0 or rows.size == 0:
         return out, out_hi
-    lo, hi = centre_lo[rows, :, None], centre_hi[rows, :, None]  # (k, 2, 1): lanes broadcast on the last axis
-    on_arc = road.kinds[lanes] == ARC
-    # every lane in one broadcast: the same elementwise operations as lane by lane, so the same bits
-    straight = lanes[~on_arc]
-    if straight.size:
-        d = road.directions[straight]
-        offset = np.array([-float(road.starts[lane] @ road.directions[lane]) for lane in straight])
-        s_lo, s_hi = _lin(offset, d[:, 0], d[:, 1], lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1])
-        out[rows[:, None], straight] = s_lo - ROUND_MARGIN * (1 + np.abs(s_lo))
-        out_hi[rows[:, None], straight] = s_hi + ROUND_MARGIN * (1 + np.abs(s_hi))
-    arcs = lanes[on_arc]
-    if arcs.size:
-        cx, cy = road.centers[arcs, 0], road.centers[arcs, 1]
-        holds = (lo[:, 0] <= cx) & (cx <= hi[:, 0]) & (lo[:, 1] <= cy) & (cy <= hi[:, 1])
-        corners_x = np.stack([lo[:, 0], lo[:, 0], hi[:, 0], hi[:, 0]], -1) - cx[:, None]  # (k, lanes, 4)
-        corners_y = np.stack([lo[:, 1], hi[:, 1], lo[:, 1], hi[:, 1]], -1) - cy[:, None]
-        towards = np.arctan2((lo[:, 1] + hi[:, 1]) / 2 - cy, (lo[:, 0] + hi[:, 0]) / 2 - cx)
-        rel = wrap_to_pi(np.arctan2(corners_y, corners_x) - towards[..., None])  # each |rel| < pi
-        base = wrap_to_pi(towards - road.mid_angles[arcs])
-        d_lo, d_hi = base + rel.min(axis=-1), base + rel.max(axis=-1)
-        usable = ~holds & (d_lo > -np.pi) & (d_hi < np.pi)
-        radius, half = road.radii[arcs], road.lengths[arcs] / 2
-        ccw = road.signs[arcs] > 0
-        s_lo = np.where(ccw, half + radius * d_lo, half - radius * d_hi)
-        s_hi = np.where(ccw, half + radius * d_hi, half - radius * d_lo)
-        s_lo = np.where(usable, s_lo, -np.inf)
-        s_hi = np.where(usable, s_hi, np.inf)
-        out[rows[:, None], arcs] = s_lo - ROUND_MARGIN * (1 + np.abs(s_lo))
-        out_hi[rows[:, None], arcs] = s_hi + ROUND_MARGIN * (1 + np.abs(s_hi))
+    lo, hi = centre_lo[rows], centre_hi[rows]
+    for lane in lanes:
+        if road.kinds[lane] != ARC:
+            start, d = road.starts[lane], road.directions[lane]
+            s_lo, s_hi = _lin(-float(start @ d), d[0], d[1], lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1])
+        else:
+            cx, cy = road.centers[lane]
+            holds = (lo[:, 0] <= cx) & (cx <= hi[:, 0]) & (lo[:, 1] <= cy) & (cy <= hi[:, 1])
+            corners_x = np.stack([lo[:, 0], lo[:, 0], hi[:, 0], hi[:, 0]], 1) - cx
+            corners_y = np.stack([lo[:, 1], hi[:, 1], lo[:, 1], hi[:, 1]], 1) - cy
+            towards = np.arctan2((lo[:, 1] + hi[:, 1]) / 2 - cy, (lo[:, 0] + hi[:, 0]) / 2 - cx)
+            rel = wrap_to_pi(np.arctan2(corners_y, corners_x) - towards[:, None])  # each |rel| < pi
+            base = wrap_to_pi(towards - road.mid_angles[lane])
+            d_lo, d_hi = base + rel.min(axis=1), base + rel.max(axis=1)
+            usable = ~holds & (d_lo > -np.pi) & (d_hi < np.pi)
+            radius, half = float(road.radii[lane]), float(road.lengths[lane]) / 2
+            s_lo = np.where(road.signs[lane] > 0, half + radius * d_lo, half - radius * d_hi)
+            s_hi = np.where(road.signs[lane] > 0, half + radius * d_hi, half - radius * d_lo)
+            s_lo = np.where(usable, s_lo, -np.inf)
+            s_hi = np.where(usable, s_hi, np.inf)
+        out[rows, lane] = s_lo - ROUND_MARGIN * (1 + np.abs(s_lo))
+        out_hi[rows, lane] = s_hi + ROUND_MARGIN * (1 + np.abs(s_hi))
     return out, out_hi
 
 
