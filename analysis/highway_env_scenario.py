@@ -75,6 +75,7 @@ import numpy as np
 from minimaxplan.models import Box
 from minimaxplan.models.errors import DimensionError, InputError
 from minimaxplan.planners.bicycle_model import HIGHWAY_ACTIONS, TJUNCTION_ACTIONS
+from minimaxplan.scenarios.highway_env_adapter import MISSING_VEHICLE_EXTRA
 from minimaxplan.scenarios.road import Road
 from minimaxplan.scenarios.road_world import Observation
 from minimaxplan.scenarios.traffic_models import TrafficForecast, VehicleBelief
@@ -1059,10 +1060,6 @@ def _without_side_groups(road: Road) -> Road:
     )
 
 
-#: Why the highway-env scenarios and the ``idm`` method are not registered without the extra.
-MISSING_EXTRA = "it needs highway-env, the vehicle extra: pip install 'minimaxplan[vehicle]'"
-
-
 def highway_env_installed() -> bool:
     """Whether highway-env can be imported (checked without importing it)."""
     return importlib.util.find_spec("highway_env") is not None
@@ -1081,5 +1078,5 @@ if highway_env_installed():
     register_method("idm", HighwayEnvIDMMethod)
 else:
     for _name in (*HIGHWAY_ENV_SCENARIOS, *HIGHWAY_ENV_VARIANTS):
-        register_unavailable("scenario", _name, MISSING_EXTRA)
-    register_unavailable("method", "idm", MISSING_EXTRA)
+        register_unavailable("scenario", _name, MISSING_VEHICLE_EXTRA)
+    register_unavailable("method", "idm", MISSING_VEHICLE_EXTRA)

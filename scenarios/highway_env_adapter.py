@@ -52,6 +52,7 @@ from .vehicles import BehaviourParameters, TrafficRules, VehicleParameters
 
 __all__ = [
     "HIGHWAY_ENV_IDS",
+    "MISSING_VEHICLE_EXTRA",
     "LINEAR_VEHICLE",
     "INTERSECTION_TARGET_SPEED",
     "require_highway_env",
@@ -67,6 +68,8 @@ __all__ = [
 
 #: The highway-env environments the adapter runs.
 HIGHWAY_ENV_IDS = ("highway-fast-v0", "intersection-v0")
+#: What is missing, and how to install it, where highway-env cannot be imported.
+MISSING_VEHICLE_EXTRA = "it needs highway-env, the vehicle extra: pip install 'minimaxplan[vehicle]'"
 #: highway-env's class of the other vehicles (the paper's LinearVehicle law).
 LINEAR_VEHICLE = "highway_env.vehicle.behavior.LinearVehicle"
 #: Bounds of the other vehicles' hidden target speed at the intersection, m/s: they spawn
@@ -106,9 +109,7 @@ def require_highway_env() -> Any:
     try:
         return importlib.import_module("highway_env")
     except ImportError as exc:
-        raise ImportError(
-            "minimaxplan.scenarios.highway_env_adapter needs highway-env: pip install 'minimaxplan[vehicle]'"
-        ) from exc
+        raise ImportError(f"minimaxplan.scenarios.highway_env_adapter: {MISSING_VEHICLE_EXTRA}") from exc
 
 
 def _vehicle_classes() -> list[type]:

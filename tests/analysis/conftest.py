@@ -83,8 +83,9 @@ def _registries_as_they_were() -> Iterator[None]:
 def registries_restored() -> Callable[[], contextlib.AbstractContextManager[None]]:
     """``with registries_restored(): ...`` registers scenarios and methods for a while.
 
-    On leaving the block the scenario and method registries (and which scenarios are
-    left out of default runs, and the reasons given for names that are not available) are as they were on entering it (the built-ins loaded first), so that later tests in the same process see only the
-    built-ins. Session-scoped so that module-scoped fixtures may use it too.
+    On leaving the block, the registries are as they were on entering it (the built-ins
+    loaded first): the scenarios, which of them default runs leave out, the methods, and
+    the reasons given for names that are not available. Later tests in the same process
+    see only the built-ins. Session-scoped so that module-scoped fixtures may use it too.
     """
     return _registries_as_they_were
