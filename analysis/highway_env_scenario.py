@@ -579,7 +579,7 @@ def box_overlaps(boxes: np.ndarray, other: np.ndarray) -> np.ndarray:
 def latest_clear_sequence(alive: np.ndarray, values: np.ndarray, *, speeds: np.ndarray | None = None) -> int:
     """The best-valued sequence, unless it may collide sooner than another: then the best of those clear longest.
 
-    The road worlds' rule (`minimaxplan.analysis.road_planning.latest_collision_action`)
+    The road worlds' rule (`minimaxplan.planners.latest_collision_action`)
     for an exhaustive search: when the best-valued sequence may collide within the
     forecast, its value is the reward collected before that possible collision, and a
     sequence that takes speed first may collect more of it for a collision a few

@@ -62,7 +62,7 @@ import numpy as np
 from minimaxplan.kernels.bicycle import apply_action, ego_control
 from minimaxplan.models import DimensionError, InputError
 from minimaxplan.models.validation import as_count, as_positive_scalar, check_instance
-from minimaxplan.planners import Decision, RobustTreePlanner
+from minimaxplan.planners import RobustTreePlanner
 from minimaxplan.planners.bicycle_model import (
     HIGHWAY_ACTIONS,
     HIGHWAY_TARGET_SPEEDS,
@@ -73,6 +73,7 @@ from minimaxplan.planners.bicycle_model import (
     BicycleState,
     ego_controller,
 )
+from minimaxplan.planners.latest_collision import latest_collision_action
 from minimaxplan.scenarios.driving_reward import world_reward
 from minimaxplan.scenarios.forecast_intersection import intersect_forecasts
 from minimaxplan.scenarios.road import lane_geometry
@@ -97,7 +98,6 @@ __all__ = [
     "ego_reach",
     "lane_keeping_actions",
     "lane_keeping_reach",
-    "latest_collision_action",
     "point_forecast",
 ]
 
@@ -121,65 +121,6 @@ def conservative_first(actions: tuple) -> tuple:
     """
     rank = {"SLOWER": 0, "IDLE": 1}
     return tuple(sorted(actions, key=lambda a: rank.get(a[0], 2)))
-
-
-def latest_collision_action(
-    model: BicycleModel, root: BicycleState, decision: Decision, *, horizon: int
-) -> tuple[int, list[int] | None]:
-    """The tree's action, unless another first action keeps the ego clear of every box for longer.
-
-    The tree maximises the worst-case discounted return; when every plan may collide
-    within the forecast, that return is the reward collected until the first possible
-    collision, and a plan that takes speed first and then brakes may collect more of it
-    than braking now, for a collision a few sub-steps earlier (a box that sweeps towards
-    the ego reaches a stopping place further on sooner). Such a plan gives up time in
-    which new measurements can shrink the boxes. So, for each first action ``a``, the
-    latest first possible collision (`BicycleModel.first_possible_collision`) over the
-    examined plans that start with it: ``a`` then each action held, and the tree's best
-    sequence (its last action held) when it starts with ``a``. The executed action is
-    the tree's when its figure is the largest (always when the tree's best sequence stays
-    clear for the whole horizon), else the action of the largest figure with the largest
-    tree lower bound (the smallest index on ties; the road methods order their actions
-    braking first, `conservative_first`).
-
-    Parameters
-    ----------
-    model : BicycleModel
-        The ego model the tree planned with (its rewards' obstacle tables).
-    root : BicycleState
-        The tree's root.
-    decision : Decision
-        The tree's decision from ``root``.
-    horizon : int
-        Sub-steps examined (`FORECAST_STEPS` for the road methods).
-
-    Returns
-    -------
-    action : int
-        The action to execute.
-    latest : list of int or None
-        Per action, the latest first possible collision over its examined plans, in
-        sub-steps after the root (``horizon + 1``: some examined plan stays clear over the
-        horizon); None when the tree's best sequence stays clear (nothing else examined).
-    """
-    check_instance("model", model, BicycleModel)
-    check_instance("decision", decision, Decision)
-    clear = horizon + 1
-    tree = int(decision.action)
-    sequence = tuple(int(a) for a in decision.sequence_indices)
-    along_tree = model.first_possible_collision(root, sequence, horizon)
-    if along_tree == clear:
-        return tree, None
-    latest = []
-    for first in range(model.n_actions):
-        held = max(model.first_possible_collision(root, (first, then), horizon) for then in range(model.n_actions))
-        latest.append(max(held, along_tree) if sequence[0] == first else held)
-    best = max(latest)
-    if latest[tree] == best:
-        return tree, latest
-    lower = np.asarray(decision.action_lower, dtype=float)
-    candidates = [a for a in range(model.n_actions) if latest[a] == best]
-    return max(candidates, key=lambda a: (lower[a], -a)), latest
 
 
 class EgoSetup:
@@ -744,7 +685,7 @@ class RoadRobustMethod(_LearningMethod):
         """
         if not self.can_wait:
             return int(decision.action), None
-        return latest_collision_action(model, root, decision, horizon=FORECAST_STEPS)
+        return latest_collision_action([model], root, decision, horizon=FORECAST_STEPS)
 
     def _forecast(self, observation: Observation, beliefs, ego: tuple) -> TrafficForecast:
         """One forecast from the ego's ``(reach, speed, heading)``."""

@@ -8,6 +8,8 @@
   (compiled bicycle and controllers, `ego_controller`, over a compiled reward);
 * factories for the paper's comparison (`interval_robust_planner`,
   `multi_model_robust_planner`, `nominal_planner`, `oracle_planner`);
+* `latest_collision_action`: when the tree's best plan may collide, the first action
+  whose plans stay clear longest under every model;
 * the baselines `DynamicWindowPlanner` (DWA) and `TimedElasticBand` (TEB), and the grid
   `NavigationFunction` that serves as their global planner.
 
@@ -42,6 +44,7 @@ from .dwa import (
     VehicleDynamicWindow,
 )
 from .interval_model import BoxState, IntervalModel
+from .latest_collision import latest_collision_action
 from .navigation import NavigationFunction
 from .point_model import PointModel, PointState
 from .search import OptimisticPlanner, RobustTreePlanner
@@ -69,6 +72,7 @@ __all__ = [
     "nominal_planner",
     "oracle_planner",
     "root_state",
+    "latest_collision_action",
     "DynamicWindowPlanner",
     "DWAParameters",
     "NavigationScene",

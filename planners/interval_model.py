@@ -825,3 +825,44 @@ class IntervalModel:
             z = np.ascontiguousarray(stack[-1, :, 0])
             time += S
         return np.array(lowers), np.array(uppers), rewards, terminals
+
+    def first_possible_collision(self, state: BoxState, plan: Sequence[int], horizon: int) -> int:
+        """The first sub-step at which this hypothesis's box along a plan may collide, or ``horizon + 1``.
+
+        The plan's actions are taken in turn from ``state`` and its last one is then
+        held (the `minimaxplan.planners.protocols.CollisionHorizonModel` protocol). A
+        possible collision is a sub-step box whose reward minimum is a collision
+        (``collided`` of the reward's ``box_minimum``), the sub-step boxes that make a
+        transition of `expand` terminal.
+
+        Parameters
+        ----------
+        state : BoxState
+            The start box (e.g. the planner's root state).
+        plan : sequence of int
+            Controller indices, at least one.
+        horizon : int
+            Sub-steps examined, ``>= 1``.
+
+        Returns
+        -------
+        int
+            In ``[1, horizon + 1]``, relative to ``state.time``.
+
+        Raises
+        ------
+        InputError
+            If ``state`` is not a `BoxState`, ``plan`` is empty or holds an action that
+            is not a controller index, or ``horizon`` is not a positive integer.
+        """
+        horizon = as_count("horizon", horizon)
+        actions = [int(a) for a in self.group.actions(tuple(plan))]
+        if not actions:
+            raise InputError("plan must hold at least one action, got an empty sequence")
+        decisions = -(-horizon // self.substeps)
+        held = (actions + [actions[-1]] * decisions)[: max(decisions, len(actions))]
+        lower, upper, _, _ = self.rollout(state, held)
+        lower, upper = lower[1 : horizon + 1], upper[1 : horizon + 1]
+        _, collided = self.reward.box_minimum(lower, upper, state.time + 1 + np.arange(horizon))
+        collided = np.asarray(collided, dtype=bool)
+        return 1 + int(np.argmax(collided)) if collided.any() else horizon + 1

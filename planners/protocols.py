@@ -32,6 +32,7 @@ __all__ = [
     "LinkedModel",
     "CompiledTransitions",
     "CompiledProblem",
+    "CollisionHorizonModel",
 ]
 
 
@@ -164,6 +165,37 @@ class LinkedModel(TransitionModel, Protocol):
     @property
     def member(self) -> int:
         """This model's index in its group."""
+
+
+@runtime_checkable
+class CollisionHorizonModel(Protocol):
+    """A model that tells when a plan may first collide (`minimaxplan.planners.latest_collision_action`).
+
+    Notes
+    -----
+    ``first_possible_collision(state, plan, horizon)`` takes the plan's actions in
+    turn from ``state``, then holds its last one, and returns the first sub-step in
+    ``[1, horizon]`` (relative to the state's time) at which the model's prediction
+    may collide, or ``horizon + 1`` if none does: the sub-steps that make a
+    transition terminal. `BicycleModel` and `IntervalModel` follow it.
+    """
+
+    @property
+    def n_actions(self) -> int:
+        """The number of actions; plans hold action indices in ``[0, n_actions)``."""
+
+    def first_possible_collision(self, state: Any, plan: Sequence[int], horizon: int) -> int:
+        """The first sub-step of a possible collision along ``plan``, or ``horizon + 1``.
+
+        Parameters
+        ----------
+        state : Any
+            The start state (not modified).
+        plan : sequence of int
+            Action indices, at least one; the last is held.
+        horizon : int
+            Sub-steps examined, ``>= 1``.
+        """
 
 
 class CompiledProblem(NamedTuple):

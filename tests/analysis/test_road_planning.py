@@ -16,10 +16,15 @@ from minimaxplan.analysis.road_planning import (
     ego_reach,
     lane_keeping_actions,
     lane_keeping_reach,
-    latest_collision_action,
 )
 from minimaxplan.models import DimensionError, InputError
-from minimaxplan.planners import HIGHWAY_ACTIONS, TJUNCTION_ACTIONS, BicycleModel, RobustTreePlanner
+from minimaxplan.planners import (
+    HIGHWAY_ACTIONS,
+    TJUNCTION_ACTIONS,
+    BicycleModel,
+    RobustTreePlanner,
+    latest_collision_action,
+)
 from minimaxplan.planners.bicycle_model import LANE_KEEPING_PREFIX
 from minimaxplan.scenarios import make_road_world
 from minimaxplan.scenarios.vehicles import vehicle_corners
@@ -269,7 +274,7 @@ def test_the_robust_rule_brakes_when_speeding_first_meets_the_box_sooner():
     braking now, but meets the box 3 sub-steps sooner: the executed action is SLOWER."""
     ego, model, root, decision = _sweeping_box_case(-30.0, 4.5, 20, 2.0)
     names = [a[0] for a in ego.actions]
-    action, latest = latest_collision_action(model, root, decision, horizon=FORECAST_STEPS)
+    action, latest = latest_collision_action([model], root, decision, horizon=FORECAST_STEPS)
     assert names[decision.action] == "FASTER" and decision.action_lower[decision.action] == max(decision.action_lower)
     assert names[action] == "SLOWER" and latest[action] == max(latest) > latest[decision.action]
     # the figure is attained by a plan of the chosen action, and no examined plan of the tree's action reaches it
@@ -291,7 +296,7 @@ def test_property_the_robust_rule_executes_an_action_that_stays_clear_longest(y0
     """Whatever the scene, the executed action's figure is the largest; the tree's action is kept when its
     best sequence stays clear or its figure is the largest."""
     ego, model, root, decision = _sweeping_box_case(y0, v0, start, speed)
-    action, latest = latest_collision_action(model, root, decision, horizon=FORECAST_STEPS)
+    action, latest = latest_collision_action([model], root, decision, horizon=FORECAST_STEPS)
     clear = model.first_possible_collision(root, tuple(decision.sequence_indices), FORECAST_STEPS)
     if latest is None:
         assert clear == FORECAST_STEPS + 1 and action == decision.action
@@ -334,11 +339,15 @@ def test_the_robust_decisions_record_the_rule_and_the_highway_never_applies_it()
 def test_the_robust_rule_rejects_what_is_not_a_tree_decision():
     ego, model, root, decision = _sweeping_box_case(-30.0, 4.5, 20, 2.0)
     with pytest.raises(InputError, match="decision"):
-        latest_collision_action(model, root, object(), horizon=10)
-    with pytest.raises(InputError, match="model"):
-        latest_collision_action(object(), root, decision, horizon=10)
+        latest_collision_action([model], root, object(), horizon=10)
+    with pytest.raises(InputError, match=r"models\[0\] must follow CollisionHorizonModel"):
+        latest_collision_action([object()], root, decision, horizon=10)
+    with pytest.raises(InputError, match="models must be a sequence.*BicycleModel"):
+        latest_collision_action(model, root, decision, horizon=10)
+    with pytest.raises(InputError, match="at least one"):
+        latest_collision_action([], root, decision, horizon=10)
     with pytest.raises(InputError, match="horizon"):
-        latest_collision_action(model, root, decision, horizon=0)
+        latest_collision_action([model], root, decision, horizon=0)
 
 
 def test_stall_trace_counts_every_decision_and_restores_the_method(benchmark_script):
