@@ -10,7 +10,10 @@ robust
     inflation for the bounded measurement noise), the LP `feasible_parameter_box` of
     every survivor as its parameter polytope, and `RobustTreePlanner` over one
     `IntervalModel` per survivor (K = 100, gamma = 0.9). The Assumption 4 report is
-    made once per episode (see `assumption4_report`). Its policies are
+    made once per episode (see `assumption4_report`). When the tree's best plan may
+    collide within `LATEST_COLLISION_DECISIONS` decisions, it executes the first action
+    whose plans stay clear longest under every survivor (`latest_collision_action`, the
+    road worlds' rule). Its policies are
     `PredictingPolicy`s: after every sub-step of the executed action, the episode loop
     checks the true robot state and the pedestrians' true positions against the boxes
     the planner predicted for them (`RobustMethod.executed_boxes`).
@@ -51,6 +54,7 @@ from minimaxplan.planners.comparison import multi_model_robust_planner, nominal_
 from minimaxplan.planners.controllers import LinearFeedback
 from minimaxplan.planners.dwa import DynamicWindowPlanner
 from minimaxplan.planners.interval_model import BoxState
+from minimaxplan.planners.latest_collision import latest_collision_action
 from minimaxplan.planners.search import RobustTreePlanner
 from minimaxplan.planners.teb import TimedElasticBand
 from minimaxplan.scenarios import MovingObstacles, RobotWorld
@@ -61,6 +65,7 @@ from .registry import EpisodeFailure, Method, Policy, PredictingPolicy, Transiti
 from .robot_scenario import RobotScenario, assumption4_report, excitation_data
 
 __all__ = [
+    "LATEST_COLLISION_DECISIONS",
     "RobotMethod",
     "RobustMethod",
     "NominalMethod",
@@ -71,6 +76,12 @@ __all__ = [
     "planning_system",
     "measurement_box",
 ]
+
+
+#: Decisions over which the robust method's latest-possible-collision rule looks for a
+#: possible collision (2 s at the paper's 0.5 s decisions: the depth its tree reaches at
+#: K = 100 in the pedestrian world).
+LATEST_COLLISION_DECISIONS = 4
 
 
 def velocity_controllers(config: LoopConfig, control_bound: float = 1.0) -> list[LinearFeedback]:
@@ -353,7 +364,16 @@ class RobustMethod(RobotMethod):
     parameter polytope, and `RobustTreePlanner` over one `IntervalModel` per survivor
     (eqs. (16)-(18)), rooted at the measurement box. The Assumption 4 report is made once
     per episode, on the first survivor's box.
+
+    When the tree's best plan may collide within `LATEST_COLLISION_DECISIONS` decisions
+    (its lower bounds then often tie, and a tie goes to the smallest action index), the
+    executed action is the first action whose plans stay clear of every box longest
+    under every survivor (`latest_collision_action`); ``latest_collision = False`` turns
+    the rule off (the tree's action always), for comparisons.
     """
+
+    #: Whether the latest-possible-collision rule overrides the tree (see above).
+    latest_collision = True
 
     def start(self, world: RobotWorld) -> None:
         """`RobotMethod.start`, then the learner (fitted on excitation data if ``prior_samples``) and planning systems.
@@ -406,12 +426,19 @@ class RobustMethod(RobotMethod):
         )
         root = root_state(planner, *measurement_box(measurement, self.noise), time=t)
         decision = planner.plan(root)
-        lower, upper, _, _ = planner.models[0].rollout(root, decision.sequence)
+        action, latest = int(decision.action_index), None
+        if self.latest_collision:
+            horizon = LATEST_COLLISION_DECISIONS * self.params.substeps
+            action, latest = latest_collision_action(planner.models, root, decision, horizon=horizon)
+        sequence = decision.sequence_indices if action == decision.action_index else (action,)
+        lower, upper, _, _ = planner.models[0].rollout(root, sequence)
         self.plans.append((t, lower[:, :2].tolist(), upper[:, :2].tolist()))
-        self.decisions.append(self._decision_trace(t, lower, upper, survivors, decision.action))
+        trace = self._decision_trace(t, lower, upper, survivors, action)
+        trace.update(tree_action=int(decision.action_index), latest_collision=latest)
+        self.decisions.append(trace)
         assert objective.moving_obstacles is not None  # GoalReward makes None MovingObstacles.empty()
-        self._predicted = self.executed_boxes(planner, root, decision.action, objective.moving_obstacles)
-        return self.controllers[decision.action]
+        self._predicted = self.executed_boxes(planner, root, action, objective.moving_obstacles)
+        return self.controllers[action]
 
     def decide(self, measurement: np.ndarray) -> PredictingPolicy:
         """`RobotMethod.decide`, with the boxes predicted for the executed action's sub-steps.
@@ -496,7 +523,8 @@ class RobustMethod(RobotMethod):
 
     def report(self) -> dict:
         """The Assumption 4 report, every eighth plan's boxes (``plans``) and every decision's
-        trace (``decisions``: plan boxes, pedestrians' predicted boxes, survivors)."""
+        trace (``decisions``: plan boxes, pedestrians' predicted boxes, survivors, the tree's action
+        ``tree_action`` and the rule's figures ``latest_collision``, see `latest_collision_action`)."""
         plans = self.plans
         return {
             "lmi": self.lmi,
