@@ -31,7 +31,7 @@ from minimaxplan.analysis.arguments import count, one_line
 from minimaxplan.analysis.episode import run_episode
 from minimaxplan.analysis.registry import register_scenario
 from minimaxplan.analysis.robot_methods import LATEST_COLLISION_DECISIONS, RobustMethod
-from minimaxplan.analysis.sweep import _cell_factory, cell_name
+from minimaxplan.analysis.sweep import CrowdScenarioFactory, cell_name
 
 MODES = ("rule", "tree")
 
@@ -164,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = []
     for pedestrians, bound in args.cells:
         name = cell_name("pedestrian", pedestrians, bound)
-        register_scenario(name, _cell_factory("pedestrian", (pedestrians, bound)))
+        register_scenario(name, CrowdScenarioFactory(pedestrians, bound))
         seeds = range(args.first_seed, args.first_seed + args.episodes)
         jobs += [(mode, name, seed) for seed in seeds for mode in MODES]
     jobs += [(mode, world, seed) for world in args.worlds for seed in range(args.world_episodes) for mode in MODES]

@@ -64,8 +64,8 @@ def latest_collision_action(
     ------
     InputError
         If ``models`` is empty, holds a model without the protocol or models with
-        different numbers of actions, ``decision`` is not a `Decision`, or ``horizon``
-        is not a positive integer.
+        different numbers of actions, ``decision`` is not a `Decision` or has another
+        number of root actions, or ``horizon`` is not a positive integer.
     """
     check_instance("decision", decision, Decision)
     horizon = as_count("horizon", horizon)
@@ -83,6 +83,12 @@ def latest_collision_action(
     n_actions = models[0].n_actions
     if any(model.n_actions != n_actions for model in models):
         raise InputError(f"models must share their actions, got n_actions {[m.n_actions for m in models]}")
+    if len(decision.action_lower) != n_actions or not 0 <= decision.action_index < n_actions:
+        raise InputError(
+            f"decision has {len(decision.action_lower)} root actions (action_lower of shape "
+            f"({len(decision.action_lower)},), action_index {decision.action_index}), but the models have "
+            f"n_actions = {n_actions}: it is not a decision of a planner over these models"
+        )
 
     def first_collision(plan: tuple[int, ...]) -> int:
         return min(model.first_possible_collision(root, plan, horizon) for model in models)

@@ -7,7 +7,7 @@ import pytest
 from minimaxplan.analysis.episode import run_episode
 from minimaxplan.analysis.registry import register_scenario
 from minimaxplan.analysis.robot_methods import RobustMethod
-from minimaxplan.analysis.sweep import _cell_factory, cell_name
+from minimaxplan.analysis.sweep import CrowdScenarioFactory, cell_name
 
 # The stress sweep's one robust failure: 8 pedestrians told +-0.6 m/s, seed 7 (README).
 CROWD = (8, 0.6)
@@ -20,7 +20,7 @@ def crowd_episodes(registries_restored):
     records = {}
     with registries_restored():
         name = cell_name("pedestrian", *CROWD)
-        register_scenario(name, _cell_factory("pedestrian", CROWD))
+        register_scenario(name, CrowdScenarioFactory(*CROWD))
         try:
             for rule in (True, False):
                 RobustMethod.latest_collision = rule

@@ -124,3 +124,11 @@ def test_first_possible_collision_rejects_bad_plans_and_horizons():
             robot_system(), Box([0.2, 0.2], [0.5, 0.5]), GoalReward([1.0, 1.0]), ROBOT_ACTIONS[:2], substeps=3
         )
         latest_collision_action([model, other], root, planner.plan(root), horizon=5)
+    # a decision of a planner over other actions: its root bounds would be read for the wrong actions
+    two = multi_model_robust_planner(
+        [(robot_system(), Box([0.2, 0.2], [0.5, 0.5]))], GoalReward([1.0, 1.0]), ROBOT_ACTIONS[:2], budget=5, substeps=3
+    )
+    with pytest.raises(InputError, match=r"decision has 2 root actions .* n_actions = 4"):
+        latest_collision_action(
+            planner.models, root, two.plan(two.models[0].initial_state(root.lower, root.upper)), horizon=5
+        )
