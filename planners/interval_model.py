@@ -289,6 +289,9 @@ class IntervalGroup:
         self._key_state: BoxState | None = None
         self._key_actions: Any = None
         self._result: tuple[list[BoxState], np.ndarray, np.ndarray] | None = None
+        # the one-entry cache of `rollout`, keyed by the identity of the state and the actions' values
+        self._rollout_key: tuple[BoxState, tuple[int, ...]] | None = None
+        self._rollout: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @property
     def size(self) -> int:
@@ -347,6 +350,63 @@ class IntervalGroup:
         reward = _as_result_array("reward", "rewards", reward, stack.shape[:3])
         collided = _as_result_array("reward", "collision flags", collided, stack.shape[:3])
         return stack, np.minimum.reduce(reward, axis=0), np.logical_or.reduce(collided, axis=0)
+
+    def rollout(self, state: BoxState, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every hypothesis's boxes at every sub-step along one action sequence, in one pass.
+
+        The members' `IntervalModel.rollout` read their row of it, from a one-entry
+        cache keyed by the identity of the (immutable) state and the actions' values:
+        the M members of a group rolling the same plan out from the same state (the
+        run-time check's hull, the latest-collision rule) share one computation.
+
+        Parameters
+        ----------
+        state : BoxState
+            The initial state: one box, or one per hypothesis.
+        actions : sequence of int
+            Controller indices, one per decision.
+
+        Returns
+        -------
+        lower, upper : ndarray, shape (M, len(actions) * substeps + 1, p)
+            Per hypothesis, the box corners after every sub-step; row 0 is the initial
+            box. Read-only (shared through the cache).
+        rewards : ndarray, shape (M, len(actions))
+            The per-decision pessimistic rewards (Theorem 1).
+        terminals : ndarray of bool, shape (M, len(actions))
+            The per-decision collision flags.
+
+        Raises
+        ------
+        InputError
+            If ``state`` is not a `BoxState` or an action is not a controller index.
+        DimensionError
+            If ``state`` holds a number of boxes other than 1 or the group size.
+        """
+        index = self.actions(list(actions))
+        key = (state, tuple(int(a) for a in index))
+        if self._rollout is not None and self._rollout_key is not None and state is self._rollout_key[0]:
+            if key[1] == self._rollout_key[1]:
+                return self._rollout
+        z = self.state_z(state)
+        M, p, S, n = self.size, self.p, self.substeps, len(index)
+        lower = np.empty((M, n * S + 1, p))
+        upper = np.empty((M, n * S + 1, p))
+        lower[:, 0], upper[:, 0] = -z[:, :p], z[:, p:]  # a single root box broadcasts to every hypothesis
+        rewards = np.empty((M, n))
+        terminals = np.zeros((M, n), dtype=bool)
+        time = state.time
+        for k in range(n):
+            stack, reward, collided = self.propagate(z, time, index[k : k + 1].copy())
+            lower[:, 1 + k * S : 1 + (k + 1) * S] = -stack[:, :, 0, :p].transpose(1, 0, 2)
+            upper[:, 1 + k * S : 1 + (k + 1) * S] = stack[:, :, 0, p:].transpose(1, 0, 2)
+            rewards[:, k], terminals[:, k] = reward[:, 0], collided[:, 0]
+            z = np.ascontiguousarray(stack[-1, :, 0])
+            time += S
+        for array in (lower, upper, rewards, terminals):
+            array.flags.writeable = False
+        self._rollout_key, self._rollout = key, (lower, upper, rewards, terminals)
+        return self._rollout
 
     # ------------------------------------------------- BatchedTransitions
     def expand_all(self, state: BoxState, actions) -> tuple[list[BoxState], np.ndarray, np.ndarray]:
@@ -783,6 +843,9 @@ class IntervalModel:
     def rollout(self, state: BoxState, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """This hypothesis's boxes at every sub-step along an action sequence.
 
+        Its row of `IntervalGroup.rollout`: linked models rolling the same actions out
+        from the same state share one computation.
+
         Parameters
         ----------
         state : BoxState
@@ -804,27 +867,13 @@ class IntervalModel:
         ------
         InputError
             If ``state`` is not a `BoxState` or an action is not a controller index.
+        DimensionError
+            If ``state`` holds a number of boxes other than 1 or the group size.
         """
         check_instance("state", state, BoxState)
-        seq = list(actions)
-        group, m = self.group, self.member
-        group.actions(seq)
-        z = group.state_z(state)
-        p, S = group.p, self.substeps
-        row = z[m if z.shape[0] > 1 else 0]
-        lowers, uppers = [-row[:p]], [row[p:]]
-        rewards = np.empty(len(seq))
-        terminals = np.zeros(len(seq), dtype=bool)
-        time = state.time
-        for n, action in enumerate(seq):
-            stack, reward, collided = group.propagate(z, time, np.array([int(action)], dtype=np.int64))
-            for s in range(S):
-                lowers.append(-stack[s, m, 0, :p])
-                uppers.append(stack[s, m, 0, p:])
-            rewards[n], terminals[n] = reward[m, 0], collided[m, 0]
-            z = np.ascontiguousarray(stack[-1, :, 0])
-            time += S
-        return np.array(lowers), np.array(uppers), rewards, terminals
+        lower, upper, rewards, terminals = self.group.rollout(state, actions)
+        m = self.member
+        return lower[m].copy(), upper[m].copy(), rewards[m].copy(), terminals[m].copy()
 
     def first_possible_collision(self, state: BoxState, plan: Sequence[int], horizon: int) -> int:
         """The first sub-step at which this hypothesis's box along a plan may collide, or ``horizon + 1``.

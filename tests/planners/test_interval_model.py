@@ -362,6 +362,69 @@ def test_linked_models_equal_separate_models(seed, substeps):
             np.testing.assert_allclose(x, y, **same)
 
 
+@settings(max_examples=15, deadline=None)
+@given(seeds, st.integers(1, 3), st.integers(1, 4))
+def test_linked_rollouts_share_one_computation_and_follow_the_tree_transitions(seed, substeps, decisions):
+    """The members' rollouts of one plan from one state are one pass of the group (one propagation per
+    decision, not one per member and decision), each row is its member's chain of tree transitions
+    (`expand`) bit for bit, and what a member gets back is its own writable copy."""
+    rng = np.random.default_rng(seed)
+    hypotheses = _hypotheses(rng, int(rng.integers(2, 5)))
+    controllers = systems.random_controllers(rng, hypotheses[0], n=3)
+    reward = GoalReward(
+        [2.0, 2.0], obstacles=CircularObstacles(rng.uniform(-3, 3, (5, 2)), np.full(5, 0.4)), robot_radius=0.2
+    )
+    linked = IntervalModel.linked([(h, h.theta) for h in hypotheses], reward, controllers, substeps=substeps)
+    group = linked[0].group
+    calls = []
+    propagate = group.propagate
+    group.propagate = lambda z, time, index: calls.append(len(index)) or propagate(z, time, index)
+    root = linked[0].initial_state(rng.uniform(-1, 0, 4), rng.uniform(0, 1, 4), time=3)
+    plan = [int(a) for a in rng.integers(0, 3, size=decisions)]
+    rollouts = [model.rollout(root, plan) for model in linked]
+    assert calls == [1] * decisions
+    for m, (lower, upper, rewards, terminals) in enumerate(rollouts):
+        assert lower.shape == upper.shape == (decisions * substeps + 1, 4) and lower.flags.writeable
+        state = root
+        for k, action in enumerate(plan):
+            states, step_rewards, step_terminals = linked[m].expand(state, (action,))
+            state = states[0]
+            lo, hi = linked[m].box(state)
+            np.testing.assert_array_equal(lower[(k + 1) * substeps], lo)
+            np.testing.assert_array_equal(upper[(k + 1) * substeps], hi)
+            assert rewards[k] == step_rewards[0] and terminals[k] == step_terminals[0]
+    # a member's copy is its own: writing into it changes nothing another member reads
+    rollouts[0][0][:] = np.nan
+    np.testing.assert_array_equal(linked[0].rollout(root, plan)[1], rollouts[0][1])
+    assert not np.isnan(linked[0].rollout(root, plan)[0]).any()
+    # from a joint state (one box per member), a child of the tree: each row continues from its own box
+    child = linked[0].expand(root, (plan[0],))[0][0]
+    calls.clear()
+    for model in linked:
+        lower, upper, _, _ = model.rollout(child, plan)
+        np.testing.assert_array_equal(lower[0], model.box(child)[0])
+        np.testing.assert_array_equal(upper[0], model.box(child)[1])
+    assert calls == [1] * decisions
+    # another plan, or an equal state that is another object, is computed again
+    calls.clear()
+    linked[1].rollout(child, plan + [0])
+    linked[1].rollout(BoxState(child.lower, child.upper, child.time), plan + [0])
+    assert calls == [1] * (2 * decisions + 2)
+
+
+def test_linked_rollout_checks_its_input_after_a_cached_pass():
+    system = robot_system()
+    models = IntervalModel.linked([(system, None), (system, None)], GoalReward([0.0, 0.0]), ROBOT_ACTIONS)
+    root = models[0].initial_state(np.zeros(4))
+    models[0].rollout(root, [1, 2])
+    with pytest.raises(InputError, match=r"actions must be controller indices in \[0, 4\), got \[1, 7\]"):
+        models[1].rollout(root, [1, 7])
+    with pytest.raises(InputError, match="state must be"):
+        models[1].rollout(root.z, [1, 2])
+    with pytest.raises(DimensionError, match=r"state holds 3 boxes, expected 2"):
+        models[1].rollout(BoxState(np.zeros((3, 4)), np.ones((3, 4)), 0), [1, 2])
+
+
 def test_linked_planner_decides_like_separate_models():
     rng = np.random.default_rng(4)
     system = robot_system()
