@@ -106,10 +106,22 @@ def test_summary_intervals_are_clopper_pearson_and_student_t():
 
 # ------------------------------------------------------------------ a real run
 def test_a_small_pedestrian_sweep_writes_what_the_committed_sweep_holds(tmp_path, run_cli):
-    """The generalised command writes the committed sweep's cells, columns and episodes."""
+    """The generalised command writes the committed sweep's cells, columns and episodes, robust's
+    (with the latest-collision rule and the run-time check) and DWA's."""
     out = tmp_path / "sweep"
     code, stdout, err = small_sweep(
-        run_cli, out, "--pedestrians", "1,8", "--velocity-uncertainty", "0.6", "--methods", "dwa", "--episodes", "2"
+        run_cli,
+        out,
+        "--pedestrians",
+        "1,8",
+        "--velocity-uncertainty",
+        "0.6",
+        "--methods",
+        "robust,dwa",
+        "--episodes",
+        "2",
+        "--seed",
+        "6",
     )
     assert code == 0, err
     assert re.search(r"\| 8 \| 0\.6 \| dwa \| \d/2 \|", stdout) and "Wall time of the run:" in stdout
@@ -123,27 +135,29 @@ def test_a_small_pedestrian_sweep_writes_what_the_committed_sweep_holds(tmp_path
         json.loads((COMMITTED / "sweep.json").read_text()),
     )
     assert list(document) == list(committed) and list(document["grid"]) == list(committed["grid"])
-    assert document["grid"]["pedestrians"] == [1, 8] and len(document["rows"]) == 2
-    # the rows' keys are the committed ones, and the run-time check's count beside its misses
-    # (the committed run read them from where the episodes no longer keep them: always None)
-    assert [list(r) for r in document["rows"]] == [[*committed["rows"][0], "boxes_checked"]] * 2
-    assert all(r["boxes_missed"] is None and r["boxes_checked"] is None for r in document["rows"])  # dwa predicts none
+    assert document["grid"]["pedestrians"] == [1, 8] and len(document["rows"]) == 4
+    assert [list(r) for r in document["rows"]] == [list(committed["rows"][0])] * 4
+    for row in document["rows"]:
+        if row["method"] == "dwa":  # DWA predicts no boxes
+            assert row["boxes_missed"] is None and row["boxes_checked"] is None
+        else:
+            assert row["boxes_missed"] == 0 and row["boxes_checked"] > 0
     with open(out / "sweep.csv", newline="") as handle:
         ours = list(csv.DictReader(handle))
     with open(COMMITTED / "sweep.csv", newline="") as handle:
         reference = {(r["scenario"], r["method"], r["seed"]): r for r in csv.DictReader(handle)}
-    # The committed run predates the run-time check's columns of the episode rows (added to
-    # EpisodeRecord.row before this change): every other column is the committed one, in order.
-    check_columns = ("boxes_checked", "boxes_missed")
-    assert len(ours) == 4
-    assert [c for c in ours[0] if c not in check_columns] == list(next(iter(reference.values())))
-    # and the episodes themselves: every field but the wall time, to the digit
+    assert len(ours) == 8 and list(ours[0]) == list(next(iter(reference.values())))
+    # and the episodes themselves: every field but the wall time, to the digit (seed 7 of the 8-pedestrian
+    # cell is the collision the latest-collision rule turned into a goal, seed 6 of the 1-pedestrian cell
+    # one of the goals it changed)
     assert {r["scenario"] for r in ours} == {"pedestrian[1 ped +-0.6 m/s]", "pedestrian[8 ped +-0.6 m/s]"}
     for row in ours:
         expected = reference[(row["scenario"], row["method"], row["seed"])]
-        assert {k: v for k, v in row.items() if k not in ("wall_time_s", *check_columns)} == {
+        assert {k: v for k, v in row.items() if k != "wall_time_s"} == {
             k: v for k, v in expected.items() if k != "wall_time_s"
         }
+    seven = reference[("pedestrian[8 ped +-0.6 m/s]", "robust", "7")]
+    assert (seven["outcome"], seven["time_s"]) == ("goal", "18.2")
 
 
 def test_a_small_highway_sweep_writes_one_row_per_density_and_method(tmp_path, run_cli):
