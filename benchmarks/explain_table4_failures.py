@@ -415,11 +415,36 @@ def explain_timeout(world: RecordingWorld) -> dict:
     }
 
 
-def explain(kind: str, method: str, seed: int, config: LoopConfig, expected: Mapping[str, str]) -> dict:
-    """Re-run one recorded episode, check it is the record, and explain its outcome."""
+def rerun(kind: str, method: str, seed: int, config: LoopConfig, expected: Mapping[str, str]):
+    """Re-run one recorded episode in a `RecordingWorld`; check it is the record; return ``(record, world)``.
+
+    Raises RuntimeError if the outcome, time, discounted return or number of decisions
+    differs from ``expected`` (a row of the records' ``episodes.csv``).
+    """
     factory = functools.partial(RecordingScenario, kind)
     scenario = factory()
     job = EpisodeJob(kind, method, seed, config, factory, method_factory(method, scenario, config))
+    record = run_job(job)
+    got = {
+        "outcome": record.outcome,
+        "time_s": float(record.time_s),
+        "discounted_return": float(record.discounted_return),
+        "decisions": int(record.decisions),
+    }
+    want = {
+        "outcome": expected["outcome"],
+        "time_s": float(expected["time_s"]),
+        "discounted_return": float(expected["discounted_return"]),
+        "decisions": int(expected["decisions"]),
+    }
+    world = _WORLDS.pop((kind, int(seed)))
+    if got != want:
+        raise RuntimeError(f"{kind} {method} seed {seed}: the re-run {got} is not the record {want}")
+    return record, world
+
+
+def explain(kind: str, method: str, seed: int, config: LoopConfig, expected: Mapping[str, str]) -> dict:
+    """Re-run one recorded episode, check it is the record, and explain its outcome."""
     forecasts: list[tuple[int, np.ndarray]] = []
     point_forecast = road_planning.point_forecast
 
@@ -433,31 +458,29 @@ def explain(kind: str, method: str, seed: int, config: LoopConfig, expected: Map
     road_planning.RobustTreePlanner = _RecordingPlanner
     _RecordingPlanner.plans = []
     try:
-        record = run_job(job)
+        record, world = rerun(kind, method, seed, config, expected)
     finally:
         road_planning.point_forecast = point_forecast
         road_planning.RobustTreePlanner = RobustTreePlanner
     wall = time.perf_counter() - began
-    got = {
-        "outcome": record.outcome,
-        "time_s": float(record.time_s),
-        "discounted_return": float(record.discounted_return),
-        "decisions": int(record.decisions),
-    }
-    want = {
-        "outcome": expected["outcome"],
-        "time_s": float(expected["time_s"]),
-        "discounted_return": float(expected["discounted_return"]),
-        "decisions": int(expected["decisions"]),
-    }
-    if got != want:
-        raise RuntimeError(f"{kind} {method} seed {seed}: the re-run {got} is not the record {want}")
-    world = _WORLDS.pop((kind, seed))
     facts = explain_collision(world, forecasts) if record.outcome == "collision" else explain_timeout(world)
     if record.outcome == "collision":
         facts.update(_plan_facts(world, _RecordingPlanner.plans, forecasts, facts["other"]))
     _RecordingPlanner.plans = []
     return {"scenario": kind, "method": method, "seed": seed, "outcome": record.outcome, "wall_s": wall, **facts}
+
+
+def records_environment(script: str) -> dict:
+    """This process's `numerical_environment`; exit 2 with one line on stderr unless it is the records'."""
+    environment = numerical_environment()
+    if not environment["matches_records"]:
+        print(
+            f"{script}: the process does not have the records' numerical environment "
+            "(run it with the env prefix in this script's docstring)",
+            file=sys.stderr,
+        )
+        raise SystemExit(2)
+    return environment
 
 
 def markdown(rows: Sequence[Mapping], meta: Mapping) -> str:
@@ -554,14 +577,7 @@ def main(argv: Sequence[str] | None = None) -> list[dict]:
     unknown = sorted(set(methods) - set(METHODS))
     if unknown:
         parser.error(f"--methods must be among {list(METHODS)}, got {unknown}")
-    environment = numerical_environment()
-    if not environment["matches_records"]:
-        print(
-            "explain_table4_failures: the process does not have the records' numerical environment "
-            "(run it with the env prefix in this script's docstring)",
-            file=sys.stderr,
-        )
-        raise SystemExit(2)
+    environment = records_environment("explain_table4_failures")
     with RECORDS.open(newline="") as handle:
         rows = [r for r in csv.DictReader(handle) if r["method"] in methods and r["outcome"] != "goal"]
     config = LoopConfig()

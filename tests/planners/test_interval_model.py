@@ -323,16 +323,22 @@ def _hypotheses(rng, n):
     return [systems.random_system(rng, p=p, q=q, d=int(rng.integers(1, 3))) for _ in range(n)]
 
 
-@settings(max_examples=15)
-@given(seeds, st.integers(1, 3))
-def test_linked_models_equal_separate_models(seed, substeps):
-    rng = np.random.default_rng(seed)
-    hypotheses = _hypotheses(rng, int(rng.integers(2, 4)))
+def _linked_case(rng, most, substeps):
+    """2 to ``most - 1`` random hypotheses, controllers and a reward with discs, and their linked models."""
+    hypotheses = _hypotheses(rng, int(rng.integers(2, most)))
     controllers = systems.random_controllers(rng, hypotheses[0], n=3)
     reward = GoalReward(
         [2.0, 2.0], obstacles=CircularObstacles(rng.uniform(-3, 3, (5, 2)), np.full(5, 0.4)), robot_radius=0.2
     )
     linked = IntervalModel.linked([(h, h.theta) for h in hypotheses], reward, controllers, substeps=substeps)
+    return hypotheses, controllers, reward, linked
+
+
+@settings(max_examples=15)
+@given(seeds, st.integers(1, 3))
+def test_linked_models_equal_separate_models(seed, substeps):
+    rng = np.random.default_rng(seed)
+    hypotheses, controllers, reward, linked = _linked_case(rng, 4, substeps)
     separate = [IntervalModel(h, h.theta, reward, controllers, substeps=substeps) for h in hypotheses]
     assert [m.n_linked for m in linked] == [len(hypotheses)] * len(hypotheses) and separate[0].n_linked == 1
     root = linked[0].initial_state(rng.uniform(-1, 0, 4), rng.uniform(0, 1, 4))
@@ -369,12 +375,7 @@ def test_linked_rollouts_share_one_computation_and_follow_the_tree_transitions(s
     decision, not one per member and decision), each row is its member's chain of tree transitions
     (`expand`) bit for bit, and what a member gets back is its own writable copy."""
     rng = np.random.default_rng(seed)
-    hypotheses = _hypotheses(rng, int(rng.integers(2, 5)))
-    controllers = systems.random_controllers(rng, hypotheses[0], n=3)
-    reward = GoalReward(
-        [2.0, 2.0], obstacles=CircularObstacles(rng.uniform(-3, 3, (5, 2)), np.full(5, 0.4)), robot_radius=0.2
-    )
-    linked = IntervalModel.linked([(h, h.theta) for h in hypotheses], reward, controllers, substeps=substeps)
+    _, _, _, linked = _linked_case(rng, 5, substeps)
     group = linked[0].group
     calls = []
     propagate = group.propagate
