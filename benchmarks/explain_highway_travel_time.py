@@ -68,9 +68,10 @@ from minimaxplan.scenarios.road_world import RoadWorld  # noqa: E402
 RECORDS = failures.RECORDS
 RESULTS = HERE / "results"
 #: The methods re-run: robust, and its references: DWA, the fastest method of Table 4's highway without a known
-#: model, and the oracle, the same tree search on the true traffic.
-METHODS = ("robust", "dwa", "oracle")
-REFERENCES = ("dwa", "oracle")
+#: model; the oracle, the same tree search on the true traffic; nominal, the same search and learner on a point
+#: forecast (no boxes).
+METHODS = ("robust", "dwa", "oracle", "nominal")
+REFERENCES = ("dwa", "oracle", "nominal")
 #: Above this lateral speed the ego moves sideways (changes lanes), m/s (a 4 m lane change in about 2 s peaks
 #: near 3 m/s; the lane keeping's corrections stay below 0.1 m/s).
 LATERAL_SPEED = 0.3
@@ -224,18 +225,22 @@ def episode(seed: int, rows: Mapping[str, Mapping[str, str]]) -> dict:
     traces, facts, start, goal = {}, {}, 0.0, 0.0
     for method in METHODS:
         record, world = failures.rerun("highway", method, seed, config, rows[method])
-        if record.outcome != "goal":
-            raise RuntimeError(f"highway {method} seed {seed}: outcome {record.outcome}, the split needs goals")
+        facts[method] = {"outcome": record.outcome, "recorded_time_s": float(record.time_s)}
+        if record.outcome != "goal":  # a reference that collided has no time at the goal: no split
+            if method == "robust":
+                raise RuntimeError(f"highway robust seed {seed}: outcome {record.outcome}, the split needs its goal")
+            continue
         traces[method] = passage(world)
         if "decisions" in record.extra:  # the tree methods report their executed actions
             initial = float(traces[method]["speed"][0])
             traces[method]["target"] = target_speeds(record, initial, world.scenario.substeps)
         start, goal = float(traces[method]["s"][0]), float(world.goal_s)
-        facts[method] = {"recorded_time_s": float(record.time_s), **method_facts(traces[method], goal)}
+        facts[method].update(method_facts(traces[method], goal))
     reach = (REACH_S, *REACH_SENSITIVITY)
     splits = {
         reference: {str(r): split_gap(traces["robust"], traces[reference], start, goal, r) for r in reach}
         for reference in REFERENCES
+        if reference in traces
     }
     return {"seed": seed, "start_s": start, "goal_s": goal, "split": splits, **facts}
 
@@ -246,31 +251,40 @@ def _mean(values) -> float:
 
 
 def summarise(episodes: Sequence[Mapping]) -> dict:
-    """Means over the episodes: the split per reference and reach time, and each method's figures."""
+    """Means over the episodes: the split per reference and reach time (over the episodes in which the reference
+    reached the goal too), and each method's figures (over its goals)."""
     split: dict = {}
     for reference in REFERENCES:
+        both = [e for e in episodes if reference in e["split"]]
+        if not both:
+            continue
         split[reference] = {}
-        for r in episodes[0]["split"][reference]:
-            parts = [e["split"][reference][r] for e in episodes]
+        recorded = _mean(e["robust"]["recorded_time_s"] - e[reference]["recorded_time_s"] for e in both)
+        for r in both[0]["split"][reference]:
+            parts = [e["split"][reference][r] for e in both]
             split[reference][r] = {
+                "episodes": len(both),
+                "recorded": recorded,
                 **{key: _mean(p[key] for p in parts) for key in (*SITUATIONS, "total")},
                 "metres": {n: _mean(p["metres"][n] for p in parts) for n in SITUATIONS},
                 "by_target": {v: _mean(p["by_target"][v] for p in parts) for v in parts[0]["by_target"]},
             }
     methods = {}
     for method in METHODS:
-        headways = [h for e in episodes for h in e[method]["headway_s"]]
+        goals = [e[method] for e in episodes if e[method]["outcome"] == "goal"]
+        headways = [h for g in goals for h in g["headway_s"]]
         row = {
-            "recorded_time_s": _mean(e[method]["recorded_time_s"] for e in episodes),
-            "lane_changes": _mean(e[method]["lane_changes"] for e in episodes),
-            "episodes_with_a_lane_change": int(sum(e[method]["lane_changes"] > 0 for e in episodes)),
-            "time_s": {n: _mean(e[method]["time_s"][n] for e in episodes) for n in SITUATIONS},
-            "mean_speed": _mean(e[method]["mean_speed"] for e in episodes),
+            "goals": len(goals),
+            "recorded_time_s": _mean(g["recorded_time_s"] for g in goals),
+            "lane_changes": _mean(g["lane_changes"] for g in goals),
+            "episodes_with_a_lane_change": int(sum(g["lane_changes"] > 0 for g in goals)),
+            "time_s": {n: _mean(g["time_s"][n] for g in goals) for n in SITUATIONS},
+            "mean_speed": _mean(g["mean_speed"] for g in goals),
             "headway_s_median": float(np.median(headways)) if headways else float("nan"),
             "headway_s_p10": float(np.percentile(headways, 10)) if headways else float("nan"),
         }
-        if "time_at_top_target_s" in episodes[0][method]:
-            row["time_at_top_target_s"] = _mean(e[method]["time_at_top_target_s"] for e in episodes)
+        if goals and "time_at_top_target_s" in goals[0]:
+            row["time_at_top_target_s"] = _mean(g["time_at_top_target_s"] for g in goals)
         methods[method] = row
     return {"split": split, "methods": methods}
 
@@ -295,20 +309,20 @@ def markdown(episodes: Sequence[Mapping], summary: Mapping, meta: Mapping) -> st
         "episodes, s; the total differs from the difference of the recorded times, given beside it, because each "
         "world stops at the sub-step that noticed the goal:",
         "",
-        "| reference | reach time (s) | free | behind a leader | sideways | total (recorded) | metres free / behind "
-        "/ sideways |",
-        "|---|---:|---:|---:|---:|---:|---|",
+        "| reference | episodes (both at the goal) | reach time (s) | free | behind a leader | sideways | total "
+        "(recorded) | metres free / behind / sideways |",
+        "|---|---:|---:|---:|---:|---:|---:|---|",
     ]
-    for reference in REFERENCES:
-        recorded = methods["robust"]["recorded_time_s"] - methods[reference]["recorded_time_s"]
-        for r, row in summary["split"][reference].items():
+    for reference, splits in summary["split"].items():
+        for r, row in splits.items():
             m = row["metres"]
             lines.append(
-                f"| {reference} | {float(r):g} | {row['free']:+.3f} | {row['behind a leader']:+.3f} | "
-                f"{row['sideways']:+.3f} | {row['total']:+.3f} ({recorded:+.3f}) | {m['free']:.0f} / "
+                f"| {reference} | {row['episodes']} | {float(r):g} | {row['free']:+.3f} | "
+                f"{row['behind a leader']:+.3f} | {row['sideways']:+.3f} | {row['total']:+.3f} "
+                f"({row['recorded']:+.3f}) | {m['free']:.0f} / "
                 f"{m['behind a leader']:.0f} / {m['sideways']:.0f} |"
             )
-    speeds = list(summary["split"][REFERENCES[0]][r0]["by_target"])
+    speeds = [f"{v:g}" for v in HIGHWAY_TARGET_SPEEDS]
     lines += [
         "",
         "The same extra time summed by robust's target speed at each metre (the speed level its executed actions "
@@ -317,8 +331,8 @@ def markdown(episodes: Sequence[Mapping], summary: Mapping, meta: Mapping) -> st
         "| reference | " + " | ".join(f"target {v} m/s" for v in speeds) + " |",
         "|---|" + "---:|" * len(speeds),
     ]
-    for reference in REFERENCES:
-        by_target = summary["split"][reference][r0]["by_target"]
+    for reference, splits in summary["split"].items():
+        by_target = splits[r0]["by_target"]
         lines.append(f"| {reference} | " + " | ".join(f"{by_target[v]:+.3f}" for v in speeds) + " |")
     lines += [
         "",
@@ -326,36 +340,42 @@ def markdown(episodes: Sequence[Mapping], summary: Mapping, meta: Mapping) -> st
         "sideways also counts its lateral corrections; headway: the bumper gap over the ego's speed, over every "
         "sub-step behind a leader):",
         "",
-        "| method | recorded time (s) | lane changes per episode | episodes with a lane change | time free / "
-        "behind a leader / sideways (s) | at the top target speed (s) | mean speed (m/s) | headway behind a "
-        "leader, median (10th percentile) (s) |",
-        "|---|---:|---:|---:|---|---:|---:|---|",
+        "| method | goals | recorded time (s) | lane changes per episode | episodes with a lane change | time "
+        "free / behind a leader / sideways (s) | at the top target speed (s) | mean speed (m/s) | headway behind "
+        "a leader, median (10th percentile) (s) |",
+        "|---|---:|---:|---:|---:|---|---:|---:|---|",
     ]
     for method, row in methods.items():
         t = row["time_s"]
         top = f"{row['time_at_top_target_s']:.2f}" if "time_at_top_target_s" in row else "-"
         lines.append(
-            f"| {method} | {row['recorded_time_s']:.2f} | {row['lane_changes']:.2f} | "
+            f"| {method} | {row['goals']} | {row['recorded_time_s']:.2f} | {row['lane_changes']:.2f} | "
             f"{row['episodes_with_a_lane_change']} | {t['free']:.2f} / {t['behind a leader']:.2f} / "
             f"{t['sideways']:.2f} | {top} | {row['mean_speed']:.2f} | {row['headway_s_median']:.2f} "
             f"({row['headway_s_p10']:.2f}) |"
         )
     lines += [
         "",
-        f"Per episode (reach time {REACH_S:g} s): robust's extra time over DWA's by its situation, the total over the "
-        "oracle's (s), and each method's lane changes:",
+        f"Per episode (reach time {REACH_S:g} s): robust's extra time over DWA's by its situation, its total over "
+        "each reference (s; - where the reference did not reach the goal), and each method's lane changes:",
         "",
-        "| seed | free | behind a leader | sideways | total over DWA | total over the oracle | lane changes robust "
-        "/ DWA / oracle |",
-        "|---:|---:|---:|---:|---:|---:|---|",
+        "| seed | free | behind a leader | sideways | "
+        + " | ".join(f"total over {reference}" for reference in REFERENCES)
+        + " | lane changes "
+        + " / ".join(METHODS)
+        + " |",
+        "|---:|---:|---:|---:|" + "---:|" * len(REFERENCES) + "---|",
     ]
+
+    def cell(value) -> str:
+        return "-" if value is None else f"{value:+.2f}"
+
     for e in episodes:
-        row, oracle = e["split"]["dwa"][r0], e["split"]["oracle"][r0]
-        lines.append(
-            f"| {e['seed']} | {row['free']:+.2f} | {row['behind a leader']:+.2f} | {row['sideways']:+.2f} | "
-            f"{row['total']:+.2f} | {oracle['total']:+.2f} | {e['robust']['lane_changes']} / "
-            f"{e['dwa']['lane_changes']} / {e['oracle']['lane_changes']} |"
-        )
+        row = e["split"].get("dwa", {}).get(r0, {})
+        parts = [cell(row.get(name)) for name in SITUATIONS]
+        totals = [cell(e["split"][ref][r0]["total"]) if ref in e["split"] else "-" for ref in REFERENCES]
+        changes = " / ".join(str(e[m].get("lane_changes", "-")) for m in METHODS)
+        lines.append(f"| {e['seed']} | " + " | ".join(parts + totals) + f" | {changes} |")
     return "\n".join(lines) + "\n"
 
 
@@ -363,6 +383,8 @@ def compact(episode: Mapping) -> dict:
     """An episode's figures for the JSON: each method's headways (one per sub-step) as their count and median."""
     out = dict(episode)
     for method in METHODS:
+        if "headway_s" not in out[method]:  # no goal: no figures
+            continue
         facts = dict(out[method])
         headways = facts.pop("headway_s")
         facts["headway_s_count"] = len(headways)

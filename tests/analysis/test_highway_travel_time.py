@@ -114,15 +114,18 @@ def test_the_script_refuses_bad_options_and_another_numerical_environment(tmp_pa
 
 @pytest.mark.slow
 def test_seed_5_re_run_as_recorded_loses_its_time_behind_a_leader(tmp_path):
-    """Robust and DWA keep their lane behind the same leader, the oracle overtakes twice (README)."""
+    """Robust and DWA keep their lane behind the same leader, the oracle overtakes twice, nominal collides (README)."""
     command = [sys.executable, str(SCRIPT), "--seeds", "5", "--workers", "1", "--out", str(tmp_path)]
     done = subprocess.run(command, capture_output=True, text=True, env={**os.environ, **RECORDS_ENVIRONMENT})
     assert done.returncode == 0, done.stderr[-2000:]
     result = json.loads((tmp_path / "highway_travel_time.json").read_text())
     (episode,) = result["episodes"]
     assert result["meta"]["environment"]["matches_records"]
-    recorded = {method: episode[method]["recorded_time_s"] for method in ("robust", "dwa", "oracle")}
-    assert recorded == pytest.approx({"robust": 10.2, "dwa": 9.8, "oracle": 8.5})
+    recorded = {method: episode[method]["recorded_time_s"] for method in ("robust", "dwa", "oracle", "nominal")}
+    assert recorded == pytest.approx({"robust": 10.2, "dwa": 9.8, "oracle": 8.5, "nominal": 1.4})
+    # nominal collided at 1.4 s (Table 4's records): no time at the goal, no split against it
+    assert episode["nominal"] == {"outcome": "collision", "recorded_time_s": pytest.approx(1.4)}
+    assert sorted(episode["split"]) == ["dwa", "oracle"]
     for reference in ("dwa", "oracle"):
         split = episode["split"][reference]["5.0"]
         assert sum(split[name] for name in ("free", "behind a leader", "sideways")) == pytest.approx(split["total"])
