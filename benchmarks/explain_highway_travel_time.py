@@ -23,6 +23,14 @@ trajectories:
   ``t_robust(goal) - t_reference(goal)`` (the recorded times differ from those by the 0.1 s
   sub-step at which each world noticed the goal).
 
+Why robust's target is below the top one (`below_top_decisions`): at each of its
+decisions that leaves the target below 30 m/s, FASTER held for the rest of the forecast
+is probed on the decision's own model and boxes (`BicycleModel.first_possible_collision`,
+the planner's test): either it may collide within the forecast, and the box it meets
+first belongs to the ego's leader (ahead in its lane at the decision), to a vehicle ahead
+in another lane, to one behind, or is the road's edge; or it is clear, and the tree
+preferred a slower target for its value.
+
 Also per method: the lane changes (changes of the lane whose centre is nearest), the time
 in each situation (for DWA, ``sideways`` also holds its lateral corrections), the speed,
 the time at the top target speed (tree methods), and the time headway to the leader while
@@ -64,6 +72,7 @@ from minimaxplan.analysis import road_planning  # noqa: E402
 from minimaxplan.analysis.episode import EpisodeRecord, LoopConfig  # noqa: E402
 from minimaxplan.planners.bicycle_model import HIGHWAY_ACTIONS, HIGHWAY_TARGET_SPEEDS  # noqa: E402
 from minimaxplan.scenarios.road_world import RoadWorld  # noqa: E402
+from minimaxplan.scenarios.vehicles import vehicle_corners  # noqa: E402
 
 RECORDS = failures.RECORDS
 RESULTS = HERE / "results"
@@ -82,6 +91,11 @@ REACH_S = road_planning.FORECAST_STEPS * 0.1
 #: The other reach times the split is given for, s.
 REACH_SENSITIVITY = (2.5, 10.0)
 SITUATIONS = ("free", "behind a leader", "sideways")
+#: Why FASTER was not taken at a decision leaving the target below the top (`below_top_decisions`): the owner of
+#: the box FASTER held may meet first, and whether its true rectangle would have been met too (`_truly_met`).
+BELOW_TOP_VERDICTS = tuple(
+    f"{kind}: {met}" for kind in ("leader", "ahead, other lane", "behind") for met in ("truly", "box only", "unknown")
+) + ("road edge", "clear")
 
 
 def _frenet(world: RoadWorld, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -219,13 +233,88 @@ def method_facts(trace: Mapping[str, np.ndarray], goal: float) -> dict:
     return facts
 
 
+def below_top_decisions(world: RoadWorld, record: EpisodeRecord, plans: Sequence) -> list[str]:
+    """Per robust decision that leaves its target below `V_TOP`: why FASTER was not taken (module docstring).
+
+    ``plans`` are the episode's ``(model, root, decision)`` (`failures.RecordingPlanner`),
+    one per decision. Returns one verdict per such decision (`BELOW_TOP_VERDICTS`):
+    ``"leader"``, ``"ahead, other lane"`` or ``"behind"`` (the owner of the first box
+    FASTER held may meet within the forecast), with whether its true rectangle would have
+    been met (`_truly_met`); ``"road edge"``; or ``"clear"``.
+    """
+    change = {name: speed for name, speed, _ in HIGHWAY_ACTIONS}
+    horizon = road_planning.FORECAST_STEPS
+    top = len(HIGHWAY_TARGET_SPEEDS) - 1
+    by_step = {int(root.time): (model, root) for model, root, _ in plans}
+    verdicts = []
+    for decision in record.extra["decisions"]:
+        model, root = by_step[int(decision["step"])]
+        if min(max(root.level + change[decision["action"]], 0), top) == top:
+            continue
+        faster = model.action_names.index("FASTER")  # the road methods order their actions (conservative_first)
+        reward = model.lane_keeping_reward if model.lane_keeping_reward is not None else model.reward
+        table = reward.obstacles
+        if table.shape[1] != len(world.traffic.states) - 1:
+            raise RuntimeError(f"a table of {table.shape[1]} vehicles for {len(world.traffic.states) - 1} others")
+        met = failures._first_obstacle(world, model, root, [faster], horizon, table, reward.time_offset)
+        if met is None:
+            verdicts.append("clear")
+            continue
+        agent = met[1]
+        if agent < 0:
+            verdicts.append("road edge")
+            continue
+        states = world.history[int(root.time)][0]
+        lanes, s, _ = _frenet(world, states[[0, agent], :2])
+        if s[1] <= s[0]:
+            kind = "behind"
+        else:
+            kind = "leader" if lanes[0] == lanes[1] >= 0 else "ahead, other lane"
+        verdicts.append(f"{kind}: {_truly_met(world, model, root, faster, horizon, agent)}")
+    return verdicts
+
+
+def _truly_met(world: RoadWorld, model, root, action: int, horizon: int, agent: int) -> str:
+    """Whether ``action`` held from ``root`` would have met ``agent``'s true rectangle (its recorded future).
+
+    The ego's held states are the model's own (`BicycleModel.predict`); the other
+    vehicle's are the recorded ones, so this is a counterfactual only in the ego's path:
+    ``"truly"`` if the two rectangles' boxes overlap at a sub-step within the horizon,
+    ``"box only"`` if not, ``"unknown"`` if the episode ended before the horizon without
+    an overlap (the recorded future is shorter).
+    """
+    vehicle = world.scenario.vehicle
+    t0 = int(root.time)
+    state, held = root, []
+    while sum(len(h) for h in held) < horizon:
+        states, _, state = model.predict(state, action)
+        held.append(states)
+    ego = np.concatenate(held)[:horizon]
+    steps = min(horizon, len(world.history) - 1 - t0)
+    for k in range(1, steps + 1):
+        mine = vehicle_corners(ego[k - 1][None, :], vehicle)[0]
+        theirs = vehicle_corners(world.history[t0 + k][0][agent][None, :], vehicle)[0]
+        if np.all(mine.min(axis=0) <= theirs.max(axis=0)) and np.all(theirs.min(axis=0) <= mine.max(axis=0)):
+            return "truly"
+    return "box only" if steps == horizon else "unknown"
+
+
 def episode(seed: int, rows: Mapping[str, Mapping[str, str]]) -> dict:
     """Re-run seed ``seed`` of every method (checked against their records) and split robust's extra time."""
     config = LoopConfig()
     traces, facts, start, goal = {}, {}, 0.0, 0.0
     for method in METHODS:
-        record, world = failures.rerun("highway", method, seed, config, rows[method])
+        road_planning.RobustTreePlanner = failures.RecordingPlanner
+        failures.RecordingPlanner.plans = []
+        try:
+            record, world = failures.rerun("highway", method, seed, config, rows[method])
+        finally:
+            road_planning.RobustTreePlanner = failures.RobustTreePlanner
         facts[method] = {"outcome": record.outcome, "recorded_time_s": float(record.time_s)}
+        if method == "robust":
+            facts[method]["below_top"] = below_top_decisions(world, record, failures.RecordingPlanner.plans)
+            facts[method]["decisions"] = int(record.decisions)
+        failures.RecordingPlanner.plans = []
         if record.outcome != "goal":  # a reference that collided has no time at the goal: no split
             if method == "robust":
                 raise RuntimeError(f"highway robust seed {seed}: outcome {record.outcome}, the split needs its goal")
@@ -286,7 +375,13 @@ def summarise(episodes: Sequence[Mapping]) -> dict:
         if goals and "time_at_top_target_s" in goals[0]:
             row["time_at_top_target_s"] = _mean(g["time_at_top_target_s"] for g in goals)
         methods[method] = row
-    return {"split": split, "methods": methods}
+    verdicts = [v for e in episodes for v in e["robust"]["below_top"]]
+    below_top = {
+        "decisions": int(sum(e["robust"]["decisions"] for e in episodes)),
+        "below_top": len(verdicts),
+        "verdicts": {v: verdicts.count(v) for v in BELOW_TOP_VERDICTS},
+    }
+    return {"split": split, "methods": methods, "below_top": below_top}
 
 
 def markdown(episodes: Sequence[Mapping], summary: Mapping, meta: Mapping) -> str:
@@ -334,6 +429,19 @@ def markdown(episodes: Sequence[Mapping], summary: Mapping, meta: Mapping) -> st
     for reference, splits in summary["split"].items():
         by_target = splits[r0]["by_target"]
         lines.append(f"| {reference} | " + " | ".join(f"{by_target[v]:+.3f}" for v in speeds) + " |")
+    counts = summary["below_top"]
+    lines += [
+        "",
+        f"Why robust's target is below the top one: of its {counts['decisions']} decisions, {counts['below_top']} "
+        "leave the target below 30 m/s; at each, FASTER held for the rest of the 5 s forecast, on the decision's "
+        "own model and boxes, may collide (the first box it meets belongs to the ego's leader, to a vehicle ahead in "
+        "another lane, to one behind, or is the road's edge) or is clear (the tree preferred the slower target for "
+        "its value):",
+        "",
+        "| " + " | ".join(BELOW_TOP_VERDICTS) + " |",
+        "|" + "---:|" * len(BELOW_TOP_VERDICTS),
+        "| " + " | ".join(str(counts["verdicts"][v]) for v in BELOW_TOP_VERDICTS) + " |",
+    ]
     lines += [
         "",
         f"Each method's own figures up to the goal (its situations with the reach time {REACH_S:g} s; for DWA, "

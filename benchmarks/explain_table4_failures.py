@@ -188,7 +188,7 @@ def _rectangle_box(world: RoadWorld, agent: int) -> np.ndarray:
     return np.concatenate([corners.min(axis=0), corners.max(axis=0)])
 
 
-class _RecordingPlanner(RobustTreePlanner):
+class RecordingPlanner(RobustTreePlanner):
     """`RobustTreePlanner` that keeps, per plan, the model, the root and the decision (nominal, oracle)."""
 
     plans: list = []
@@ -196,7 +196,7 @@ class _RecordingPlanner(RobustTreePlanner):
     def plan(self, state, *args, **kwargs):
         """`RobustTreePlanner.plan`, kept with its model and root."""
         decision = super().plan(state, *args, **kwargs)
-        _RecordingPlanner.plans.append((self.models[0], state, decision))
+        RecordingPlanner.plans.append((self.models[0], state, decision))
         return decision
 
 
@@ -455,8 +455,8 @@ def explain(kind: str, method: str, seed: int, config: LoopConfig, expected: Map
 
     began = time.perf_counter()
     road_planning.point_forecast = keep
-    road_planning.RobustTreePlanner = _RecordingPlanner
-    _RecordingPlanner.plans = []
+    road_planning.RobustTreePlanner = RecordingPlanner
+    RecordingPlanner.plans = []
     try:
         record, world = rerun(kind, method, seed, config, expected)
     finally:
@@ -465,8 +465,8 @@ def explain(kind: str, method: str, seed: int, config: LoopConfig, expected: Map
     wall = time.perf_counter() - began
     facts = explain_collision(world, forecasts) if record.outcome == "collision" else explain_timeout(world)
     if record.outcome == "collision":
-        facts.update(_plan_facts(world, _RecordingPlanner.plans, forecasts, facts["other"]))
-    _RecordingPlanner.plans = []
+        facts.update(_plan_facts(world, RecordingPlanner.plans, forecasts, facts["other"]))
+    RecordingPlanner.plans = []
     return {"scenario": kind, "method": method, "seed": seed, "outcome": record.outcome, "wall_s": wall, **facts}
 
 

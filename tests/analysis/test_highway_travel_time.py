@@ -87,6 +87,37 @@ def test_the_target_speed_follows_the_executed_actions_clipped_to_the_levels(ben
     assert split["by_target"]["30"] == pytest.approx(20 * (1 / 20 - 1 / 25), abs=1e-9)
 
 
+class _Held:
+    """A stand-in for `BicycleModel.predict`: the ego at 30 m/s along x, 5 sub-steps of 0.1 s per decision."""
+
+    def predict(self, state, action):
+        x = state.x[0] + 3.0 * np.arange(1, 6)
+        states = np.stack([x, np.zeros(5), np.full(5, 30.0), np.zeros(5)], axis=1)
+        return states, None, types.SimpleNamespace(x=states[-1], time=state.time + 5)
+
+
+def test_truly_met_reads_the_recorded_future_of_the_vehicle_the_box_belongs_to(benchmark_script):
+    module = benchmark_script("explain_highway_travel_time")
+    from minimaxplan.scenarios.vehicles import VehicleParameters
+
+    root = types.SimpleNamespace(x=np.array([0.0, 0.0, 30.0, 0.0]), time=0)
+
+    def world(leader_x0, leader_speed, steps):
+        history = []
+        for k in range(steps + 1):
+            states = np.array([[3.0 * k, 0.0, 30.0, 0.0], [leader_x0 + leader_speed * 0.1 * k, 0.0, leader_speed, 0.0]])
+            history.append((states, np.ones(2, dtype=bool)))
+        return types.SimpleNamespace(scenario=types.SimpleNamespace(vehicle=VehicleParameters()), history=history)
+
+    # a leader standing 20 m ahead: met within 10 sub-steps (front at 2.5 + 3k reaches its rear at 17.5 m)
+    assert module._truly_met(world(20.0, 0.0, 10), _Held(), root, 3, 10, 1) == "truly"
+    # one 20 m ahead at the ego's speed is never met; with a shorter recorded future the answer is unknown
+    assert module._truly_met(world(20.0, 30.0, 10), _Held(), root, 3, 10, 1) == "box only"
+    assert module._truly_met(world(20.0, 30.0, 6), _Held(), root, 3, 10, 1) == "unknown"
+    # one standing 40 m ahead is met only after 10 sub-steps: not within the horizon
+    assert module._truly_met(world(40.0, 0.0, 20), _Held(), root, 3, 10, 1) == "box only"
+
+
 def test_the_situations_and_lane_changes(benchmark_script):
     module = benchmark_script("explain_highway_travel_time")
     trace = _trace([25.0] * 6, gap=[10.0, 10.0, 49.0, 51.0, np.inf, 10.0], leader_speed=[20, 31, 20, 20, np.nan, 20])
@@ -137,4 +168,8 @@ def test_seed_5_re_run_as_recorded_loses_its_time_behind_a_leader(tmp_path):
     assert lanes == {"robust": 0, "dwa": 0, "oracle": 2}
     assert episode["oracle"]["time_at_top_target_s"] == pytest.approx(8.5)
     assert episode["robust"]["time_at_top_target_s"] == pytest.approx(3.0)
+    # 15 of robust's 21 decisions leave its target below 30 m/s, each because FASTER held may meet the leader's
+    # box; in the first 11 the true leader would have been met too, the other 4 look past the episode's end
+    assert episode["robust"]["decisions"] == 21
+    assert episode["robust"]["below_top"] == ["leader: truly"] * 11 + ["leader: unknown"] * 4
     assert (tmp_path / "highway_travel_time.md").read_text().startswith("# Table 4's highway")
