@@ -385,9 +385,9 @@ class IntervalGroup:
         """
         index = self.actions(list(actions))
         key = (state, tuple(int(a) for a in index))
-        if self._rollout is not None and self._rollout_key is not None and state is self._rollout_key[0]:
-            if key[1] == self._rollout_key[1]:
-                return self._rollout
+        cached = self._rollout_key
+        if self._rollout is not None and cached is not None and cached[0] is state and cached[1] == key[1]:
+            return self._rollout
         z = self.state_z(state)
         M, p, S, n = self.size, self.p, self.substeps, len(index)
         lower = np.empty((M, n * S + 1, p))
