@@ -93,6 +93,16 @@ REACH_SENSITIVITY = (2.5, 10.0)
 SITUATIONS = ("free", "behind a leader", "sideways")
 #: Why FASTER was not taken at a decision leaving the target below the top (`below_top_decisions`): the owner of
 #: the box FASTER held may meet first, and whether its true rectangle would have been met too (`_truly_met`).
+#: Why robust did not overtake a leader whose box blocks FASTER (`_overtake`).
+OVERTAKE_VERDICTS = (
+    ("clear",)
+    + tuple(
+        f"{k}: {m}"
+        for k in ("target lane", "leader", "own lane, behind", "third lane")
+        for m in ("truly", "box only", "unknown")
+    )
+    + ("road edge", "no side lane")
+)
 BELOW_TOP_VERDICTS = tuple(
     f"{kind}: {met}" for kind in ("leader", "ahead, other lane", "behind") for met in ("truly", "box only", "unknown")
 ) + ("road edge", "clear")
@@ -233,20 +243,21 @@ def method_facts(trace: Mapping[str, np.ndarray], goal: float) -> dict:
     return facts
 
 
-def below_top_decisions(world: RoadWorld, record: EpisodeRecord, plans: Sequence) -> list[str]:
+def below_top_decisions(world: RoadWorld, record: EpisodeRecord, plans: Sequence) -> tuple[list[str], list[str]]:
     """Per robust decision that leaves its target below `V_TOP`: why FASTER was not taken (module docstring).
 
     ``plans`` are the episode's ``(model, root, decision)`` (`failures.RecordingPlanner`),
     one per decision. Returns one verdict per such decision (`BELOW_TOP_VERDICTS`):
     ``"leader"``, ``"ahead, other lane"`` or ``"behind"`` (the owner of the first box
     FASTER held may meet within the forecast), with whether its true rectangle would have
-    been met (`_truly_met`); ``"road edge"``; or ``"clear"``.
+    been met (`_truly_met`); ``"road edge"``; or ``"clear"``. And, for each such decision
+    whose FASTER meets its leader's box first, why it did not overtake (`_overtake`).
     """
     change = {name: speed for name, speed, _ in HIGHWAY_ACTIONS}
     horizon = road_planning.FORECAST_STEPS
     top = len(HIGHWAY_TARGET_SPEEDS) - 1
     by_step = {int(root.time): (model, root) for model, root, _ in plans}
-    verdicts = []
+    verdicts, overtakes = [], []
     for decision in record.extra["decisions"]:
         model, root = by_step[int(decision["step"])]
         if min(max(root.level + change[decision["action"]], 0), top) == top:
@@ -270,14 +281,56 @@ def below_top_decisions(world: RoadWorld, record: EpisodeRecord, plans: Sequence
             kind = "behind"
         else:
             kind = "leader" if lanes[0] == lanes[1] >= 0 else "ahead, other lane"
-        verdicts.append(f"{kind}: {_truly_met(world, model, root, faster, horizon, agent)}")
-    return verdicts
+        verdicts.append(f"{kind}: {_truly_met(world, model, root, [faster], horizon, agent)}")
+        if kind == "leader":
+            overtakes.append(_overtake(world, model, root, faster, horizon))
+    return verdicts, overtakes
 
 
-def _truly_met(world: RoadWorld, model, root, action: int, horizon: int, agent: int) -> str:
-    """Whether ``action`` held from ``root`` would have met ``agent``'s true rectangle (its recorded future).
+def _overtake(world: RoadWorld, model, root, faster: int, horizon: int) -> str:
+    """Why robust did not overtake a leader that blocks FASTER: a lane change then FASTER, probed on each side.
 
-    The ego's held states are the model's own (`BicycleModel.predict`); the other
+    Each side with a lane (LANE_LEFT or LANE_RIGHT, then FASTER held) is tested on the
+    decision's boxes for any ego (`BicycleModel.first_possible_collision`: a path that
+    leaves its lane is scored on ``reward``). ``"clear"`` if a side is clear over the
+    forecast (the tree did not overtake for its value); ``"no side lane"``; else, on the
+    side that stays clear longest, the owner of the first box met (``"target lane"``: a
+    vehicle in the lane changed into, at the decision; ``"leader"``; ``"own lane,
+    behind"``; ``"third lane"``: one that may change into the target lane), with
+    whether its true rectangle would have been met (`_truly_met`), or ``"road edge"``.
+    """
+    found = []
+    for side in ("LANE_LEFT", "LANE_RIGHT"):
+        action = model.action_names.index(side)
+        target = model.predict(root, action)[2].lane
+        if target == root.lane:  # no lane on that side
+            continue
+        plan = [action, faster]
+        met = failures._first_obstacle(
+            world, model, root, plan, horizon, model.reward.obstacles, model.reward.time_offset
+        )
+        if met is None:
+            return "clear"
+        found.append((met[0], target, plan, met[1]))
+    if not found:
+        return "no side lane"
+    _, target, plan, agent = max(found, key=lambda f: f[0])
+    if agent < 0:
+        return "road edge"
+    lanes, s, _ = _frenet(world, world.history[int(root.time)][0][[0, agent], :2])
+    if lanes[1] == target:
+        kind = "target lane"
+    elif lanes[1] == lanes[0]:
+        kind = "leader" if s[1] > s[0] else "own lane, behind"
+    else:
+        kind = "third lane"
+    return f"{kind}: {_truly_met(world, model, root, plan, horizon, agent)}"
+
+
+def _truly_met(world: RoadWorld, model, root, plan: Sequence[int], horizon: int, agent: int) -> str:
+    """Whether ``plan`` (its last action held) from ``root`` would have met ``agent``'s true rectangle.
+
+    The ego's states are the model's own (`BicycleModel.predict`); the other
     vehicle's are the recorded ones, so this is a counterfactual only in the ego's path:
     ``"truly"`` if the two rectangles' boxes overlap at a sub-step within the horizon,
     ``"box only"`` if not, ``"unknown"`` if the episode ended before the horizon without
@@ -287,7 +340,7 @@ def _truly_met(world: RoadWorld, model, root, action: int, horizon: int, agent: 
     t0 = int(root.time)
     state, held = root, []
     while sum(len(h) for h in held) < horizon:
-        states, _, state = model.predict(state, action)
+        states, _, state = model.predict(state, plan[min(len(held), len(plan) - 1)])
         held.append(states)
     ego = np.concatenate(held)[:horizon]
     steps = min(horizon, len(world.history) - 1 - t0)
@@ -312,7 +365,8 @@ def episode(seed: int, rows: Mapping[str, Mapping[str, str]]) -> dict:
             road_planning.RobustTreePlanner = failures.RobustTreePlanner
         facts[method] = {"outcome": record.outcome, "recorded_time_s": float(record.time_s)}
         if method == "robust":
-            facts[method]["below_top"] = below_top_decisions(world, record, failures.RecordingPlanner.plans)
+            verdicts, overtakes = below_top_decisions(world, record, failures.RecordingPlanner.plans)
+            facts[method]["below_top"], facts[method]["overtake"] = verdicts, overtakes
             facts[method]["decisions"] = int(record.decisions)
         failures.RecordingPlanner.plans = []
         if record.outcome != "goal":  # a reference that collided has no time at the goal: no split
@@ -381,6 +435,8 @@ def summarise(episodes: Sequence[Mapping]) -> dict:
         "below_top": len(verdicts),
         "verdicts": {v: verdicts.count(v) for v in BELOW_TOP_VERDICTS},
     }
+    overtakes = [v for e in episodes for v in e["robust"]["overtake"]]
+    below_top["overtake"] = {v: overtakes.count(v) for v in OVERTAKE_VERDICTS}
     return {"split": split, "methods": methods, "below_top": below_top}
 
 
@@ -441,6 +497,17 @@ def markdown(episodes: Sequence[Mapping], summary: Mapping, meta: Mapping) -> st
         "| " + " | ".join(BELOW_TOP_VERDICTS) + " |",
         "|" + "---:|" * len(BELOW_TOP_VERDICTS),
         "| " + " | ".join(str(counts["verdicts"][v]) for v in BELOW_TOP_VERDICTS) + " |",
+        "",
+        f"And why robust did not overtake at the {sum(counts['overtake'].values())} of them whose FASTER meets the "
+        "leader's box first: a lane change then FASTER held, probed on each side with a lane on the decision's boxes "
+        "for any ego; clear on a side (the tree did not overtake for its value), or, on the side that stays clear "
+        "longest, the first box met: a vehicle's in the target lane, the leader's, one's behind in the ego's lane, "
+        "or one's in the third lane (which may change into the target lane), with whether the true rectangle would "
+        "have been met:",
+        "",
+        "| " + " | ".join(OVERTAKE_VERDICTS) + " |",
+        "|" + "---:|" * len(OVERTAKE_VERDICTS),
+        "| " + " | ".join(str(counts["overtake"][v]) for v in OVERTAKE_VERDICTS) + " |",
     ]
     lines += [
         "",

@@ -110,12 +110,12 @@ def test_truly_met_reads_the_recorded_future_of_the_vehicle_the_box_belongs_to(b
         return types.SimpleNamespace(scenario=types.SimpleNamespace(vehicle=VehicleParameters()), history=history)
 
     # a leader standing 20 m ahead: met within 10 sub-steps (front at 2.5 + 3k reaches its rear at 17.5 m)
-    assert module._truly_met(world(20.0, 0.0, 10), _Held(), root, 3, 10, 1) == "truly"
+    assert module._truly_met(world(20.0, 0.0, 10), _Held(), root, [3], 10, 1) == "truly"
     # one 20 m ahead at the ego's speed is never met; with a shorter recorded future the answer is unknown
-    assert module._truly_met(world(20.0, 30.0, 10), _Held(), root, 3, 10, 1) == "box only"
-    assert module._truly_met(world(20.0, 30.0, 6), _Held(), root, 3, 10, 1) == "unknown"
+    assert module._truly_met(world(20.0, 30.0, 10), _Held(), root, [3], 10, 1) == "box only"
+    assert module._truly_met(world(20.0, 30.0, 6), _Held(), root, [3], 10, 1) == "unknown"
     # one standing 40 m ahead is met only after 10 sub-steps: not within the horizon
-    assert module._truly_met(world(40.0, 0.0, 20), _Held(), root, 3, 10, 1) == "box only"
+    assert module._truly_met(world(40.0, 0.0, 20), _Held(), root, [3], 10, 1) == "box only"
 
 
 def test_the_situations_and_lane_changes(benchmark_script):
@@ -172,4 +172,9 @@ def test_seed_5_re_run_as_recorded_loses_its_time_behind_a_leader(tmp_path):
     # box; in the first 11 the true leader would have been met too, the other 4 look past the episode's end
     assert episode["robust"]["decisions"] == 21
     assert episode["robust"]["below_top"] == ["leader: truly"] * 11 + ["leader: unknown"] * 4
+    # and at each, changing into the left lane (the ego drives in the right one) may meet first the box of a
+    # vehicle two lanes over that may change into it (in truth it did not, where the record tells), later the
+    # leader's
+    overtake = ["third lane: box only"] * 5 + ["third lane: unknown"] * 4 + ["leader: unknown"] * 6
+    assert episode["robust"]["overtake"] == overtake
     assert (tmp_path / "highway_travel_time.md").read_text().startswith("# Table 4's highway")
