@@ -440,6 +440,15 @@ def summarise(episodes: Sequence[Mapping]) -> dict:
     return {"split": split, "methods": methods, "below_top": below_top}
 
 
+def _count_table(names: Sequence[str], counts: Mapping[str, int]) -> list[str]:
+    """A markdown table of one row: a column per name, its count."""
+    return [
+        "| " + " | ".join(names) + " |",
+        "|" + "---:|" * len(names),
+        "| " + " | ".join(str(counts[n]) for n in names) + " |",
+    ]
+
+
 def markdown(episodes: Sequence[Mapping], summary: Mapping, meta: Mapping) -> str:
     """The summary tables, then one row per episode."""
     r0 = str(REACH_S)
@@ -494,9 +503,7 @@ def markdown(episodes: Sequence[Mapping], summary: Mapping, meta: Mapping) -> st
         "another lane, to one behind, or is the road's edge) or is clear (the tree preferred the slower target for "
         "its value):",
         "",
-        "| " + " | ".join(BELOW_TOP_VERDICTS) + " |",
-        "|" + "---:|" * len(BELOW_TOP_VERDICTS),
-        "| " + " | ".join(str(counts["verdicts"][v]) for v in BELOW_TOP_VERDICTS) + " |",
+        *_count_table(BELOW_TOP_VERDICTS, counts["verdicts"]),
         "",
         f"And why robust did not overtake at the {sum(counts['overtake'].values())} of them whose FASTER meets the "
         "leader's box first: a lane change then FASTER held, probed on each side with a lane on the decision's boxes "
@@ -505,9 +512,7 @@ def markdown(episodes: Sequence[Mapping], summary: Mapping, meta: Mapping) -> st
         "or one's in the third lane (which may change into the target lane), with whether the true rectangle would "
         "have been met:",
         "",
-        "| " + " | ".join(OVERTAKE_VERDICTS) + " |",
-        "|" + "---:|" * len(OVERTAKE_VERDICTS),
-        "| " + " | ".join(str(counts["overtake"][v]) for v in OVERTAKE_VERDICTS) + " |",
+        *_count_table(OVERTAKE_VERDICTS, counts["overtake"]),
     ]
     lines += [
         "",
