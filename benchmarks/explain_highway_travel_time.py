@@ -71,7 +71,7 @@ import explain_table4_failures as failures  # noqa: E402  (a script beside this 
 from minimaxplan.analysis import road_planning  # noqa: E402
 from minimaxplan.analysis.episode import EpisodeRecord, LoopConfig  # noqa: E402
 from minimaxplan.planners.bicycle_model import HIGHWAY_ACTIONS, HIGHWAY_TARGET_SPEEDS  # noqa: E402
-from minimaxplan.scenarios.road_world import RoadWorld  # noqa: E402
+from minimaxplan.scenarios.road_world import HighwayScenario, RoadWorld  # noqa: E402
 from minimaxplan.scenarios.vehicles import vehicle_corners  # noqa: E402
 
 RECORDS = failures.RECORDS
@@ -87,7 +87,7 @@ LATERAL_SPEED = 0.3
 #: The highway's top target speed, m/s (`HIGHWAY_TARGET_SPEEDS`).
 V_TOP = max(HIGHWAY_TARGET_SPEEDS)
 #: A leader the ego would reach within this time at `V_TOP` constrains it, s: the planner's forecast.
-REACH_S = road_planning.FORECAST_STEPS * 0.1
+REACH_S = road_planning.FORECAST_STEPS * HighwayScenario().dt
 #: The other reach times the split is given for, s.
 REACH_SENSITIVITY = (2.5, 10.0)
 SITUATIONS = ("free", "behind a leader", "sideways")
@@ -169,6 +169,12 @@ def lane_changes(trace: Mapping[str, np.ndarray]) -> int:
     return int(np.count_nonzero(lanes[1:] != lanes[:-1]))
 
 
+def _level_after(level: int, action: str) -> int:
+    """The speed level after the highway action named ``action`` (`HIGHWAY_ACTIONS`), clipped to the levels."""
+    change = {name: speed for name, speed, _ in HIGHWAY_ACTIONS}[action]
+    return min(max(level + change, 0), len(HIGHWAY_TARGET_SPEEDS) - 1)
+
+
 def target_speeds(record: EpisodeRecord, initial_speed: float, substeps: int) -> np.ndarray:
     """Per sub-step (0 .. the last), the target speed a tree method's executed actions set, m/s.
 
@@ -176,14 +182,13 @@ def target_speeds(record: EpisodeRecord, initial_speed: float, substeps: int) ->
     methods start) and moves by each decision's action (`HIGHWAY_ACTIONS`), clipped to the
     levels; the decision at sub-step t governs sub-steps t .. t + substeps - 1.
     """
-    change = {name: speed for name, speed, _ in HIGHWAY_ACTIONS}
     speeds = np.asarray(HIGHWAY_TARGET_SPEEDS)
     level = int(np.argmin(np.abs(speeds - initial_speed)))
     decisions = record.extra["decisions"]
     last = decisions[-1]["step"] + substeps
     target = np.full(last + 1, np.nan)
     for decision in decisions:
-        level = min(max(level + change[decision["action"]], 0), len(speeds) - 1)
+        level = _level_after(level, decision["action"])
         target[decision["step"] : decision["step"] + substeps] = speeds[level]
     target[last] = speeds[level]
     return target
@@ -253,20 +258,21 @@ def below_top_decisions(world: RoadWorld, record: EpisodeRecord, plans: Sequence
     been met (`_truly_met`); ``"road edge"``; or ``"clear"``. And, for each such decision
     whose FASTER meets its leader's box first, why it did not overtake (`_overtake`).
     """
-    change = {name: speed for name, speed, _ in HIGHWAY_ACTIONS}
     horizon = road_planning.FORECAST_STEPS
     top = len(HIGHWAY_TARGET_SPEEDS) - 1
+    others = len(world.traffic.states) - 1
     by_step = {int(root.time): (model, root) for model, root, _ in plans}
     verdicts, overtakes = [], []
     for decision in record.extra["decisions"]:
         model, root = by_step[int(decision["step"])]
-        if min(max(root.level + change[decision["action"]], 0), top) == top:
+        if _level_after(root.level, decision["action"]) == top:
             continue
         faster = model.action_names.index("FASTER")  # the road methods order their actions (conservative_first)
         reward = model.lane_keeping_reward if model.lane_keeping_reward is not None else model.reward
         table = reward.obstacles
-        if table.shape[1] != len(world.traffic.states) - 1:
-            raise RuntimeError(f"a table of {table.shape[1]} vehicles for {len(world.traffic.states) - 1} others")
+        for boxes in (table, model.reward.obstacles):  # both are read by vehicle index (`_overtake` the second)
+            if boxes.shape[1] != others:
+                raise RuntimeError(f"an obstacle table of {boxes.shape[1]} vehicles for {others} other vehicles")
         met = failures._first_obstacle(world, model, root, [faster], horizon, table, reward.time_offset)
         if met is None:
             verdicts.append("clear")
@@ -357,18 +363,12 @@ def episode(seed: int, rows: Mapping[str, Mapping[str, str]]) -> dict:
     config = LoopConfig()
     traces, facts, start, goal = {}, {}, 0.0, 0.0
     for method in METHODS:
-        road_planning.RobustTreePlanner = failures.RecordingPlanner
-        failures.RecordingPlanner.plans = []
-        try:
-            record, world = failures.rerun("highway", method, seed, config, rows[method])
-        finally:
-            road_planning.RobustTreePlanner = failures.RobustTreePlanner
+        record, world, plans = failures.rerun("highway", method, seed, config, rows[method])
         facts[method] = {"outcome": record.outcome, "recorded_time_s": float(record.time_s)}
         if method == "robust":
-            verdicts, overtakes = below_top_decisions(world, record, failures.RecordingPlanner.plans)
+            verdicts, overtakes = below_top_decisions(world, record, plans)
             facts[method]["below_top"], facts[method]["overtake"] = verdicts, overtakes
             facts[method]["decisions"] = int(record.decisions)
-        failures.RecordingPlanner.plans = []
         if record.outcome != "goal":  # a reference that collided has no time at the goal: no split
             if method == "robust":
                 raise RuntimeError(f"highway robust seed {seed}: outcome {record.outcome}, the split needs its goal")

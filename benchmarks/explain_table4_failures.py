@@ -416,15 +416,23 @@ def explain_timeout(world: RecordingWorld) -> dict:
 
 
 def rerun(kind: str, method: str, seed: int, config: LoopConfig, expected: Mapping[str, str]):
-    """Re-run one recorded episode in a `RecordingWorld`; check it is the record; return ``(record, world)``.
+    """Re-run one recorded episode in a `RecordingWorld`; check it is the record; return ``(record, world, plans)``.
 
-    Raises RuntimeError if the outcome, time, discounted return or number of decisions
-    differs from ``expected`` (a row of the records' ``episodes.csv``).
+    ``plans`` are the tree searches' ``(model, root, decision)``, one per plan
+    (`RecordingPlanner`; empty for a method without tree search). Raises RuntimeError if
+    the outcome, time, discounted return or number of decisions differs from ``expected``
+    (a row of the records' ``episodes.csv``).
     """
     factory = functools.partial(RecordingScenario, kind)
     scenario = factory()
     job = EpisodeJob(kind, method, seed, config, factory, method_factory(method, scenario, config))
-    record = run_job(job)
+    road_planning.RobustTreePlanner = RecordingPlanner
+    RecordingPlanner.plans = []
+    try:
+        record = run_job(job)
+    finally:
+        road_planning.RobustTreePlanner = RobustTreePlanner
+        plans, RecordingPlanner.plans = RecordingPlanner.plans, []
     got = {
         "outcome": record.outcome,
         "time_s": float(record.time_s),
@@ -440,7 +448,7 @@ def rerun(kind: str, method: str, seed: int, config: LoopConfig, expected: Mappi
     world = _WORLDS.pop((kind, int(seed)))
     if got != want:
         raise RuntimeError(f"{kind} {method} seed {seed}: the re-run {got} is not the record {want}")
-    return record, world
+    return record, world, plans
 
 
 def explain(kind: str, method: str, seed: int, config: LoopConfig, expected: Mapping[str, str]) -> dict:
@@ -455,18 +463,14 @@ def explain(kind: str, method: str, seed: int, config: LoopConfig, expected: Map
 
     began = time.perf_counter()
     road_planning.point_forecast = keep
-    road_planning.RobustTreePlanner = RecordingPlanner
-    RecordingPlanner.plans = []
     try:
-        record, world = rerun(kind, method, seed, config, expected)
+        record, world, plans = rerun(kind, method, seed, config, expected)
     finally:
         road_planning.point_forecast = point_forecast
-        road_planning.RobustTreePlanner = RobustTreePlanner
     wall = time.perf_counter() - began
     facts = explain_collision(world, forecasts) if record.outcome == "collision" else explain_timeout(world)
     if record.outcome == "collision":
-        facts.update(_plan_facts(world, RecordingPlanner.plans, forecasts, facts["other"]))
-    RecordingPlanner.plans = []
+        facts.update(_plan_facts(world, plans, forecasts, facts["other"]))
     return {"scenario": kind, "method": method, "seed": seed, "outcome": record.outcome, "wall_s": wall, **facts}
 
 
